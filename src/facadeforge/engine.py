@@ -1,0 +1,244 @@
+"""Public engine API: load CGA rules and derive them on initial shapes."""
+
+from __future__ import annotations
+
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, RuleError
+from .geometry.assets import AssetResolver
+from .geometry.footprints import Footprint, load_footprints, lot
+from .geometry.mesh import Mesh
+from .grammar.interpreter import Derivation, Limits
+from .grammar.module import RuleSet, link
+from .grammar.state import ShapeState
+from .model.model import Model
+from .model.scope import Scope
+
+MAX_RULE_BYTES = 8 * 1024 * 1024
+
+
+@dataclass
+class Rules:
+    """A loaded rule set with its asset resolver (what ``derive`` needs)."""
+
+    ruleset: RuleSet
+    assets: AssetResolver
+    source: str
+    package: object = None  # RulePackage when loaded from an .rpk
+
+
+def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None = None) -> Rules:
+    """Load a ``.cga`` file, a ``.rpk`` rule package or CGA text.
+
+    Parameters
+    ----------
+    rules : str or Path
+        Path to ``.cga``/``.rpk``, or CGA source text (when it is not an existing path).
+    rule : str, optional
+        Main rule file inside an ``.rpk``.
+    assets : str or Path, optional
+        Asset folder; relative asset paths resolve against it (and the rule file's folder).
+    start : str, optional
+        Start rule (default: ``@StartRule``, else the first rule).
+    """
+    package = None
+    text_source = isinstance(rules, str) and ("\n" in rules or "-->" in rules) and not Path(rules).suffix in (".cga", ".rpk")
+    if text_source:
+        main_text, main_path, base = rules, "<rules>", None
+    else:
+        p = Path(rules)
+        if not p.is_file():
+            raise InputError(f"rule file '{rules}' does not exist")
+        if p.suffix.lower() == ".rpk":
+            from .grammar.rulepackage import open_rpk
+
+            package = open_rpk(p, rule)
+            p = package.main
+        elif p.suffix.lower() != ".cga":
+            raise InputError(f"'{rules}' is neither a .cga file nor a .rpk rule package")
+        if p.stat().st_size > MAX_RULE_BYTES:
+            raise InputError(f"rule file '{p}' is larger than 8 MiB")
+        main_text = p.read_text(encoding="utf-8", errors="replace")
+        main_path, base = str(p), p.parent
+    roots = []
+    if assets is not None:
+        a = Path(assets)
+        if not a.is_dir():
+            raise InputError(f"asset folder '{assets}' does not exist")
+        roots.append(a)
+    if package is not None:
+        roots.append(package.root)
+    elif base is not None:
+        roots.append(base)
+    import_roots = [package.root] if package is not None else ([base] if base else [])
+
+    def read(importer: str, name: str):
+        if package is not None and name.startswith("/") and name in package.resolve_map:
+            target = package.resolve_map[name]
+        else:
+            importer_dir = Path(importer).parent if importer != "<rules>" else Path.cwd()
+            target = (importer_dir / name.lstrip("/")).resolve() if not name.startswith("/") else None
+            if target is None or not target.is_file():
+                for r in import_roots:
+                    parts = [x for x in name.split("/") if x]
+                    for k in range(len(parts)):
+                        cand = (Path(r) / "/".join(parts[k:])).resolve()
+                        if cand.is_file():
+                            target = cand
+                            break
+                    if target is not None and target.is_file():
+                        break
+        if target is None or not target.is_file():
+            raise OSError(f"file not found: {name}")
+        allowed = [Path(r).resolve() for r in import_roots]
+        if allowed and not any(r in target.parents for r in allowed):
+            raise OSError(f"'{name}' lies outside the rule folder")
+        return target.read_text(encoding="utf-8", errors="replace"), str(target)
+
+    main = link(main_text, main_path, read)
+    ruleset = RuleSet(main, start, roots[0] if roots else None)
+    from .grammar.check import check_rules
+
+    check_rules(ruleset)
+    resolver = AssetResolver(roots, package.resolve_map if package else None)
+    return Rules(ruleset, resolver, main_path, package)
+
+
+def initial_state(fp: Footprint) -> ShapeState:
+    """Initial shape: scope x along the first edge, y along the polygon normal (up)."""
+    poly = fp.polygon
+    mesh = Mesh.from_polygons([poly])
+    n = mesh.face_normals()[0]
+    x = None
+    for k in range(len(poly)):
+        e = poly[(k + 1) % len(poly)] - poly[k]
+        if np.linalg.norm(e) > 1e-9:
+            x = e / np.linalg.norm(e)
+            break
+    if x is None:
+        raise InputError(f"footprint '{fp.name}' is degenerate")
+    z = np.cross(x, n)
+    scope = Scope(poly[0], np.column_stack([x, n, z]), np.zeros(3))
+    scope.fit_to(poly)
+    return ShapeState(scope, mesh)
+
+
+def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, strict=False,
+                     start=None, limits: Limits | None = None) -> Model:
+    """Derive the rules on one footprint."""
+    t0 = time.perf_counter()
+    merged = {**{k: v for k, v in fp.attributes.items() if not k.startswith("_")}, **(attrs or {})}
+    known = {a.name for a in rules.ruleset.main.ast.attrs}
+    overrides = {k: v for k, v in merged.items() if k in known or "." in k or k in (attrs or {})}
+    for k in (attrs or {}):
+        if "." not in k and k not in known:
+            raise RuleError(f"--attr {k}: the rules have no attribute '{k}'"
+                            + _suggest(k, known))
+    d = Derivation(rules.ruleset, initial_state(fp), fp.name, overrides, seed, strict,
+                   rules.assets, limits, start)
+    model = d.run()
+    model.attributes.update({k: v for k, v in fp.attributes.items()})
+    model.attributes["seconds"] = time.perf_counter() - t0
+    model.attributes["shapes"] = d.shape_count + 1
+    model.attributes["prints"] = list(d.prints)
+    return model
+
+
+def _suggest(name, known) -> str:
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+# -- parallel derivation ------------------------------------------------------------------------
+
+_WORKER: dict = {}
+
+
+def _worker_init(spec):
+    _WORKER["rules"] = load_rules(spec["rules"], rule=spec["rule"], assets=spec["assets"],
+                                  start=spec["start"])
+    _WORKER["spec"] = spec
+
+
+def _worker_run(fp: Footprint) -> Model:
+    s = _WORKER["spec"]
+    return derive_footprint(_WORKER["rules"], fp, attrs=s["attrs"], seed=s["seed"],
+                            strict=s["strict"], start=s["start"], limits=s["limits"])
+
+
+def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | None = None,
+           attrs: dict | None = None, assets=None, seed: int = 0, strict: bool = False,
+           rule: str | None = None, workers: int | None = None,
+           limits: Limits | None = None) -> list[Model]:
+    """Derive CGA rules on footprints.
+
+    Parameters
+    ----------
+    rules : str, Path or Rules
+        ``.cga`` file, ``.rpk`` package, CGA text, or an already loaded ``Rules``.
+    footprints : str, Path or list of Footprint, optional
+        A GeoJSON/OBJ file or footprints; or give ``lot_size`` (``"20x12"``).
+    workers : int, optional
+        Processes for many footprints (default: all cores when there are 4 or more footprints).
+
+    Returns
+    -------
+    list of Model
+        One per footprint, in input order.
+    """
+    if footprints is None and lot_size is None:
+        raise InputError("give footprints (--footprint FILE) or a lot size (--lot WxD)")
+    if isinstance(footprints, (str, Path)):
+        fps = load_footprints(footprints)
+    elif footprints is None:
+        fps = lot(lot_size)
+    else:
+        fps = list(footprints)
+    loaded = rules if isinstance(rules, Rules) else load_rules(rules, rule=rule, assets=assets,
+                                                                 start=start)
+    n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
+        spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
+                "assets": str(assets) if assets else None, "start": start, "attrs": attrs,
+                "seed": seed, "strict": strict, "limits": limits}
+        chunks = max(1, len(fps) // (n_workers * 4))
+        with ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,)) as pool:
+            return list(pool.map(_worker_run, fps, chunksize=chunks))
+    return [derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
+                             limits=limits) for fp in fps]
+
+
+def stats(models: list[Model], seconds: float) -> dict:
+    """The ``--stats`` JSON object for a set of derived models."""
+    faces = tris = verts = 0
+    area = 0.0
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    report: dict[str, list] = {}
+    warnings: list[str] = []
+    shapes = 0
+    for m in models:
+        s = m.stats()
+        faces += s["faces"]
+        tris += s["triangles"]
+        verts += s["vertices"]
+        area += s["area"]
+        if s["faces"]:
+            lo = np.minimum(lo, s["bbox"][0])
+            hi = np.maximum(hi, s["bbox"][1])
+        for k, v in m.reports.items():
+            report.setdefault(k, []).extend(v)
+        warnings.extend(f"{m.name}: {w}" for w in m.warnings)
+        shapes += int(m.attributes.get("shapes", 0))
+    if not np.isfinite(lo).all():
+        lo = hi = np.zeros(3)
+    return {"shapes": shapes, "faces": faces, "triangles": tris, "vertices": verts,
+            "area": round(area, 6), "bbox": [lo.round(6).tolist(), hi.round(6).tolist()],
+            "report": report, "warnings": warnings, "seconds": round(seconds, 4)}

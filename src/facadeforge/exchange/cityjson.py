@@ -1,0 +1,468 @@
+"""CityJSON 2.0 export (LoD3 with semantic surfaces) and a reader for such files.
+
+Each :class:`~facadeforge.model.Model` becomes one ``Building`` City Object (id ``model.name``,
+``attributes`` the scalar entries of ``model.attributes``) with one ``MultiSurface`` geometry of
+level of detail ``"3"``: every polygon of every part is one surface ``[[ring]]``.
+
+Coordinates
+    CGA (x, y up, z) maps to CityJSON (x, −z, y): z is up and the map is a rotation, so outward
+    counter-clockwise rings stay outward counter-clockwise.  Vertices are integers with the
+    mandatory ``transform`` (``scale`` 0.001 by default: millimetres), shared between faces, and
+    an optional ``origin`` (in CityJSON axes, e.g. projected coordinates of the model's origin)
+    goes into ``translate``.
+Semantics
+    Each surface gets a Semantic Object ``{"type": ..., "facadeforge_label": label,
+    "facadeforge_symbol": symbol}``.  The type comes from :data:`DEFAULT_SEMANTIC_MAP` (only
+    standard CityJSON 2.0 Building types are used: windows, shop fronts → ``Window``; doors →
+    ``Door``; roofs → ``RoofSurface``; ground → ``GroundSurface``; every other facade element →
+    ``WallSurface``), overridable per label with the ``semantic_map`` option.  A label mapped to
+    ``None`` gets a ``null`` semantic value.
+Appearance
+    Materials go to ``appearance.materials`` (theme ``"facadeforge"``: ``diffuseColor``,
+    ``transparency``); readable textures are copied into ``textures/`` beside the file and
+    referenced with their UVs (theme ``"facadeforge"``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..geometry.mesh import Mesh
+from ..model.labels import Labels, label_for_name
+from ..model.model import Material, Model, Part
+from ._common import (
+    Staging,
+    as_models,
+    corner_uvs,
+    face_corners,
+    image_extension,
+    jsonable,
+    previous_corner,
+    read_texture,
+    safe_name,
+    scalar_attributes,
+)
+from .errors import ExportError, LoadError
+
+__all__ = ["DEFAULT_SEMANTIC_MAP", "SEMANTIC_TYPES", "export_cityjson", "load_cityjson"]
+
+THEME = "facadeforge"
+
+#: Semantic surface types CityJSON 2.0 defines for buildings.
+SEMANTIC_TYPES = frozenset({
+    "RoofSurface", "GroundSurface", "WallSurface", "ClosureSurface", "OuterCeilingSurface",
+    "OuterFloorSurface", "Window", "Door", "InteriorWallSurface", "CeilingSurface",
+    "FloorSurface",
+})
+
+#: Canonical label → CityJSON semantic surface type (``None``: no semantics).
+DEFAULT_SEMANTIC_MAP: dict[str, str | None] = {
+    Labels.WALL.value: "WallSurface",
+    Labels.WINDOW.value: "Window",
+    Labels.DOOR.value: "Door",
+    Labels.SHOP.value: "Window",
+    Labels.ROOF.value: "RoofSurface",
+    Labels.GROUND.value: "GroundSurface",
+    Labels.BALCONY.value: "WallSurface",
+    Labels.CORNICE.value: "WallSurface",
+    Labels.SILL.value: "WallSurface",
+    Labels.BLIND.value: "WallSurface",
+    Labels.DECO.value: "WallSurface",
+    Labels.MOLDING.value: "WallSurface",
+    Labels.PILLAR.value: "WallSurface",
+    Labels.VEGETATION.value: "WallSurface",
+    Labels.OTHER.value: "WallSurface",
+    Labels.BACKGROUND.value: "WallSurface",
+    Labels.SKY.value: "WallSurface",
+    "": "WallSurface",
+}
+
+LODS = frozenset({"0", "0.0", "0.1", "0.2", "0.3", "1", "1.0", "1.1", "1.2", "1.3",
+                  "2", "2.0", "2.1", "2.2", "2.3", "3", "3.0", "3.1", "3.2", "3.3"})
+
+# CGA (x, y, z) → CityJSON (x, -z, y): a rotation (determinant +1).
+_TO_CJ = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+
+
+# -- export -----------------------------------------------------------------------------------
+
+def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
+                    semantic_map: dict[str, str | None] | None = None,
+                    reference_system: str | int | None = None, lod: str = "3",
+                    scale: float = 0.001, origin: Sequence[float] = (0.0, 0.0, 0.0),
+                    metadata: dict | None = None, textures: bool = True) -> list[Path]:
+    """Write models as a CityJSON 2.0 file with LoD3 semantic surfaces.
+
+    Parameters
+    ----------
+    models : Model or sequence of Model
+        One ``Building`` per model.
+    path : path-like
+        Destination (``.city.json``); written atomically together with copied textures.
+    semantic_map : dict, optional
+        Label → semantic surface type, merged over :data:`DEFAULT_SEMANTIC_MAP`.  Values are
+        standard types, Extension types (``"+Name"``) or ``None``.
+    reference_system : str or int, optional
+        CRS of the coordinates: an EPSG code (``7415``, ``"EPSG:7415"``) or an OGC URL; goes to
+        ``metadata.referenceSystem``.
+    lod : str
+        Level of detail of the geometries (a CityGML/TU Delft LoD such as ``"3"`` or ``"2.2"``).
+    scale : float
+        Quantisation step of the integer vertices (``transform.scale``).
+    origin : (3,) float
+        Offset added to every vertex, in CityJSON axes (x east, y north, z up).
+    metadata : dict, optional
+        Extra ``metadata`` members (``title``, ``identifier``, ``pointOfContact``…).
+    textures : bool
+        Copy readable textures and write texture coordinates.
+
+    Returns
+    -------
+    list of Path
+        The CityJSON file and every copied texture.
+    """
+    models = as_models(models)
+    types = _semantic_map(semantic_map)
+    if str(lod) not in LODS:
+        raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
+    if not scale > 0:
+        raise ExportError(f"scale must be positive, got {scale}")
+    writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
+    doc = writer.document(models, _metadata(reference_system, metadata))
+    out = Path(path)
+    with Staging() as stage:
+        for relative, data in writer.texture_files.items():
+            stage.write_bytes(out.parent / relative, data)
+        stage.write_text(out, json.dumps(doc, separators=(",", ":")))
+    return [out, *(out.parent / r for r in writer.texture_files)]
+
+
+def _semantic_map(overrides: dict | None) -> dict[str, str | None]:
+    types = dict(DEFAULT_SEMANTIC_MAP)
+    for label, kind in (overrides or {}).items():
+        if kind is not None and kind not in SEMANTIC_TYPES and not str(kind).startswith("+"):
+            raise ExportError(f"semantic_map[{label!r}] = {kind!r} is not a CityJSON semantic "
+                              f"surface type ({', '.join(sorted(SEMANTIC_TYPES))}, or '+Ext')")
+        types[str(label)] = kind
+    return types
+
+
+def _metadata(reference_system: str | int | None, extra: dict | None) -> dict:
+    meta = dict(jsonable(extra or {}))
+    if reference_system is not None:
+        meta["referenceSystem"] = _crs_url(reference_system)
+    return meta
+
+
+def _crs_url(crs: str | int) -> str:
+    text = str(crs).strip()
+    if text.lower().startswith(("http://", "https://")):
+        return text
+    code = text.split(":")[-1]
+    if not code.isdigit():
+        raise ExportError(f"reference_system {crs!r} is neither an EPSG code nor a URL")
+    return f"https://www.opengis.net/def/crs/EPSG/0/{code}"
+
+
+class _Faces:
+    """Every face of a model flattened: corners in CityJSON axes and per-face records."""
+
+    def __init__(self, model: Model, origin: np.ndarray) -> None:
+        pts, uvs, has, offsets, owner = [], [], [], [0], []
+        self.parts = [p for p in model.parts if p.mesh.n_faces]
+        for index, part in enumerate(self.parts):
+            corners, starts = face_corners(part.mesh)
+            uv, has_uv = corner_uvs(part.mesh)
+            pts.append(part.mesh.vertices[corners] @ _TO_CJ.T + origin)
+            uvs.append(uv)
+            has.append(np.full(len(starts) - 1, has_uv))
+            offsets.extend((starts[1:] + offsets[-1]).tolist())
+            owner.append(np.full(len(starts) - 1, index))
+        self.points = np.concatenate(pts) if pts else np.zeros((0, 3))
+        self.uv = np.concatenate(uvs) if uvs else np.zeros((0, 2))
+        self.has_uv = np.concatenate(has) if has else np.zeros(0, bool)
+        self.offsets = np.asarray(offsets, np.int64)
+        self.part_of = np.concatenate(owner) if owner else np.zeros(0, np.int64)
+
+
+class _CityJsonWriter:
+    def __init__(self, types: dict, lod: str, scale: float, origin: np.ndarray,
+                 textures: bool) -> None:
+        self.types, self.lod, self.scale, self.origin = types, lod, scale, origin
+        self.with_textures = textures
+        self.materials: dict[tuple, int] = {}
+        self.material_list: list[dict] = []
+        self.textures: dict[str, int | None] = {}
+        self.texture_list: list[dict] = []
+        self.texture_files: dict[str, bytes] = {}
+        self.uv_list: list[np.ndarray] = []
+        self.uv_count = 0
+
+    def document(self, models: list[Model], metadata: dict) -> dict:
+        faces = [_Faces(m, self.origin) for m in models]
+        allpts = np.concatenate([f.points for f in faces])
+        translate = allpts.min(axis=0) if len(allpts) else self.origin
+        ints = np.rint((allpts - translate) / self.scale).astype(np.int64)
+        uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        objects, start = {}, 0
+        for model, f in zip(models, faces):
+            ids = inverse[start:start + len(f.points)]
+            start += len(f.points)
+            objects[_unique_id(model.name, objects)] = self._building(model, f, ids)
+        if len(allpts):
+            metadata = {"geographicalExtent": _extent(allpts), **metadata}
+        doc = {"type": "CityJSON", "version": "2.0",
+               "transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
+               "metadata": metadata, "CityObjects": objects, "vertices": uniq.tolist()}
+        appearance = self._appearance()
+        if appearance:
+            doc["appearance"] = appearance
+        return doc
+
+    def _building(self, model: Model, f: _Faces, vids: np.ndarray) -> dict:
+        obj: dict = {"type": "Building", "attributes": scalar_attributes(model.attributes)}
+        if len(f.points):
+            obj["geographicalExtent"] = _extent(f.points)
+            geometry = self._geometry(f, vids)
+            if geometry["boundaries"]:
+                obj["geometry"] = [geometry]
+        return obj
+
+    def _geometry(self, f: _Faces, vids: np.ndarray) -> dict:
+        keep, valid = _clean_rings(vids, f.offsets)
+        face_of = np.repeat(np.arange(len(f.offsets) - 1), np.diff(f.offsets))
+        sizes = np.bincount(face_of[keep], minlength=len(f.offsets) - 1)[valid]
+        bounds = np.concatenate([[0], np.cumsum(sizes)]).tolist()
+        flat = vids[keep].tolist()
+        rings = [[flat[a:b]] for a, b in zip(bounds[:-1], bounds[1:])]
+        owner = f.part_of[valid].tolist()
+        surfaces: dict[tuple, int] = {}
+        sem = [self._surface(p, surfaces) for p in f.parts]
+        mat = [self._material(p.material) for p in f.parts]
+        geometry = {"type": "MultiSurface", "lod": self.lod, "boundaries": rings,
+                    "semantics": {"surfaces": [dict(s) for s in surfaces],
+                                  "values": [sem[p] for p in owner]},
+                    "material": {THEME: {"values": [mat[p] for p in owner]}}}
+        textures = self._texture_values(f, owner, f.has_uv[valid], f.uv[keep], bounds)
+        if textures is not None:
+            geometry["texture"] = {THEME: {"values": textures}}
+        return geometry
+
+    def _texture_values(self, f: _Faces, owner: list[int], has_uv: np.ndarray,
+                        uv: np.ndarray, bounds: list[int]) -> list | None:
+        """Per-surface texture references ``[[tex, uv...]]`` (``[[None]]`` without texture)."""
+        tex = [self._texture_index(p.material.texture) for p in f.parts]
+        if all(t is None for t in tex):
+            return None
+        values = []
+        for i, (p, has) in enumerate(zip(owner, has_uv.tolist())):
+            if tex[p] is None or not has:
+                values.append([[None]])
+                continue
+            a, b = bounds[i], bounds[i + 1]
+            self.uv_list.append(uv[a:b])
+            values.append([[tex[p], *range(self.uv_count, self.uv_count + b - a)]])
+            self.uv_count += b - a
+        return values
+
+    def _surface(self, part: Part, surfaces: dict[tuple, int]) -> int | None:
+        kind = self.types.get(part.label, self.types.get(""))
+        if kind is None:
+            return None
+        key = (("type", kind), ("facadeforge_label", part.label),
+               ("facadeforge_symbol", part.symbol))
+        return surfaces.setdefault(key, len(surfaces))
+
+    def _material(self, mat: Material) -> int:
+        key = mat.key()
+        if key not in self.materials:
+            self.materials[key] = len(self.material_list)
+            self.material_list.append({
+                "name": mat.name, "diffuseColor": [float(c) for c in mat.color],
+                "transparency": float(1.0 - mat.opacity), "isSmooth": False})
+        return self.materials[key]
+
+    def _texture_index(self, source: str | None) -> int | None:
+        if not self.with_textures or not source:
+            return None
+        if source not in self.textures:
+            found = read_texture(source)
+            if found is None:
+                self.textures[source] = None
+            else:
+                data, mime = found
+                ext = image_extension(mime)
+                relative = f"textures/{safe_name(Path(source).stem, 'texture')}{ext}"
+                n = 1
+                while relative in self.texture_files:
+                    n += 1
+                    relative = f"textures/{safe_name(Path(source).stem, 'texture')}_{n}{ext}"
+                self.texture_files[relative] = data
+                self.textures[source] = len(self.texture_list)
+                self.texture_list.append({"type": "JPG" if ext == ".jpg" else "PNG",
+                                          "image": relative, "wrapMode": "wrap"})
+        return self.textures[source]
+
+    def _appearance(self) -> dict:
+        out: dict = {}
+        if self.material_list:
+            out["materials"] = self.material_list
+            out["default-theme-material"] = THEME
+        if self.texture_list and self.uv_list:
+            out["textures"] = self.texture_list
+            out["vertices-texture"] = np.concatenate(self.uv_list).round(6).tolist()
+            out["default-theme-texture"] = THEME
+        return out
+
+
+def _clean_rings(vids: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Drop repeated consecutive vertices (after quantisation) and degenerate faces.
+
+    Returns the corner mask (C,) of what stays and the face mask (F,) of faces that still have
+    at least three distinct vertices.
+    """
+    n_faces = len(starts) - 1
+    if n_faces == 0:
+        return np.zeros(0, bool), np.zeros(0, bool)
+    face_of = np.repeat(np.arange(n_faces), np.diff(starts))
+    keep = vids != vids[previous_corner(starts)]
+    distinct = np.unique(face_of * (int(vids.max()) + 1) + vids) // (int(vids.max()) + 1)
+    valid = np.bincount(distinct, minlength=n_faces) >= 3
+    return keep & valid[face_of], valid
+
+
+def _extent(points: np.ndarray) -> list[float]:
+    return [*points.min(axis=0).tolist(), *points.max(axis=0).tolist()]
+
+
+def _unique_id(name: str, taken: dict) -> str:
+    base = str(name) or "building"
+    candidate, n = base, 1
+    while candidate in taken:
+        n += 1
+        candidate = f"{base}-{n}"
+    return candidate
+
+
+# -- import -----------------------------------------------------------------------------------
+
+def load_cityjson(path: str | os.PathLike) -> list[Model]:
+    """Read the surface geometry of a CityJSON file back into models.
+
+    One model per City Object with surface geometry (``MultiSurface``, ``CompositeSurface`` or
+    ``Solid``; of several geometries the one with the highest LoD), converted back to CGA axes.
+    Outer rings only (holes are dropped).  Labels come from the ``facadeforge_label`` attribute
+    of the semantic surfaces, or from their type; materials and textures from the first theme.
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``path`` does not exist.
+    LoadError
+        When the file is not CityJSON.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise LoadError(f"cannot read {path} as JSON: {exc}") from exc
+    if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
+        raise LoadError(f"{path} is not a CityJSON file")
+    reader = _CityJsonReader(doc, path.parent)
+    return [m for oid, obj in doc.get("CityObjects", {}).items()
+            if (m := reader.model(oid, obj)) is not None]
+
+
+class _CityJsonReader:
+    def __init__(self, doc: dict, folder: Path) -> None:
+        tr = doc.get("transform") or {"scale": [1, 1, 1], "translate": [0, 0, 0]}
+        verts = np.asarray(doc.get("vertices", []), float).reshape(-1, 3)
+        real = verts * np.asarray(tr["scale"], float) + np.asarray(tr["translate"], float)
+        self.vertices = real @ _TO_CJ  # inverse rotation: CityJSON → CGA
+        app = doc.get("appearance") or {}
+        self.materials = app.get("materials", [])
+        self.textures = app.get("textures", [])
+        self.uvs = np.asarray(app.get("vertices-texture", []), float).reshape(-1, 2)
+        self.folder = folder
+
+    def model(self, oid: str, obj: dict) -> Model | None:
+        geoms = [g for g in obj.get("geometry", [])
+                 if g.get("type") in ("MultiSurface", "CompositeSurface", "Solid")]
+        if not geoms:
+            return None
+        geom = max(geoms, key=lambda g: float(str(g.get("lod", "0"))))
+        model = Model(name=oid, attributes=dict(obj.get("attributes") or {}))
+        surfaces, sem, mats, texs = _flatten_geometry(geom)
+        runs: dict[tuple, list[int]] = {}
+        for i, key in enumerate(self._face_keys(geom, sem, mats, texs)):
+            runs.setdefault(key, []).append(i)
+        for (label, symbol, mat_index, tex_index), idx in runs.items():
+            polys = [self.vertices[surfaces[i]] for i in idx]
+            uvs = [self._face_uv(texs[i]) for i in idx]
+            model.parts.append(Part(Mesh.from_polygons(polys, uvs), label=label,
+                                    material=self._material(mat_index, tex_index),
+                                    symbol=symbol))
+        return model
+
+    @staticmethod
+    def _face_keys(geom: dict, sem: list, mats: list, texs: list) -> list[tuple]:
+        table = (geom.get("semantics") or {}).get("surfaces", [])
+        keys = []
+        for s, m, t in zip(sem, mats, texs):
+            surface = table[s] if s is not None and s < len(table) else {}
+            label = surface.get("facadeforge_label")
+            if label is None:
+                guess = label_for_name(str(surface.get("type", "")).replace("Surface", ""))
+                label = guess.value if guess else ""
+            tex = t[0] if t else None
+            keys.append((label, surface.get("facadeforge_symbol", ""), m, tex))
+        return keys
+
+    def _material(self, index: int | None, texture: int | None) -> Material:
+        path = None
+        if texture is not None and texture < len(self.textures):
+            candidate = self.folder / self.textures[texture].get("image", "")
+            path = str(candidate) if candidate.is_file() else None
+        if index is None or index >= len(self.materials):
+            return Material(texture=path)
+        m = self.materials[index]
+        return Material(name=m.get("name", f"material{index}"),
+                        color=tuple(float(c) for c in m.get("diffuseColor", (1, 1, 1))),
+                        opacity=1.0 - float(m.get("transparency", 0.0)), texture=path)
+
+    def _face_uv(self, ref: list | None) -> np.ndarray | None:
+        if not ref or ref[0] is None or len(ref) < 4:
+            return None
+        return self.uvs[np.asarray(ref[1:], np.int64)]
+
+
+def _flatten_geometry(geom: dict) -> tuple[list, list, list, list]:
+    """Outer rings, semantic values, material values and texture refs, one entry per surface."""
+    kind = geom["type"]
+    boundaries = geom.get("boundaries", [])
+    sem = (geom.get("semantics") or {}).get("values")
+    mat = next(iter((geom.get("material") or {}).values()), {})
+    tex = next(iter((geom.get("texture") or {}).values()), {}).get("values")
+    if kind == "Solid":
+        boundaries = [s for shell in boundaries for s in shell]
+        sem = None if sem is None else [v for shell in sem for v in (shell or [])]
+        tex = None if tex is None else [v for shell in tex for v in shell]
+    n = len(boundaries)
+    rings = [np.asarray(surface[0], np.int64) for surface in boundaries]
+    sem = list(sem) if sem is not None else [None] * n
+    if "value" in mat:
+        mats = [mat["value"]] * n
+    else:
+        mats = list(mat.get("values") or [None] * n)
+        if kind == "Solid" and mats and isinstance(mats[0], list):
+            mats = [v for shell in mats for v in shell]
+    texs = [None if t is None else t[0] for t in tex] if tex is not None else [None] * n
+    return rings, sem, mats, texs

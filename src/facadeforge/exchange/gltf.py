@@ -1,0 +1,428 @@
+"""Binary glTF 2.0 (``.glb``) export and import.
+
+Layout of an exported file
+--------------------------
+* one scene; one node and one mesh per :class:`~facadeforge.model.Model`.  The node is named
+  after ``model.name``; its ``extras`` hold ``{"facadeforge_model": true, "attributes": ...,
+  "reports": ..., "warnings": ...}`` (pygltflib drops empty strings, lists and ``null`` values
+  from the JSON, so such attribute values do not survive a round trip).
+* within a mesh, one triangle primitive per (material, label) group of parts, non-indexed with
+  flat normals (three vertices of its own per triangle) and ``TEXCOORD_0`` when any face of the
+  group has UVs (glTF's v axis points down: ``v_gltf = 1 - v``).
+* primitive ``extras``::
+
+      {"label": "window",                 # canonical label of every triangle of the primitive
+       "symbols": ["Window", "Glass"],    # distinct shape symbols of the group
+       "parts": [[0, 0, 12, 41],          # [symbol index, first triangle, triangle count,
+                 [1, 12, 2, 42]]}         #  shape id], one entry per Part, in order
+
+  so the label and symbol of every face can be read without facadeforge.
+* PBR materials: ``baseColorFactor`` from ``Material.color``/``opacity`` (``alphaMode`` BLEND
+  when the opacity is below 1); a readable texture file is embedded in the binary chunk (PNG and
+  JPEG bytes as they are, other formats re-encoded as PNG); an unreadable one is skipped.
+
+Import
+------
+:func:`load_glb` reads such files (and plain glTF binaries from other tools) back into models.
+Faces come back as triangles.  Embedded textures are written as files to ``texture_dir`` (a new
+temporary directory when not given, left in place for the caller) because ``Material.texture``
+is a file path.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pygltflib as gl
+
+from ..geometry.mesh import Mesh
+from ..model.model import Material, Model, Part
+from ._common import (
+    Staging,
+    as_models,
+    corner_uvs,
+    face_corners,
+    image_extension,
+    jsonable,
+    mesh_from_flat,
+    read_texture,
+    triangulate_corners,
+)
+from .errors import LoadError
+
+__all__ = ["export_glb", "load_glb"]
+
+_COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16,
+                     5125: np.uint32, 5126: np.float32}
+_TYPE_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+# -- export -----------------------------------------------------------------------------------
+
+def export_glb(models: Model | Sequence[Model], path: str | os.PathLike, *,
+               double_sided: bool = True) -> list[Path]:
+    """Write models to a binary glTF file.
+
+    Parameters
+    ----------
+    models : Model or sequence of Model
+        What to write; one glTF node and mesh per model.
+    path : path-like
+        Destination ``.glb``; written atomically.
+    double_sided : bool
+        Mark materials double-sided (facade quads are often seen from behind).
+
+    Returns
+    -------
+    list of Path
+        The file written.
+    """
+    builder = _GlbBuilder(double_sided=double_sided)
+    for model in as_models(models):
+        builder.add_model(model)
+    data = builder.to_bytes()
+    with Staging() as stage:
+        stage.write_bytes(path, data)
+    return [Path(path)]
+
+
+class _GlbBuilder:
+    """Accumulates glTF objects and one binary buffer."""
+
+    def __init__(self, double_sided: bool = True) -> None:
+        self.double_sided = double_sided
+        self.gltf = gl.GLTF2(asset=gl.Asset(generator="facadeforge", version="2.0"))
+        self.blob = bytearray()
+        self._materials: dict[tuple, int] = {}
+        self._textures: dict[str, int | None] = {}
+
+    # buffers ---------------------------------------------------------------------------------
+    def _view(self, data: bytes, target: int | None) -> int:
+        self.blob.extend(b"\0" * (-len(self.blob) % 4))
+        view = gl.BufferView(buffer=0, byteOffset=len(self.blob), byteLength=len(data),
+                             target=target)
+        self.blob.extend(data)
+        self.gltf.bufferViews.append(view)
+        return len(self.gltf.bufferViews) - 1
+
+    def _accessor(self, array: np.ndarray, kind: str, bounds: bool = False) -> int:
+        array = np.ascontiguousarray(array, dtype=np.float32)
+        view = self._view(array.tobytes(), gl.ARRAY_BUFFER)
+        acc = gl.Accessor(bufferView=view, componentType=gl.FLOAT, count=len(array), type=kind)
+        if bounds:
+            acc.min = array.min(axis=0).tolist()
+            acc.max = array.max(axis=0).tolist()
+        self.gltf.accessors.append(acc)
+        return len(self.gltf.accessors) - 1
+
+    # materials -------------------------------------------------------------------------------
+    def _texture(self, path: str | None) -> int | None:
+        if not path:
+            return None
+        if path not in self._textures:
+            self._textures[path] = self._embed_texture(path)
+        return self._textures[path]
+
+    def _embed_texture(self, path: str) -> int | None:
+        found = read_texture(path)
+        if found is None:
+            return None
+        data, mime = found
+        g = self.gltf
+        if not g.samplers:
+            g.samplers.append(gl.Sampler(magFilter=gl.LINEAR, minFilter=gl.LINEAR_MIPMAP_LINEAR,
+                                         wrapS=gl.REPEAT, wrapT=gl.REPEAT))
+        g.images.append(gl.Image(bufferView=self._view(data, None), mimeType=mime,
+                                 name=Path(path).name))
+        g.textures.append(gl.Texture(sampler=0, source=len(g.images) - 1))
+        return len(g.textures) - 1
+
+    def material(self, mat: Material) -> int:
+        key = mat.key()
+        if key in self._materials:
+            return self._materials[key]
+        tex = self._texture(mat.texture)
+        pbr = gl.PbrMetallicRoughness(
+            baseColorFactor=[*map(float, mat.color), float(mat.opacity)],
+            metallicFactor=float(mat.metallic), roughnessFactor=float(mat.roughness),
+            baseColorTexture=None if tex is None else gl.TextureInfo(index=tex))
+        self.gltf.materials.append(gl.Material(
+            name=mat.name, pbrMetallicRoughness=pbr, doubleSided=self.double_sided,
+            alphaMode=gl.BLEND if mat.opacity < 1.0 else gl.OPAQUE,
+            extras={"texture": mat.texture} if mat.texture else {}))
+        self._materials[key] = len(self.gltf.materials) - 1
+        return self._materials[key]
+
+    # geometry --------------------------------------------------------------------------------
+    def add_model(self, model: Model) -> None:
+        primitives = []
+        for (_, label), parts in _group_parts(model.parts).items():
+            prim = self._primitive(parts, label)
+            if prim is not None:
+                primitives.append(prim)
+        extras = jsonable({"facadeforge_model": True, "attributes": model.attributes,
+                           "reports": model.reports, "warnings": model.warnings})
+        node = gl.Node(name=model.name, extras=extras)
+        if primitives:
+            self.gltf.meshes.append(gl.Mesh(name=model.name, primitives=primitives))
+            node.mesh = len(self.gltf.meshes) - 1
+        self.gltf.nodes.append(node)
+
+    def _primitive(self, parts: list[Part], label: str) -> gl.Primitive | None:
+        pos, uv, records, symbols = [], [], [], []
+        any_uv, start = False, 0
+        for part in parts:
+            p, u, has = _part_triangles(part.mesh)
+            if len(p) == 0:
+                continue
+            if part.symbol not in symbols:
+                symbols.append(part.symbol)
+            records.append([symbols.index(part.symbol), start, len(p) // 3, int(part.shape_id)])
+            pos.append(p)
+            uv.append(u)
+            any_uv |= has
+            start += len(p) // 3
+        if not pos:
+            return None
+        positions = np.concatenate(pos)
+        attrs = gl.Attributes(POSITION=self._accessor(positions, gl.VEC3, bounds=True),
+                              NORMAL=self._accessor(_flat_normals(positions), gl.VEC3))
+        if any_uv:
+            tex = np.concatenate(uv)
+            attrs.TEXCOORD_0 = self._accessor(np.column_stack([tex[:, 0], 1.0 - tex[:, 1]]),
+                                              gl.VEC2)
+        return gl.Primitive(attributes=attrs, mode=gl.TRIANGLES,
+                            material=self.material(parts[0].material),
+                            extras={"label": label, "symbols": symbols, "parts": records})
+
+    def to_bytes(self) -> bytes:
+        g = self.gltf
+        g.scenes = [gl.Scene(nodes=list(range(len(g.nodes))))]
+        g.scene = 0
+        g.buffers = [gl.Buffer(byteLength=len(self.blob))]
+        g.set_binary_blob(bytes(self.blob))
+        return b"".join(g.save_to_bytes())
+
+
+def _group_parts(parts: Sequence[Part]) -> dict[tuple, list[Part]]:
+    """Parts grouped by (material key, label), groups in order of first appearance."""
+    groups: dict[tuple, list[Part]] = {}
+    for part in parts:
+        groups.setdefault((part.material.key(), part.label), []).append(part)
+    return groups
+
+
+def _part_triangles(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Triangle corner positions (3T, 3), UVs (3T, 2) and whether the mesh has UVs."""
+    tri, _ = triangulate_corners(mesh)
+    if len(tri) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 2)), False
+    corners, _ = face_corners(mesh)
+    uv, has = corner_uvs(mesh)
+    return mesh.vertices[corners[tri]].reshape(-1, 3), uv[tri].reshape(-1, 2), has
+
+
+def _flat_normals(positions: np.ndarray) -> np.ndarray:
+    """Unit normal of each triangle repeated for its three corners (3T, 3)."""
+    p = positions.reshape(-1, 3, 3)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 1.0, 0.0])
+    return np.repeat(n, 3, axis=0)
+
+
+# -- import -----------------------------------------------------------------------------------
+
+def load_glb(path: str | os.PathLike, *, texture_dir: str | os.PathLike | None = None
+             ) -> list[Model]:
+    """Read a binary glTF file into models.
+
+    Parameters
+    ----------
+    path : path-like
+        A ``.glb`` file.
+    texture_dir : path-like, optional
+        Where embedded images are written so that ``Material.texture`` can name a file; a new
+        temporary directory (not removed afterwards) when omitted and the file has textures.
+
+    Returns
+    -------
+    list of Model
+        One model per node with a mesh (node transforms applied), plus facadeforge nodes that
+        carried an empty model.  Faces are triangles; parts, labels and symbols come from the
+        primitive ``extras`` when present (one part per primitive otherwise).
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``path`` does not exist.
+    LoadError
+        When the file is not a readable glTF binary.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    try:
+        gltf = gl.GLTF2.load_binary(str(path))
+    except Exception as exc:
+        raise LoadError(f"cannot read {path} as binary glTF: {exc}") from exc
+    if gltf is None:
+        raise LoadError(f"cannot read {path} as binary glTF")
+    return _GlbReader(gltf, path, texture_dir).models()
+
+
+class _GlbReader:
+    def __init__(self, gltf: gl.GLTF2, path: Path, texture_dir) -> None:
+        self.gltf = gltf
+        self.path = path
+        self.blob = gltf.binary_blob() or b""
+        self.texture_dir = None if texture_dir is None else Path(texture_dir)
+        self._materials: dict[int | None, Material] = {}
+        self._images: dict[int, str | None] = {}
+
+    def models(self) -> list[Model]:
+        g = self.gltf
+        if g.scenes:
+            roots = g.scenes[g.scene or 0].nodes or []
+        else:
+            children = {c for n in g.nodes for c in (n.children or [])}
+            roots = [i for i in range(len(g.nodes)) if i not in children]
+        out: list[Model] = []
+        stack = [(i, np.eye(4)) for i in reversed(roots)]
+        while stack:
+            idx, parent = stack.pop()
+            node = g.nodes[idx]
+            world = parent @ _node_matrix(node)
+            model = self._node_model(node, idx, world)
+            if model is not None:
+                out.append(model)
+            stack.extend((c, world) for c in reversed(node.children or []))
+        return out
+
+    def _node_model(self, node: gl.Node, idx: int, world: np.ndarray) -> Model | None:
+        extras = node.extras if isinstance(node.extras, dict) else {}
+        if node.mesh is None and not extras.get("facadeforge_model"):
+            return None
+        model = Model(name=node.name or f"node{idx}",
+                      attributes=dict(extras.get("attributes") or {}),
+                      reports={k: list(v) for k, v in (extras.get("reports") or {}).items()},
+                      warnings=list(extras.get("warnings") or []))
+        if node.mesh is not None:
+            for prim in self.gltf.meshes[node.mesh].primitives:
+                model.parts.extend(self._primitive_parts(prim, world))
+        return model
+
+    def _primitive_parts(self, prim: gl.Primitive, world: np.ndarray) -> list[Part]:
+        if prim.mode not in (None, gl.TRIANGLES) or prim.attributes.POSITION is None:
+            return []
+        pos = self._accessor(prim.attributes.POSITION).astype(float)
+        pos = pos @ world[:3, :3].T + world[:3, 3]
+        if prim.indices is not None:
+            tris = self._accessor(prim.indices).reshape(-1, 3).astype(np.int64)
+        else:
+            tris = np.arange(len(pos) - len(pos) % 3).reshape(-1, 3)
+        uv = None
+        if prim.attributes.TEXCOORD_0 is not None:
+            uv = self._accessor(prim.attributes.TEXCOORD_0).astype(float)
+            uv = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])
+        if np.linalg.det(world[:3, :3]) < 0:
+            tris = tris[:, ::-1]
+        extras = prim.extras if isinstance(prim.extras, dict) else {}
+        label = str(extras.get("label", ""))
+        symbols = [str(s) for s in extras.get("symbols", [])]
+        records = extras.get("parts") or [[0, 0, len(tris), 0]]
+        material = self._material(prim.material)
+        parts = []
+        for sym, first, count, *rest in records:
+            sel = tris[int(first):int(first) + int(count)]
+            parts.append(Part(_triangle_mesh(pos, uv, sel), label=label, material=material,
+                              symbol=symbols[sym] if 0 <= sym < len(symbols) else "",
+                              shape_id=int(rest[0]) if rest else 0))
+        return parts
+
+    def _accessor(self, index: int) -> np.ndarray:
+        acc = self.gltf.accessors[index]
+        dtype = np.dtype(_COMPONENT_DTYPES[acc.componentType])
+        width = _TYPE_WIDTH[acc.type]
+        if acc.bufferView is None:
+            return np.zeros((acc.count, width), dtype).squeeze()
+        view = self.gltf.bufferViews[acc.bufferView]
+        offset = (view.byteOffset or 0) + (acc.byteOffset or 0)
+        stride = view.byteStride or dtype.itemsize * width
+        arr = np.ndarray((acc.count, width), dtype, buffer=self.blob, offset=offset,
+                         strides=(stride, dtype.itemsize)).copy()
+        if acc.normalized and dtype.kind in "iu":
+            arr = arr.astype(float) / np.iinfo(dtype).max
+        return arr[:, 0] if width == 1 else arr
+
+    def _material(self, index: int | None) -> Material:
+        if index not in self._materials:
+            self._materials[index] = self._make_material(index)
+        return self._materials[index]
+
+    def _make_material(self, index: int | None) -> Material:
+        if index is None:
+            return Material()
+        mat = self.gltf.materials[index]
+        pbr = mat.pbrMetallicRoughness or gl.PbrMetallicRoughness()
+        factor = list(pbr.baseColorFactor or [1.0, 1.0, 1.0, 1.0])
+        texture = None
+        if pbr.baseColorTexture is not None:
+            source = self.gltf.textures[pbr.baseColorTexture.index].source
+            texture = None if source is None else self._image_file(source)
+        return Material(name=mat.name or f"material{index}",
+                        color=tuple(float(c) for c in factor[:3]), opacity=float(factor[3]),
+                        texture=texture,
+                        metallic=1.0 if pbr.metallicFactor is None else float(pbr.metallicFactor),
+                        roughness=1.0 if pbr.roughnessFactor is None else float(pbr.roughnessFactor))
+
+    def _image_file(self, index: int) -> str | None:
+        if index in self._images:
+            return self._images[index]
+        image = self.gltf.images[index]
+        result = None
+        if image.bufferView is not None:
+            view = self.gltf.bufferViews[image.bufferView]
+            start = view.byteOffset or 0
+            data = bytes(self.blob[start:start + view.byteLength])
+            if self.texture_dir is None:
+                self.texture_dir = Path(tempfile.mkdtemp(prefix="facadeforge-glb-"))
+            self.texture_dir.mkdir(parents=True, exist_ok=True)
+            target = self.texture_dir / (f"{self.path.stem}_image{index}"
+                                         f"{image_extension(image.mimeType or '')}")
+            target.write_bytes(data)
+            result = str(target)
+        elif image.uri and not image.uri.startswith("data:"):
+            candidate = self.path.parent / image.uri
+            result = str(candidate) if candidate.is_file() else None
+        self._images[index] = result
+        return result
+
+
+def _triangle_mesh(pos: np.ndarray, uv: np.ndarray | None, tris: np.ndarray) -> Mesh:
+    """A mesh of unshared triangles (one face per triangle)."""
+    corners = tris.reshape(-1)
+    n = len(corners)
+    return mesh_from_flat(pos[corners], np.arange(n), np.arange(0, n + 1, 3),
+                          None if uv is None else uv[corners])
+
+
+def _node_matrix(node: gl.Node) -> np.ndarray:
+    """Local 4×4 transform of a node (``matrix`` or translation/rotation/scale)."""
+    if node.matrix:
+        return np.asarray(node.matrix, float).reshape(4, 4).T
+    m = np.eye(4)
+    if node.rotation:
+        x, y, z, w = node.rotation
+        m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+    if node.scale:
+        m[:3, :3] = m[:3, :3] * np.asarray(node.scale, float)
+    if node.translation:
+        m[:3, 3] = node.translation
+    return m

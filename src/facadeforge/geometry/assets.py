@@ -1,0 +1,209 @@
+"""Asset resolution and loading: OBJ meshes and textures, confined to an asset root.
+
+Paths in rules resolve like CityEngine's: relative paths against the asset folder (also tried
+against the rule file's folder), project-absolute paths (``/Project/assets/x.obj``) through a
+rule package's resolve map or by stripping the project prefix.  A resolved path that leaves every
+allowed root is refused: rule text cannot read arbitrary files.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .mesh import Mesh
+
+MAX_ASSET_BYTES = 256 * 1024 * 1024
+
+
+@dataclass
+class AssetMaterial:
+    name: str = ""
+    color: tuple = (1.0, 1.0, 1.0)
+    texture: str | None = None
+    opacity: float = 1.0
+
+
+@dataclass
+class Asset:
+    mesh: Mesh
+    material: AssetMaterial = field(default_factory=AssetMaterial)
+
+
+class AssetResolver:
+    """Find and load assets for one rule set.
+
+    Parameters
+    ----------
+    roots : list of Path
+        Folders assets may be read from (the asset root, the rule file's folder, an unpacked
+        rule package).  The first is where relative paths are looked up first.
+    resolve_map : dict of str to Path
+        Project-absolute path → file (from a rule package's ``.resolvemap.xml``).
+    """
+
+    def __init__(self, roots=(), resolve_map: dict | None = None):
+        self.roots = [Path(r).resolve() for r in roots if r]
+        self.resolve_map = {k: Path(v).resolve() for k, v in (resolve_map or {}).items()}
+        self._mesh_cache: dict[Path, Asset] = {}
+
+    # -- paths ---------------------------------------------------------------------------------
+    def _allowed(self, p: Path) -> bool:
+        return any(p == r or r in p.parents for r in self.roots) or p in self.resolve_map.values()
+
+    def resolve(self, name: str) -> Path | None:
+        """Readable file for an asset name, or ``None`` when there is none.
+
+        Raises
+        ------
+        InputError
+            When the path points outside every asset root.
+        """
+        name = name.strip().replace("\\", "/")
+        if not name:
+            return None
+        if name in self.resolve_map:
+            return self.resolve_map[name]
+        candidates = []
+        if name.startswith("/"):
+            parts = [p for p in name.split("/") if p]
+            # "/Project/assets/a.obj" → try "assets/a.obj" and "a.obj" beneath each root
+            for k in range(1, len(parts)):
+                candidates.append("/".join(parts[k:]))
+        else:
+            candidates.append(name)
+        for rel in candidates:
+            for root in self.roots:
+                p = (root / rel).resolve()
+                if not self._allowed(p):
+                    raise InputError(f"asset path '{name}' leaves the asset root {root}; "
+                                     "keep assets inside the asset folder")
+                if p.is_file():
+                    return p
+        return None
+
+    def search(self, pattern: str) -> list[str]:
+        """Asset paths (relative to the first root) matching a glob pattern (``fileSearch``)."""
+        out = []
+        pat = pattern.lstrip("/")
+        for root in self.roots[:1]:
+            for dirpath, _, files in os.walk(root):
+                for f in files:
+                    rel = os.path.relpath(os.path.join(dirpath, f), root).replace(os.sep, "/")
+                    if fnmatch.fnmatch(rel, pat) or fnmatch.fnmatch(f, pat):
+                        out.append(rel)
+        return sorted(out)
+
+    # -- loading -------------------------------------------------------------------------------
+    def mesh(self, name: str) -> Asset | None:
+        p = self.resolve(name)
+        if p is None:
+            return None
+        cached = self._mesh_cache.get(p)
+        if cached is None:
+            if p.suffix.lower() != ".obj":
+                raise InputError(f"asset '{name}': only .obj assets can be inserted, not {p.suffix}")
+            cached = load_obj(p)
+            self._mesh_cache[p] = cached
+        return cached
+
+    def texture(self, name: str, derivation=None) -> str | None:
+        try:
+            p = self.resolve(name)
+        except InputError as e:
+            if derivation is not None:
+                derivation.warn(str(e))
+            return None
+        if p is None:
+            if derivation is not None:
+                derivation.warn(f"texture '{name}' not found under the asset root")
+            return None
+        return str(p)
+
+
+def load_obj(path: Path) -> Asset:
+    """Read a Wavefront OBJ (positions, polygons, uv set 0, first material's colour/texture)."""
+    path = Path(path)
+    if path.stat().st_size > MAX_ASSET_BYTES:
+        raise InputError(f"asset {path} is larger than {MAX_ASSET_BYTES >> 20} MiB")
+    verts, uvs, faces, face_uv = [], [], [], []
+    mtllibs, first_mtl = [], None
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            if not line or line[0] == "#":
+                continue
+            parts = line.split()
+            if not parts:
+                continue
+            tag = parts[0]
+            try:
+                if tag == "v":
+                    verts.append([float(x) for x in parts[1:4]])
+                elif tag == "vt":
+                    uvs.append([float(x) for x in parts[1:3]])
+                elif tag == "f":
+                    vi, ti = [], []
+                    for tok in parts[1:]:
+                        fields = tok.split("/")
+                        v = int(fields[0])
+                        vi.append(v - 1 if v > 0 else len(verts) + v)
+                        if len(fields) > 1 and fields[1]:
+                            t = int(fields[1])
+                            ti.append(t - 1 if t > 0 else len(uvs) + t)
+                    if len(vi) >= 3:
+                        faces.append(vi)
+                        face_uv.append(ti if len(ti) == len(vi) else None)
+                elif tag == "mtllib":
+                    mtllibs.append(" ".join(parts[1:]))
+                elif tag == "usemtl" and first_mtl is None:
+                    first_mtl = " ".join(parts[1:])
+            except (ValueError, IndexError):
+                raise InputError(f"{path}: malformed OBJ line: {line.strip()[:80]}") from None
+    if not faces:
+        raise InputError(f"{path}: the OBJ file has no faces")
+    v = np.asarray(verts, float)
+    if any(max(f) >= len(v) or min(f) < 0 for f in faces):
+        raise InputError(f"{path}: a face refers to a vertex that does not exist")
+    uv_arr = np.asarray(uvs, float) if uvs else np.zeros((0, 2))
+    corner_uvs = None
+    if uvs and all(t is not None for t in face_uv):
+        corner_uvs = [uv_arr[t] for t in face_uv]
+    mesh = Mesh(v, faces, corner_uvs)
+    material = AssetMaterial()
+    for lib in mtllibs:
+        mp = (path.parent / lib).resolve()
+        if mp.parent == path.parent.resolve() and mp.is_file():
+            mats = _read_mtl(mp)
+            if mats:
+                material = mats.get(first_mtl) or next(iter(mats.values()))
+            break
+    return Asset(mesh, material)
+
+
+def _read_mtl(path: Path) -> dict[str, AssetMaterial]:
+    mats: dict[str, AssetMaterial] = {}
+    cur = None
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            parts = line.split()
+            if not parts:
+                continue
+            if parts[0] == "newmtl":
+                cur = AssetMaterial(" ".join(parts[1:]))
+                mats[cur.name] = cur
+            elif cur is None:
+                continue
+            elif parts[0] == "Kd" and len(parts) >= 4:
+                cur.color = tuple(float(x) for x in parts[1:4])
+            elif parts[0] == "d" and len(parts) >= 2:
+                cur.opacity = float(parts[1])
+            elif parts[0] == "map_Kd" and len(parts) >= 2:
+                tex = (path.parent / parts[-1]).resolve()
+                if tex.parent == path.parent.resolve() or path.parent.resolve() in tex.parents:
+                    cur.texture = str(tex) if tex.is_file() else None
+    return mats

@@ -1,0 +1,276 @@
+"""Cutting meshes by axis-aligned planes: the geometry behind CGA ``split``.
+
+Faces are clipped against slabs of the scope frame.  A closed mesh (an extruded mass) stays closed:
+each cut is capped with the cross-section polygons, found by polygonising the cut segments and
+keeping the regions inside the solid by the even-odd rule.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .mesh import EPS, Mesh, plane_basis, polygon_normal
+
+_OTHER = {0: (1, 2), 1: (2, 0), 2: (0, 1)}  # right-handed (u, v) for the cap plane of each axis
+
+
+def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None = None) -> list[Mesh]:
+    """Cut a mesh given in scope coordinates into slabs along one axis.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Geometry in the scope frame (so the axis is 0, 1 or 2 of the coordinates).
+    axis : int
+        0, 1, 2 for x, y, z.
+    cuts : (n + 1,) float
+        Increasing slab boundaries; slab ``i`` is ``cuts[i] <= coord <= cuts[i+1]``.
+    cap : bool or None
+        Close the cut faces of a closed mesh.  ``None`` decides by ``mesh.is_closed()``.
+
+    Returns
+    -------
+    list of Mesh
+        One (possibly empty) mesh per slab, in the scope frame.
+    """
+    cuts = np.asarray(cuts, float)
+    n = len(cuts) - 1
+    if n <= 0 or mesh.is_empty:
+        return [Mesh() for _ in range(max(n, 0))]
+    if cap is None:
+        cap = mesh.is_closed()
+    coord = mesh.vertices[:, axis]
+    fmin = np.minimum.reduceat(coord[mesh.corners], mesh.starts[:-1])
+    fmax = np.maximum.reduceat(coord[mesh.corners], mesh.starts[:-1])
+    normals = mesh.face_normals()
+    convex = _convex_faces(mesh, normals)
+    # faces lying in a cut plane (normal along the axis) go to exactly one slab: the one above
+    # the plane for faces pointing down the axis and below for those pointing up
+    out = []
+    for i in range(n):
+        lo, hi = cuts[i], cuts[i + 1]
+        if hi - lo <= EPS:
+            out.append(Mesh())
+            continue
+        inside = (fmin >= lo - EPS) & (fmax <= hi + EPS)
+        flat = inside & (fmax - fmin <= EPS)
+        if flat.any():
+            at_lo = flat & (np.abs(fmin - lo) <= EPS)
+            at_hi = flat & (np.abs(fmax - hi) <= EPS)
+            # a face in the plane at lo belongs here only if it faces down (it is this slab's floor)
+            inside &= ~(at_lo & (normals[:, axis] > 0) & (i > 0))
+            inside &= ~(at_hi & (normals[:, axis] < 0) & (i < n - 1))
+        crossing = np.flatnonzero((fmin < hi - EPS) & (fmax > lo + EPS) & ~inside)
+        parts = [mesh.subset(np.flatnonzero(inside))] if inside.any() else []
+        polys, uvs = [], []
+        for f in crossing:
+            idx = mesh.face(f)
+            p = mesh.vertices[idx]
+            uv = None if mesh.corner_uvs is None else mesh.corner_uvs[mesh.starts[f]:mesh.starts[f + 1]]
+            for q, quv in _clip_slab(p, uv, axis, lo, hi, normals[f], convex[f]):
+                polys.append(q)
+                uvs.append(quv)
+        if polys:
+            parts.append(Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None))
+        if cap:
+            for c, sign in ((lo, -1.0), (hi, 1.0)):
+                if (sign < 0 and i == 0 and lo <= coord.min() + EPS) or (
+                        sign > 0 and i == n - 1 and hi >= coord.max() - EPS):
+                    continue
+                caps = cross_section(mesh, axis, c, fmin, fmax)
+                if caps:
+                    parts.append(_cap_mesh(caps, axis, c, sign, mesh.corner_uvs is not None))
+        out.append(Mesh.merge(parts))
+    return out
+
+
+def _convex_faces(mesh: Mesh, normals: np.ndarray) -> np.ndarray:
+    if not mesh.n_faces:
+        return np.zeros(0, bool)
+    p = mesh.vertices[mesh.corners]
+    nxt = np.arange(1, len(mesh.corners) + 1)
+    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
+    e = p[nxt] - p
+    turn = np.einsum("ij,ij->i", np.cross(e, e[nxt]),
+                     np.repeat(normals, mesh.face_sizes, axis=0))
+    return np.minimum.reduceat(turn, mesh.starts[:-1]) >= -1e-12
+
+
+def _clip_halfspace(p, uv, axis, value, keep_below):
+    """Sutherland–Hodgman clip of one polygon to ``coord <= value`` (or ``>=``)."""
+    d = p[:, axis] - value
+    if not keep_below:
+        d = -d
+    out_p, out_uv = [], []
+    k = len(p)
+    for j in range(k):
+        a, b = j, (j + 1) % k
+        da, db = d[a], d[b]
+        if da <= EPS:
+            out_p.append(p[a])
+            if uv is not None:
+                out_uv.append(uv[a])
+        if (da < -EPS and db > EPS) or (da > EPS and db < -EPS):
+            t = da / (da - db)
+            out_p.append(p[a] + t * (p[b] - p[a]))
+            if uv is not None:
+                out_uv.append(uv[a] + t * (uv[b] - uv[a]))
+    if len(out_p) < 3:
+        return None, None
+    q = np.array(out_p)
+    q[:, axis] = np.where(np.abs(q[:, axis] - value) <= EPS, value, q[:, axis])
+    return q, (np.array(out_uv) if uv is not None else None)
+
+
+def _clip_slab(p, uv, axis, lo, hi, normal, convex):
+    """Pieces of polygon ``p`` inside ``lo <= coord <= hi`` as a list of (poly, uv)."""
+    if convex:
+        q, quv = _clip_halfspace(p, uv, axis, hi, True)
+        if q is None:
+            return []
+        q, quv = _clip_halfspace(q, quv, axis, lo, False)
+        return [] if q is None else [(q, quv)]
+    return _clip_slab_shapely(p, uv, axis, lo, hi, normal)
+
+
+def _clip_slab_shapely(p, uv, axis, lo, hi, normal):
+    """Exact clip of a non-convex planar polygon (may fall apart into several pieces)."""
+    import shapely
+
+    basis = plane_basis(normal)
+    origin = p[0]
+    xy = (p - origin) @ basis[:, :2]
+    poly = shapely.Polygon(xy).buffer(0)
+    # the slab as a polygon in the face plane: a big box clipped by two lines
+    d = basis[axis, :2]  # how the axis coordinate changes along u and v
+    c0 = origin[axis]
+    big = 1e3 * (1 + np.abs(xy).max())
+    box = shapely.box(-big, -big, big, big)
+    if abs(d[0]) + abs(d[1]) < EPS:
+        return [(p, uv)] if lo - EPS <= c0 <= hi + EPS else []
+    halfplanes = _halfplane(d, lo - c0, big, below=False).intersection(
+        _halfplane(d, hi - c0, big, below=True))
+    region = poly.intersection(halfplanes.intersection(box))
+    pieces = []
+    geoms = getattr(region, "geoms", [region])
+    affine = None
+    if uv is not None:
+        a = np.column_stack([xy, np.ones(len(xy))])
+        affine, *_ = np.linalg.lstsq(a, uv, rcond=None)
+    for g in geoms:
+        if g.geom_type != "Polygon" or g.area <= EPS:
+            continue
+        ring = np.asarray(g.exterior.coords)[:-1]
+        if not g.exterior.is_ccw:
+            ring = ring[::-1]
+        q = origin + ring @ basis[:, :2].T
+        quv = None if affine is None else np.column_stack([ring, np.ones(len(ring))]) @ affine
+        pieces.append((q, quv))
+    return pieces
+
+
+def _halfplane(d, value, big, below):
+    """Polygon of points (u, v) with ``d·(u, v) <= value`` (or ``>=``), clipped to a big box."""
+    import shapely
+
+    n = np.asarray(d, float)
+    n = n / (n @ n)
+    p0 = n * value
+    t = np.array([-n[1], n[0]])
+    t = t / np.linalg.norm(t) * big * 4
+    out = -n / np.linalg.norm(n) * big * 4 if below else n / np.linalg.norm(n) * big * 4
+    return shapely.Polygon([p0 - t, p0 + t, p0 + t + out, p0 - t + out])
+
+
+def cross_section(mesh: Mesh, axis: int, value: float, fmin=None, fmax=None) -> list:
+    """Regions of a closed mesh's cross-section with the plane ``coord[axis] == value``.
+
+    Returns a list of shapely Polygons in the plane's (u, v) coordinates, ``_OTHER[axis]``.
+    """
+    import shapely
+    from shapely.ops import polygonize
+
+    coord = mesh.vertices[:, axis]
+    if fmin is None:
+        fmin = np.minimum.reduceat(coord[mesh.corners], mesh.starts[:-1])
+        fmax = np.maximum.reduceat(coord[mesh.corners], mesh.starts[:-1])
+    u, v = _OTHER[axis]
+    segs = []
+    for f in np.flatnonzero((fmin < value - EPS) & (fmax > value + EPS)):
+        p = mesh.vertices[mesh.face(f)]
+        d = p[:, axis] - value
+        pts = []
+        k = len(p)
+        for j in range(k):
+            a, b = j, (j + 1) % k
+            if abs(d[a]) <= EPS:
+                pts.append(p[a])
+            elif (d[a] < -EPS and d[b] > EPS) or (d[a] > EPS and d[b] < -EPS):
+                t = d[a] / (d[a] - d[b])
+                pts.append(p[a] + t * (p[b] - p[a]))
+        pts2 = [(q[u], q[v]) for q in pts]
+        # a convex face meets the plane in one segment; a non-convex one in several, pairwise
+        pts2 = sorted(set((round(a, 9), round(b, 9)) for a, b in pts2))
+        for j in range(0, len(pts2) - 1, 2):
+            segs.append(shapely.LineString([pts2[j], pts2[j + 1]]))
+    if not segs:
+        return []
+    merged = shapely.unary_union(segs)
+    faces = list(polygonize(merged))
+    if not faces:
+        return []
+    seg_arr = np.array([np.asarray(s.coords) for s in segs])  # (S, 2, 2)
+    keep = []
+    for g in faces:
+        pt = np.asarray(g.representative_point().coords[0])
+        if _inside_even_odd(pt, seg_arr):
+            keep.append(g)
+    return keep
+
+
+def _inside_even_odd(pt, segs):
+    a, b = segs[:, 0], segs[:, 1]
+    cond = (a[:, 1] > pt[1]) != (b[:, 1] > pt[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = a[:, 0] + (pt[1] - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return int(np.count_nonzero(cond & (x > pt[0]))) % 2 == 1
+
+
+def _cap_mesh(polys, axis, value, sign, with_uv) -> Mesh:
+    """Cap faces from cross-section polygons; normal along ``sign`` × axis."""
+    import mapbox_earcut as earcut
+
+    u, v = _OTHER[axis]
+    out = []
+    for g in polys:
+        rings = [np.asarray(g.exterior.coords)[:-1]] + [np.asarray(r.coords)[:-1] for r in g.interiors]
+        if len(rings) == 1:
+            ring = rings[0]
+            if (shapely_ccw(ring)) != (sign > 0):
+                ring = ring[::-1]
+            out.append(_lift(ring, axis, value, u, v))
+            continue
+        flat = np.concatenate(rings)
+        ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+        tri = np.asarray(earcut.triangulate_float64(flat, ends), np.int64).reshape(-1, 3)
+        pts3 = _lift(flat, axis, value, u, v)
+        for t in tri:
+            q = pts3[t]
+            if (polygon_normal(q)[axis] > 0) != (sign > 0):
+                q = q[::-1]
+            out.append(q)
+    mesh = Mesh.from_polygons(out, [np.zeros((len(q), 2)) for q in out] if with_uv else None)
+    return mesh
+
+
+def shapely_ccw(ring: np.ndarray) -> bool:
+    x, y = ring[:, 0], ring[:, 1]
+    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) > 0
+
+
+def _lift(ring2, axis, value, u, v):
+    q = np.zeros((len(ring2), 3))
+    q[:, axis] = value
+    q[:, u] = ring2[:, 0]
+    q[:, v] = ring2[:, 1]
+    return q

@@ -1,0 +1,343 @@
+"""Polygon meshes: the geometry carried by a ``Shape``.
+
+A mesh is a vertex array and a list of simple planar polygons (counter-clockwise seen from the side
+their normal points to), with optional per-corner texture coordinates.  CGA works on polygons, not
+triangles: a facade stays one quad until a rule splits it, so faces are kept as polygons and
+triangulated only for export and rendering.
+
+Faces are stored flat (CSR): ``corners`` lists vertex indices face after face and ``starts`` (F+1)
+marks where each face begins.  Transforming or merging a 10 000-face asset is then a handful of
+numpy calls instead of a Python loop per face, which is what makes inserting assets cheap.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+EPS = 1e-9  # geometric tolerance in metres: one place, used by every cut and classification
+
+
+class Mesh:
+    """Polygon mesh.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+        World coordinates.
+    faces : list of (k,) int arrays, optional
+        Vertex indices of each polygon, counter-clockwise around its outward normal.
+    uvs : list of (k, 2) float arrays or None, optional
+        Texture coordinates per face corner (uv set 0).  Faces without UVs get zeros.
+    corners, starts : (C,) int and (F + 1,) int, optional
+        The flat form of ``faces`` (use instead of ``faces``).
+    corner_uvs : (C, 2) float or None, optional
+        The flat form of ``uvs``.
+    """
+
+    __slots__ = ("vertices", "corners", "starts", "corner_uvs")
+
+    def __init__(self, vertices=None, faces: Sequence | None = None, uvs: Sequence | None = None,
+                 *, corners=None, starts=None, corner_uvs=None):
+        self.vertices = (np.zeros((0, 3)) if vertices is None
+                         else np.asarray(vertices, dtype=float).reshape(-1, 3))
+        if corners is not None:
+            self.corners = np.asarray(corners, dtype=np.int64)
+            self.starts = np.asarray(starts, dtype=np.int64)
+            self.corner_uvs = None if corner_uvs is None else np.asarray(corner_uvs, float).reshape(-1, 2)
+            return
+        faces = [] if faces is None else [np.asarray(f, dtype=np.int64).reshape(-1) for f in faces]
+        lengths = np.array([len(f) for f in faces], dtype=np.int64)
+        self.starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        self.corners = np.concatenate(faces) if faces else np.zeros(0, np.int64)
+        self.corner_uvs = None
+        if uvs is not None and any(u is not None for u in uvs):
+            self.corner_uvs = np.concatenate([
+                np.zeros((n, 2)) if u is None else np.asarray(u, float).reshape(-1, 2)
+                for u, n in zip(uvs, lengths)]) if faces else None
+
+    # -- list views (convenient, not for hot paths) -----------------------------------------
+    @property
+    def faces(self) -> list[np.ndarray]:
+        return np.split(self.corners, self.starts[1:-1]) if self.n_faces else []
+
+    @property
+    def uvs(self) -> list[np.ndarray | None]:
+        if self.corner_uvs is None:
+            return [None] * self.n_faces
+        return np.split(self.corner_uvs, self.starts[1:-1]) if self.n_faces else []
+
+    @property
+    def n_faces(self) -> int:
+        return len(self.starts) - 1
+
+    @property
+    def face_sizes(self) -> np.ndarray:
+        return np.diff(self.starts)
+
+    def face(self, i: int) -> np.ndarray:
+        return self.corners[self.starts[i]:self.starts[i + 1]]
+
+    # -- construction ------------------------------------------------------------------------
+    @staticmethod
+    def from_polygons(polygons: Iterable[np.ndarray], uvs: Sequence | None = None) -> Mesh:
+        """Mesh with one face per polygon (each (k, 3)), vertices not shared."""
+        polys = [np.asarray(p, float).reshape(-1, 3) for p in polygons]
+        if not polys:
+            return Mesh()
+        lengths = np.array([len(p) for p in polys], np.int64)
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        cuv = None
+        if uvs is not None and any(u is not None for u in uvs):
+            cuv = np.concatenate([np.zeros((n, 2)) if u is None else np.asarray(u, float).reshape(-1, 2)
+                                  for u, n in zip(uvs, lengths)])
+        return Mesh(np.concatenate(polys), corners=np.arange(starts[-1]), starts=starts, corner_uvs=cuv)
+
+    @staticmethod
+    def merge(meshes: Iterable[Mesh]) -> Mesh:
+        ms = [m for m in meshes if m.n_faces]
+        if not ms:
+            return Mesh()
+        if len(ms) == 1:
+            return ms[0].copy()
+        voff = np.cumsum([0] + [len(m.vertices) for m in ms[:-1]])
+        coff = np.cumsum([0] + [len(m.corners) for m in ms[:-1]])
+        corners = np.concatenate([m.corners + o for m, o in zip(ms, voff)])
+        starts = np.concatenate([[0]] + [m.starts[1:] + o for m, o in zip(ms, coff)])
+        cuv = None
+        if any(m.corner_uvs is not None for m in ms):
+            cuv = np.concatenate([np.zeros((len(m.corners), 2)) if m.corner_uvs is None else m.corner_uvs
+                                  for m in ms])
+        return Mesh(np.concatenate([m.vertices for m in ms]), corners=corners, starts=starts,
+                    corner_uvs=cuv)
+
+    def copy(self) -> Mesh:
+        return Mesh(self.vertices.copy(), corners=self.corners.copy(), starts=self.starts.copy(),
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs.copy())
+
+    def polygons(self) -> list[np.ndarray]:
+        """Face corner positions, one (k, 3) array per face."""
+        return [self.vertices[f] for f in self.faces]
+
+    def subset(self, indices: Iterable[int]) -> Mesh:
+        """The faces ``indices`` as a new mesh (vertices not shared)."""
+        idx = np.asarray(list(indices), np.int64)
+        if len(idx) == 0:
+            return Mesh()
+        lengths = self.face_sizes[idx]
+        sel = np.concatenate([np.arange(self.starts[i], self.starts[i + 1]) for i in idx])
+        starts = np.concatenate([[0], np.cumsum(lengths)])
+        return Mesh(self.vertices[self.corners[sel]], corners=np.arange(len(sel)), starts=starts,
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel])
+
+    def with_vertices(self, vertices: np.ndarray) -> Mesh:
+        return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs)
+
+    def with_uvs(self, corner_uvs: np.ndarray | None) -> Mesh:
+        return Mesh(self.vertices, corners=self.corners, starts=self.starts, corner_uvs=corner_uvs)
+
+    def transformed(self, matrix: np.ndarray, offset: np.ndarray | None = None) -> Mesh:
+        """Apply ``v @ matrix.T + offset``; faces are reversed when the map mirrors."""
+        matrix = np.asarray(matrix, float)
+        v = self.vertices @ matrix.T
+        if offset is not None:
+            v = v + offset
+        m = self.with_vertices(v)
+        return m.reversed() if np.linalg.det(matrix) < 0 else m
+
+    def reversed(self) -> Mesh:
+        """Every face with its corner order reversed (normals flipped)."""
+        if not self.n_faces:
+            return self.copy()
+        sizes = self.face_sizes
+        face_id = np.repeat(np.arange(self.n_faces), sizes)
+        pos = np.arange(len(self.corners)) - self.starts[face_id]
+        src = self.starts[face_id] + sizes[face_id] - 1 - pos
+        return Mesh(self.vertices, corners=self.corners[src], starts=self.starts,
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[src])
+
+    # -- measures ----------------------------------------------------------------------------
+    @property
+    def is_empty(self) -> bool:
+        return self.n_faces == 0
+
+    def _newell(self) -> np.ndarray:
+        """(F, 3) Newell vectors: twice the area times the unit normal of each face."""
+        if not self.n_faces:
+            return np.zeros((0, 3))
+        p = self.vertices[self.corners]
+        nxt = np.arange(1, len(self.corners) + 1)
+        nxt[self.starts[1:] - 1] = self.starts[:-1]
+        q = p[nxt]
+        terms = np.stack([(p[:, 1] - q[:, 1]) * (p[:, 2] + q[:, 2]),
+                          (p[:, 2] - q[:, 2]) * (p[:, 0] + q[:, 0]),
+                          (p[:, 0] - q[:, 0]) * (p[:, 1] + q[:, 1])], axis=1)
+        return np.add.reduceat(terms, self.starts[:-1], axis=0)
+
+    def face_normals(self) -> np.ndarray:
+        n = self._newell()
+        length = np.linalg.norm(n, axis=1, keepdims=True)
+        return np.where(length > EPS, n / np.maximum(length, EPS), 0.0)
+
+    def face_normal(self, i: int) -> np.ndarray:
+        return polygon_normal(self.vertices[self.face(i)])
+
+    def face_areas(self) -> np.ndarray:
+        return np.linalg.norm(self._newell(), axis=1) / 2
+
+    def area(self) -> float:
+        return float(self.face_areas().sum())
+
+    def volume(self) -> float:
+        """Signed volume by the divergence theorem (exact for closed meshes)."""
+        if not self.n_faces:
+            return 0.0
+        p = self.vertices[self.corners]
+        first = np.repeat(self.starts[:-1], self.face_sizes)
+        # fan triangles (first, k, k+1) for every corner k that is not a face's first or last
+        k = np.arange(len(self.corners))
+        last = np.repeat(self.starts[1:] - 1, self.face_sizes)
+        ok = (k != first) & (k != last)
+        a, b, c = p[first[ok]], p[k[ok]], p[k[ok] + 1]
+        return float(np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0)
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) min and max corner of the used vertices; zeros for an empty mesh."""
+        if not self.n_faces:
+            return np.zeros((2, 3))
+        used = self.vertices[self.corners]
+        return np.stack([used.min(axis=0), used.max(axis=0)])
+
+    def used_vertices(self) -> np.ndarray:
+        if not self.n_faces:
+            return np.zeros((0, 3))
+        return self.vertices[np.unique(self.corners)]
+
+    def triangle_count(self) -> int:
+        return int(np.maximum(self.face_sizes - 2, 0).sum())
+
+    def is_closed(self) -> bool:
+        """True when every edge (after welding coincident vertices) is used exactly twice."""
+        if not self.n_faces:
+            return False
+        key = np.round(self.vertices / 1e-6).astype(np.int64)
+        _, weld = np.unique(key, axis=0, return_inverse=True)
+        w = weld.reshape(-1)[self.corners]
+        nxt = np.arange(1, len(self.corners) + 1)
+        nxt[self.starts[1:] - 1] = self.starts[:-1]
+        a, b = w, w[nxt]
+        keep = a != b
+        e = np.sort(np.stack([a[keep], b[keep]], axis=1), axis=1)
+        _, counts = np.unique(e, axis=0, return_counts=True)
+        return bool(len(counts)) and bool(np.all(counts == 2))
+
+    # -- triangulation -----------------------------------------------------------------------
+    def triangulate(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Triangles for export and rendering.
+
+        Returns
+        -------
+        positions : (3T, 3) float
+        uvs : (3T, 2) float (zeros where the mesh has no UVs)
+        has_uv : (T,) bool
+        face_of : (T,) int  index of the polygon each triangle came from
+        """
+        tri = self.triangle_corners()
+        pos = self.vertices[self.corners[tri]].reshape(-1, 3)
+        face_of = np.searchsorted(self.starts, tri[:, 0], side="right") - 1
+        if self.corner_uvs is None:
+            return pos, np.zeros((len(pos), 2)), np.zeros(len(tri), bool), face_of
+        return pos, self.corner_uvs[tri].reshape(-1, 2), np.ones(len(tri), bool), face_of
+
+    def triangle_corners(self) -> np.ndarray:
+        """(T, 3) indices into ``corners``; triangles and convex quads without a Python loop."""
+        if not self.n_faces:
+            return np.zeros((0, 3), np.int64)
+        sizes = self.face_sizes
+        s = self.starts[:-1]
+        out = []
+        tri = sizes == 3
+        if tri.any():
+            b = s[tri]
+            out.append(np.stack([b, b + 1, b + 2], axis=1))
+        quad = sizes == 4
+        if quad.any():
+            b = s[quad]
+            p = self.vertices[self.corners[b[:, None] + np.arange(4)]]
+            n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+            e = np.roll(p, -1, axis=1) - p
+            turn = np.einsum("fkj,fj->fk", np.cross(e, np.roll(e, -1, axis=1)), n)
+            convex = np.all(turn >= -EPS, axis=1)
+            bc = b[convex]
+            out.append(np.stack([bc, bc + 1, bc + 2], axis=1))
+            out.append(np.stack([bc, bc + 2, bc + 3], axis=1))
+            rest_quads = b[~convex]
+        else:
+            rest_quads = np.zeros(0, np.int64)
+        others = np.concatenate([s[sizes > 4], rest_quads])
+        for b in np.sort(others):
+            k = int(self.starts[np.searchsorted(self.starts, b) + 1] - b)
+            local = triangulate_polygon(self.vertices[self.corners[b:b + k]])
+            if len(local):
+                out.append(local + b)
+        if not out:
+            return np.zeros((0, 3), np.int64)
+        allt = np.concatenate(out)
+        return allt[np.argsort(allt[:, 0], kind="stable")]
+
+    def __repr__(self) -> str:
+        return f"Mesh(vertices={len(self.vertices)}, faces={self.n_faces})"
+
+
+# -- polygon helpers -------------------------------------------------------------------------
+
+def _newell(p: np.ndarray) -> np.ndarray:
+    q = np.roll(p, -1, axis=0)
+    return np.array([
+        np.sum((p[:, 1] - q[:, 1]) * (p[:, 2] + q[:, 2])),
+        np.sum((p[:, 2] - q[:, 2]) * (p[:, 0] + q[:, 0])),
+        np.sum((p[:, 0] - q[:, 0]) * (p[:, 1] + q[:, 1])),
+    ])
+
+
+def polygon_normal(p: np.ndarray) -> np.ndarray:
+    """Unit normal (3,) of a polygon (k, 3) by Newell's method; zeros when degenerate."""
+    n = _newell(np.asarray(p, float))
+    length = np.linalg.norm(n)
+    return n / length if length > EPS else np.zeros(3)
+
+
+def polygon_area(p: np.ndarray) -> float:
+    return float(np.linalg.norm(_newell(np.asarray(p, float))) / 2)
+
+
+def plane_basis(normal: np.ndarray, first_edge: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3) orthonormal basis whose columns are u, v (in the plane) and the normal."""
+    n = np.asarray(normal, float)
+    if first_edge is not None and np.linalg.norm(first_edge - n * (first_edge @ n)) > EPS:
+        u = first_edge - n * (first_edge @ n)
+    else:
+        helper = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+        u = np.cross(helper, n)
+    u = u / np.linalg.norm(u)
+    v = np.cross(n, u)
+    return np.column_stack([u, v, n])
+
+
+def triangulate_polygon(p: np.ndarray) -> np.ndarray:
+    """Triangles (T, 3) of local corner indices for a planar simple polygon (k, 3) (earcut)."""
+    k = len(p)
+    if k < 3:
+        return np.zeros((0, 3), np.int64)
+    if k == 3:
+        return np.array([[0, 1, 2]])
+    n = polygon_normal(p)
+    if not n.any():
+        return np.zeros((0, 3), np.int64)
+    import mapbox_earcut as earcut
+
+    basis = plane_basis(n)
+    xy = (p - p[0]) @ basis[:, :2]
+    tri = earcut.triangulate_float64(xy, np.array([k], dtype=np.uint32))
+    return np.asarray(tri, np.int64).reshape(-1, 3)

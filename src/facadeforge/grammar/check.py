@@ -1,0 +1,169 @@
+"""Static checks after linking: unknown attributes, functions and qualified rules are errors with
+the file, line and column (and a suggestion), before anything is derived."""
+
+from __future__ import annotations
+
+import difflib
+
+from ..errors import RuleError
+from . import ast as A
+from .functions import FUNCTIONS
+from .module import BUILTIN_NAMES, Module, RuleSet
+from .ops import OPERATIONS
+
+# names that are selector keywords wherever an operation takes a selector
+_KEYWORDS = {
+    "x", "y", "z", "xy", "xz", "yz", "xyz", "u", "v", "f", "e", "v", "fe", "fv", "g", "m", "h",
+    "adjust", "noAdjust", "inside", "border", "all", "remainder", "front", "back", "left", "right",
+    "top", "bottom", "side", "vertical", "horizontal", "aslant", "nutant", "scopeOrigin",
+    "scopeCenter", "rel", "abs", "scope", "world", "object", "byAngle", "byHeight", "yUp", "zUp",
+    "largest", "longest", "shortest", "uniform", "gaussian", "surface", "volume", "keepSizeAndPosition",
+    "fitScope", "unitSpace", "uvSpace", "inter", "intra", "occlusion", "none", "true", "false",
+}
+
+
+def _shape_function_names() -> set:
+    from .ops import SHAPE_FUNCTIONS, load_all
+
+    load_all()
+    return set(SHAPE_FUNCTIONS)
+
+
+class _Checker:
+    def __init__(self, module: Module):
+        self.m = module
+        self.shape_fns = _shape_function_names()
+
+    def fail(self, msg, node, candidates=()):
+        close = difflib.get_close_matches(msg.split("'")[1] if "'" in msg else "", list(candidates), n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        raise RuleError(msg + hint, self.m.path, getattr(node, "line", 0), getattr(node, "column", 0))
+
+    def known_name(self, name, scope) -> bool:
+        return (name in scope or name in BUILTIN_NAMES or name.startswith("material.")
+                or self.m.attr(name) is not None)
+
+    def expr(self, node, scope, selector_ok=False):
+        t = type(node)
+        if t is A.Name:
+            if self.known_name(node.name, scope):
+                return
+            if selector_ok:
+                return
+            if "." in node.name and self.m.resolve(node.name) is None:
+                self.fail(f"unknown import '{node.name.split('.')[0]}' in '{node.name}'", node,
+                          self.m.imports)
+            self.fail(f"unknown attribute or variable '{node.name}'", node,
+                      list(scope) + list(self.m.attrs))
+        elif t is A.Call:
+            n = len(node.args)
+            if not (self.m.function(node.name, n) is not None or node.name in FUNCTIONS
+                    or node.name in self.shape_fns or node.name in _OCCLUSION):
+                if self.m.resolve(node.name) is not None and self.m.function(node.name, n) is None \
+                        and self._has_function_any_arity(node.name):
+                    self.fail(f"function '{node.name}' does not take {n} arguments", node)
+                self.fail(f"unknown function '{node.name}'", node,
+                          list(FUNCTIONS) + list(self.m.functions))
+            sel = node.name in self.shape_fns or node.name in _OCCLUSION
+            for a in node.args:
+                self.expr(a, scope, selector_ok=sel)
+        elif t is A.Index:
+            self.expr(node.target, scope)
+            for i in node.indices:
+                self.expr(i, scope)
+        elif t is A.Array:
+            for row in node.rows:
+                for e in row:
+                    self.expr(e, scope)
+        elif t is A.Unary:
+            self.expr(node.operand, scope)
+        elif t is A.Binary:
+            self.expr(node.left, scope)
+            self.expr(node.right, scope)
+        elif t in (A.CaseExpr,):
+            for c, v in node.branches:
+                self.expr(c, scope)
+                self.expr(v, scope)
+            self.expr(node.otherwise, scope)
+        elif t is A.StochasticExpr:
+            for _, v in node.branches:
+                self.expr(v, scope)
+            self.expr(node.otherwise, scope)
+
+    def _has_function_any_arity(self, name):
+        found = self.m.resolve(name) if "." in name else (self.m, name)
+        return found is not None and found[1] in found[0].functions
+
+    def ops(self, ops, scope):
+        for op in ops:
+            t = type(op)
+            if t is A.Successor:
+                spec = OPERATIONS.get(op.name) if op.has_parens else None
+                if spec is not None and not self.m.has_rule_name(op.name):
+                    if not spec.min_args <= len(op.args) <= spec.max_args:
+                        want = (spec.min_args if spec.min_args == spec.max_args
+                                else f"{spec.min_args} to {spec.max_args}")
+                        raise RuleError(f"{op.name}() takes {want} arguments, got {len(op.args)}",
+                                        self.m.path, op.line, op.column)
+                    for k, a in enumerate(op.args):
+                        self.expr(a, scope, selector_ok=k in spec.selectors)
+                    continue
+                if "." in op.name and self.m.resolve(op.name) is None:
+                    self.fail(f"unknown import '{op.name.split('.')[0]}' in rule call '{op.name}'",
+                              op, self.m.imports)
+                if "." in op.name and not self.m.has_rule_name(op.name):
+                    mod, short = self.m.resolve(op.name)
+                    self.fail(f"unknown rule '{op.name}'", op, [f"{op.name.rsplit('.', 1)[0]}.{r}"
+                                                                for r in mod.rules])
+                if self.m.has_rule_name(op.name) and self.m.rule(op.name, len(op.args)) is None:
+                    raise RuleError(f"rule '{op.name}' has no version with {len(op.args)} "
+                                    "parameters", self.m.path, op.line, op.column)
+                if op.has_parens and not self.m.has_rule_name(op.name) and op.name[:1].islower() \
+                        and op.name not in OPERATIONS:
+                    self.fail(f"unknown operation '{op.name}'", op, list(OPERATIONS))
+                for a in op.args:
+                    self.expr(a, scope)
+            elif t is A.BodyOp:
+                spec = OPERATIONS.get(op.name)
+                if spec is None or not spec.body:
+                    self.fail(f"unknown operation '{op.name}' with a {{ … }} body", op,
+                              [k for k, s in OPERATIONS.items() if s.body])
+                for k, a in enumerate(op.args):
+                    self.expr(a, scope, selector_ok=k in spec.selectors)
+                self.branches(op.name, op.branches, scope)
+            elif t is A.Push:
+                self.ops(op.ops, scope)
+            elif t is A.CaseOps:
+                for c, b in op.branches:
+                    self.expr(c, scope)
+                    self.ops(b, scope)
+                self.ops(op.otherwise, scope)
+            elif t is A.StochasticOps:
+                for _, b in op.branches:
+                    self.ops(b, scope)
+                self.ops(op.otherwise, scope)
+
+    def branches(self, opname, branches, scope):
+        for b in branches:
+            if isinstance(b, A.RepeatGroup):
+                self.branches(opname, b.branches, scope)
+                continue
+            self.expr(b.selector, scope, selector_ok=opname != "split")
+            self.ops(b.ops, scope)
+
+
+_OCCLUSION = {"inside", "overlaps", "touches", "minimumDistance", "contextCompare", "contextCount",
+              "imageInfo", "convert", "edgeAttr.getFloat", "edgeAttr.getString", "edgeAttr.getBool",
+              "readFloatTable", "readStringTable", "readBoolTable", "readTextFile"}
+
+
+def check_rules(ruleset: RuleSet) -> None:
+    """Raise ``RuleError`` for the first unknown name in any linked module."""
+    for mod in ruleset.main.all_modules():
+        c = _Checker(mod)
+        for a in mod.ast.attrs:
+            c.expr(a.value, set())
+        for f in mod.ast.functions:
+            c.expr(f.body, {p.name for p in f.params})
+        for r in mod.ast.rules:
+            c.ops(r.body, {p.name for p in r.params})

@@ -1,0 +1,180 @@
+"""Evaluate CGA expressions (AST → value).  Interprets the AST only; never calls Python ``eval``."""
+
+from __future__ import annotations
+
+import math
+import operator
+
+import numpy as np
+
+from . import ast as A
+from .values import (
+    CGARuntimeError,
+    Floating,
+    Relative,
+    from_numpy,
+    make_array,
+    to_bool,
+    to_float,
+    to_str,
+)
+
+
+def _arith(op: str, a, b):
+    if op == "+" and (isinstance(a, str) or isinstance(b, str)):
+        return to_str(a) + to_str(b)
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return _array_arith(op, a, b)
+    x, y = to_float(a, "left operand"), to_float(b, "right operand")
+    if op == "+":
+        return x + y
+    if op == "-":
+        return x - y
+    if op == "*":
+        return x * y
+    if op == "/":
+        if y == 0:
+            return math.nan if x == 0 else math.copysign(math.inf, x) * (1 if y >= 0 else -1)
+        return x / y
+    if op == "%":
+        return math.fmod(x, y) if y != 0 else math.nan
+    if op == "^":
+        try:
+            return float(x ** y) if not (x < 0 and y != int(y)) else math.nan
+        except OverflowError:
+            return math.inf
+    raise CGARuntimeError(f"unknown operator {op}")
+
+
+def _array_arith(op, a, b):
+    if op == "+" and ((isinstance(a, np.ndarray) and a.dtype == object) or
+                      (isinstance(b, np.ndarray) and b.dtype == object)):
+        return np.array([to_str(x) + to_str(y) for x, y in np.broadcast(a, b)], dtype=object)
+    fa = a.astype(float) if isinstance(a, np.ndarray) else to_float(a)
+    fb = b.astype(float) if isinstance(b, np.ndarray) else to_float(b)
+    with np.errstate(all="ignore"):
+        return {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide,
+                "%": np.fmod, "^": np.power}[op](fa, fb)
+
+
+_CMP = {"==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
+        ">": operator.gt, ">=": operator.ge}
+
+
+def _compare(op, a, b):
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        if op in ("==", "!="):
+            same = (isinstance(a, np.ndarray) and isinstance(b, np.ndarray)
+                    and a.shape == b.shape and bool(np.all(a == b)))
+            return same if op == "==" else not same
+        raise CGARuntimeError("arrays can only be compared with == and !=")
+    if isinstance(a, str) or isinstance(b, str):
+        if op in ("==", "!="):
+            return _CMP[op](to_str(a), to_str(b))
+        return _CMP[op](to_str(a), to_str(b))
+    if isinstance(a, bool) and isinstance(b, bool):
+        return _CMP[op](a, b)
+    return _CMP[op](to_float(a), to_float(b))
+
+
+class Evaluator:
+    """Expression evaluator bound to an environment.
+
+    The environment provides ``lookup(name, node)``, ``call(name, args, node)`` and
+    ``random_float()`` (the per-shape random stream).
+    """
+
+    __slots__ = ("env",)
+
+    def __init__(self, env):
+        self.env = env
+
+    def __call__(self, node):
+        return _DISPATCH[type(node)](self, node)
+
+    def num(self, node) -> float:
+        return to_float(self(node))
+
+    def _num(self, node):
+        return node.value
+
+    def _str(self, node):
+        return node.value
+
+    def _bool(self, node):
+        return node.value
+
+    def _name(self, node):
+        return self.env.lookup(node.name, node)
+
+    def _call(self, node):
+        return self.env.call(node.name, [self(a) for a in node.args], node)
+
+    def _index(self, node):
+        target = self(node.target)
+        idx = [int(to_float(self(i), "array index")) for i in node.indices]
+        if not isinstance(target, np.ndarray):
+            raise CGARuntimeError("only arrays can be indexed")
+        try:
+            if min(idx) < 0:
+                raise IndexError
+            return from_numpy(target[tuple(idx)])
+        except IndexError:
+            raise CGARuntimeError(f"array index {idx} out of range for size {target.shape}") from None
+
+    def _array(self, node):
+        rows = [[self(e) for e in row] for row in node.rows]
+        if not rows:
+            return np.zeros(0)
+        if len(rows) == 1:
+            return make_array(rows[0])
+        flat = make_array([x for r in rows for x in r])
+        if len({len(r) for r in rows}) != 1:
+            raise CGARuntimeError("rows of a 2D array must have the same length")
+        return flat.reshape(len(rows), len(rows[0]))
+
+    def _unary(self, node):
+        v = self(node.operand)
+        if node.op == "-":
+            if isinstance(v, np.ndarray):
+                return -v.astype(float)
+            return -to_float(v)
+        if node.op == "!":
+            return not to_bool(v)
+        if node.op == "'":
+            return Relative(to_float(v))
+        return Floating(to_float(v))
+
+    def _binary(self, node):
+        op = node.op
+        if op == "&&":
+            return to_bool(self(node.left)) and to_bool(self(node.right))
+        if op == "||":
+            return to_bool(self(node.left)) or to_bool(self(node.right))
+        a, b = self(node.left), self(node.right)
+        if op in _CMP:
+            return _compare(op, a, b)
+        return _arith(op, a, b)
+
+    def _case(self, node):
+        for cond, value in node.branches:
+            if to_bool(self(cond)):
+                return self(value)
+        return self(node.otherwise)
+
+    def _stochastic(self, node):
+        r = self.env.random_float() * 100.0
+        acc = 0.0
+        for pct, value in node.branches:
+            acc += pct
+            if r < acc:
+                return self(value)
+        return self(node.otherwise)
+
+
+_DISPATCH = {
+    A.Num: Evaluator._num, A.Str: Evaluator._str, A.Bool: Evaluator._bool,
+    A.Name: Evaluator._name, A.Call: Evaluator._call, A.Index: Evaluator._index,
+    A.Array: Evaluator._array, A.Unary: Evaluator._unary, A.Binary: Evaluator._binary,
+    A.CaseExpr: Evaluator._case, A.StochasticExpr: Evaluator._stochastic,
+}

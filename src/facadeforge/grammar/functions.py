@@ -1,0 +1,369 @@
+"""Built-in CGA functions: math, strings, arrays, conversion and randomness.
+
+Functions that read the current shape (``geometry.area``, ``scope.*``) live in the interpreter,
+which owns the shape state; this module holds the pure ones.  Each entry is
+``name: (callable(env, args) -> value, min_args, max_args)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .values import (
+    CGARuntimeError,
+    from_numpy,
+    make_array,
+    to_bool,
+    to_float,
+    to_str,
+    type_name,
+)
+
+FUNCTIONS: dict[str, tuple] = {}
+
+
+def builtin(name: str, min_args: int, max_args: int | None = None):
+    def deco(fn):
+        FUNCTIONS[name] = (fn, min_args, min_args if max_args is None else max_args)
+        return fn
+    return deco
+
+
+def _math1(name, f):
+    def fn(env, a):
+        x = to_float(a[0], f"{name}() argument")
+        if isinstance(a[0], np.ndarray):
+            return f(a[0].astype(float))
+        try:
+            return float(f(x))
+        except (ValueError, OverflowError):
+            return math.nan
+    FUNCTIONS[name] = (fn, 1, 1)
+
+
+for _n, _f in {"sin": lambda x: np.sin(np.radians(x)), "cos": lambda x: np.cos(np.radians(x)),
+               "tan": lambda x: np.tan(np.radians(x)),
+               "asin": lambda x: np.degrees(np.arcsin(x)), "acos": lambda x: np.degrees(np.arccos(x)),
+               "atan": lambda x: np.degrees(np.arctan(x)), "sqrt": np.sqrt, "exp": np.exp,
+               "ln": np.log, "log10": np.log10, "abs": np.abs, "floor": np.floor, "ceil": np.ceil,
+               "rint": np.rint, "sign": np.sign}.items():
+    _math1(_n, lambda x, _f=_f: _f(x) if not isinstance(x, np.ndarray) else _f(x))
+
+
+@builtin("atan2", 2)
+def _atan2(env, a):
+    return float(math.degrees(math.atan2(to_float(a[0]), to_float(a[1]))))
+
+
+@builtin("pow", 2)
+def _pow(env, a):
+    try:
+        return float(to_float(a[0]) ** to_float(a[1]))
+    except (ValueError, OverflowError, ZeroDivisionError):
+        return math.nan
+
+
+@builtin("min", 1, 64)
+def _min(env, a):
+    if len(a) == 1 and isinstance(a[0], np.ndarray):
+        return float(np.min(a[0])) if a[0].size else math.nan
+    return min(to_float(x) for x in a)
+
+
+@builtin("max", 1, 64)
+def _max(env, a):
+    if len(a) == 1 and isinstance(a[0], np.ndarray):
+        return float(np.max(a[0])) if a[0].size else math.nan
+    return max(to_float(x) for x in a)
+
+
+@builtin("isnan", 1)
+def _isnan(env, a):
+    return isinstance(a[0], (int, float)) and math.isnan(a[0])
+
+
+@builtin("isinf", 1)
+def _isinf(env, a):
+    return isinstance(a[0], (int, float)) and math.isinf(a[0])
+
+
+@builtin("float", 1)
+def _float(env, a):
+    if isinstance(a[0], np.ndarray):
+        return np.array([to_float(from_numpy(x)) for x in a[0].reshape(-1)]).reshape(a[0].shape)
+    return to_float(a[0])
+
+
+@builtin("str", 1)
+def _str(env, a):
+    return to_str(a[0])
+
+
+@builtin("bool", 1)
+def _bool(env, a):
+    return to_bool(a[0])
+
+
+@builtin("rand", 0, 2)
+def _rand(env, a):
+    r = env.random_float()
+    lo, hi = (0.0, 1.0) if not a else ((0.0, to_float(a[0])) if len(a) == 1 else
+                                       (to_float(a[0]), to_float(a[1])))
+    return lo + r * (hi - lo)
+
+
+@builtin("p", 1)
+def _p(env, a):
+    return env.random_float() < to_float(a[0])
+
+
+# ---- strings ------------------------------------------------------------------------------
+
+@builtin("len", 1)
+def _len(env, a):
+    return float(len(to_str(a[0])))
+
+
+@builtin("find", 2, 3)
+def _find(env, a):
+    s, sub = to_str(a[0]), to_str(a[1])
+    n = int(to_float(a[2])) if len(a) > 2 else 0
+    pos = -1
+    for _ in range(n + 1):
+        pos = s.find(sub, pos + 1)
+        if pos < 0:
+            return -1.0
+    return float(pos)
+
+
+@builtin("findFirst", 2)
+def _find_first(env, a):
+    return float(to_str(a[0]).find(to_str(a[1])))
+
+
+@builtin("findLast", 2)
+def _find_last(env, a):
+    return float(to_str(a[0]).rfind(to_str(a[1])))
+
+
+@builtin("count", 2)
+def _count(env, a):
+    if isinstance(a[0], np.ndarray):
+        return float(sum(1 for x in a[0].reshape(-1) if from_numpy(x) == a[1]))
+    sub = to_str(a[1])
+    return float(to_str(a[0]).count(sub)) if sub else 0.0
+
+
+@builtin("replace", 3)
+def _replace(env, a):
+    old = to_str(a[1])
+    return to_str(a[0]).replace(old, to_str(a[2])) if old else to_str(a[0])
+
+
+@builtin("substring", 3)
+def _substring(env, a):
+    s = to_str(a[0])
+    i, j = int(max(0, to_float(a[1]))), int(max(0, to_float(a[2])))
+    return s[i:j]
+
+
+@builtin("toUpper", 1)
+def _upper(env, a):
+    return to_str(a[0]).upper()
+
+
+@builtin("toLower", 1)
+def _lower(env, a):
+    return to_str(a[0]).lower()
+
+
+@builtin("strip", 1)
+def _strip(env, a):
+    return to_str(a[0]).strip()
+
+
+def _list_items(s: str) -> list[str]:
+    """CGA string lists are ``;``-terminated: ``"a;b;c;"``."""
+    parts = s.split(";")
+    if parts and parts[-1] == "":
+        parts.pop()
+    return parts
+
+
+@builtin("listSize", 1)
+def _list_size(env, a):
+    return float(len(_list_items(to_str(a[0]))))
+
+
+@builtin("listItem", 2)
+def _list_item(env, a):
+    items = _list_items(to_str(a[0]))
+    i = int(to_float(a[1]))
+    return items[i] if 0 <= i < len(items) else ""
+
+
+@builtin("listFirst", 1)
+def _list_first(env, a):
+    items = _list_items(to_str(a[0]))
+    return items[0] if items else ""
+
+
+@builtin("listLast", 1)
+def _list_last(env, a):
+    items = _list_items(to_str(a[0]))
+    return items[-1] if items else ""
+
+
+@builtin("listRange", 3)
+def _list_range(env, a):
+    items = _list_items(to_str(a[0]))
+    i, j = int(to_float(a[1])), int(to_float(a[2]))
+    return "".join(x + ";" for x in items[max(i, 0):max(j, 0)])
+
+
+@builtin("listIndex", 2)
+def _list_index(env, a):
+    items = _list_items(to_str(a[0]))
+    s = to_str(a[1])
+    return float(items.index(s)) if s in items else -1.0
+
+
+@builtin("listAdd", 2)
+def _list_add(env, a):
+    return to_str(a[0]) + to_str(a[1]) + ";"
+
+
+@builtin("listRandom", 1)
+def _list_random(env, a):
+    items = _list_items(to_str(a[0]))
+    if not items:
+        return ""
+    return items[min(int(env.random_float() * len(items)), len(items) - 1)]
+
+
+@builtin("listClean", 1)
+def _list_clean(env, a):
+    return "".join(x + ";" for x in _list_items(to_str(a[0])) if x)
+
+
+# ---- arrays -------------------------------------------------------------------------------
+
+def _arr(v, what="argument") -> np.ndarray:
+    if not isinstance(v, np.ndarray):
+        raise CGARuntimeError(f"{what} must be an array, got {type_name(v)}")
+    return v
+
+
+@builtin("size", 1)
+def _size(env, a):
+    v = a[0]
+    if isinstance(v, np.ndarray):
+        return float(v.size)
+    if isinstance(v, str):
+        return float(len(v))
+    return 1.0
+
+
+@builtin("nRows", 1)
+def _nrows(env, a):
+    v = _arr(a[0])
+    return float(v.shape[0]) if v.ndim else 0.0
+
+
+@builtin("nColumns", 1)
+def _ncols(env, a):
+    v = _arr(a[0])
+    return float(v.shape[1]) if v.ndim == 2 else (1.0 if v.ndim == 1 else 0.0)
+
+
+@builtin("floatArray", 0, 1)
+def _float_array(env, a):
+    return np.zeros(0) if not a else np.asarray(_arr(a[0]), float).copy()
+
+
+@builtin("stringArray", 0, 1)
+def _string_array(env, a):
+    return np.zeros(0, object) if not a else np.array([to_str(from_numpy(x)) for x in _arr(a[0]).reshape(-1)], object)
+
+
+@builtin("boolArray", 0, 1)
+def _bool_array(env, a):
+    return np.zeros(0, bool) if not a else np.array([to_bool(from_numpy(x)) for x in _arr(a[0]).reshape(-1)], bool)
+
+
+@builtin("index", 2)
+def _index(env, a):
+    arr = _arr(a[0]).reshape(-1)
+    for i, x in enumerate(arr):
+        if from_numpy(x) == a[1]:
+            return float(i)
+    return -1.0
+
+
+@builtin("sortIndices", 1)
+def _sort_indices(env, a):
+    arr = _arr(a[0]).reshape(-1)
+    return np.argsort(arr, kind="stable").astype(float)
+
+
+@builtin("sort", 1)
+def _sort(env, a):
+    return np.sort(_arr(a[0]).reshape(-1), kind="stable")
+
+
+@builtin("reverse", 1)
+def _reverse(env, a):
+    return _arr(a[0])[::-1].copy()
+
+
+@builtin("transpose", 1)
+def _transpose(env, a):
+    return _arr(a[0]).T.copy()
+
+
+@builtin("splitString", 2)
+def _split_string(env, a):
+    sep = to_str(a[1])
+    s = to_str(a[0])
+    return np.array(s.split(sep) if sep else list(s), dtype=object)
+
+
+@builtin("concatenate", 1, 16)
+def _concatenate(env, a):
+    parts = [x.reshape(-1) if isinstance(x, np.ndarray) else make_array([x]) for x in a]
+    return make_array([from_numpy(x) for p in parts for x in p])
+
+
+@builtin("slice", 2, 3)
+def _slice(env, a):
+    arr = _arr(a[0])
+    i = int(to_float(a[1]))
+    j = int(to_float(a[2])) if len(a) > 2 else arr.shape[0]
+    return arr[i:j].copy()
+
+
+@builtin("item", 2)
+def _item(env, a):
+    arr = _arr(a[0]).reshape(-1)
+    i = int(to_float(a[1]))
+    if not 0 <= i < len(arr):
+        raise CGARuntimeError(f"index {i} out of range for an array of size {len(arr)}")
+    return from_numpy(arr[i])
+
+
+@builtin("sum", 1)
+def _sum(env, a):
+    return float(np.sum(_arr(a[0]).astype(float)))
+
+
+@builtin("uniqueValues", 1)
+def _unique(env, a):
+    seen, out = set(), []
+    for x in _arr(a[0]).reshape(-1):
+        v = from_numpy(x)
+        if v not in seen:
+            seen.add(v)
+            out.append(v)
+    return make_array(out) if out else _arr(a[0])[:0]

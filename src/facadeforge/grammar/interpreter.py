@@ -1,0 +1,461 @@
+"""Derive CGA rules on initial shapes: the shape-grammar interpreter.
+
+Breadth-first over shapes (as CityEngine derives generation by generation), with an operation
+registry, per-shape random streams, CGA warnings for runtime problems and hard caps on depth,
+shape count and time.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DerivationError, RuleError
+from ..model.labels import label_for_name
+from ..model.model import Material, Model, Part
+from ..model.shape import Shape
+from . import ast as A
+from .expressions import Evaluator
+from .functions import FUNCTIONS
+from .module import Module, RuleSet
+from .ops import OPERATIONS, SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS, OpCall, load_all
+from .state import ShapeState
+from .values import CGARuntimeError, to_bool, to_float, to_str
+
+load_all()
+
+MAX_CALL_DEPTH = 200
+
+
+@dataclass
+class Limits:
+    """Caps that keep a derivation bounded (STYLE: "derivations and loops are bounded")."""
+
+    max_depth: int = 200
+    max_shapes: int = 2_000_000
+    max_seconds: float = 600.0
+    max_warnings: int = 1000
+
+
+class Env:
+    """Name and function resolution while a rule runs on one shape."""
+
+    __slots__ = ("derivation", "module", "locals", "state", "evaluator", "call_depth", "rule")
+
+    def __init__(self, derivation, module: Module, local_vars: dict, state: ShapeState, rule=None,
+                 call_depth: int = 0):
+        self.derivation = derivation
+        self.module = module
+        self.locals = local_vars
+        self.state = state
+        self.rule = rule
+        self.call_depth = call_depth
+        self.evaluator = Evaluator(self)
+
+    def with_state(self, state: ShapeState) -> Env:
+        return Env(self.derivation, self.module, self.locals, state, self.rule, self.call_depth)
+
+    def random_float(self) -> float:
+        return self.state.random_float()
+
+    # -- names -------------------------------------------------------------------------------
+    def lookup(self, name: str, node):
+        if name in self.locals:
+            return self.locals[name]
+        getter = _SHAPE_VALUES.get(name)
+        if getter is not None:
+            return getter(self)
+        found = self.module.attr(name)
+        if found is not None:
+            return self.derivation.attr_value(found[0], found[1], self.state)
+        if name.startswith("material."):
+            return _material_value(self.state, name)
+        raise CGARuntimeError(f"unknown attribute or variable '{name}'")
+
+    def call(self, name: str, args: list, node):
+        found = self.module.function(name, len(args))
+        if found is not None:
+            mod, fdef = found
+            if self.call_depth >= MAX_CALL_DEPTH:
+                raise CGARuntimeError(f"function '{name}' recurses deeper than {MAX_CALL_DEPTH} calls")
+            env = Env(self.derivation, mod, {p.name: v for p, v in zip(fdef.params, args)},
+                      self.state, self.rule, self.call_depth + 1)
+            return env.evaluator(fdef.body)
+        shape_fn = _SHAPE_FUNCTIONS.get(name)
+        if shape_fn is not None:
+            return shape_fn(self, args)
+        entry = FUNCTIONS.get(name)
+        if entry is not None:
+            fn, lo, hi = entry
+            if not lo <= len(args) <= hi:
+                raise CGARuntimeError(f"{name}() takes {lo if lo == hi else f'{lo} to {hi}'} "
+                                      f"arguments, got {len(args)}")
+            return fn(self, args)
+        raise CGARuntimeError(f"unknown function '{name}' with {len(args)} arguments")
+
+
+def _material_value(state: ShapeState, name: str):
+    key = name[len("material."):]
+    m = state.material
+    if key == "color.r":
+        return m.get("color", (1, 1, 1))[0]
+    if key == "color.g":
+        return m.get("color", (1, 1, 1))[1]
+    if key == "color.b":
+        return m.get("color", (1, 1, 1))[2]
+    if key == "color.rgb":
+        c = m.get("color", (1, 1, 1))
+        return "#" + "".join(f"{int(round(max(0, min(1, x)) * 255)):02x}" for x in c)
+    if key == "opacity":
+        return m.get("opacity", 1.0)
+    if key == "name":
+        return m.get("name", "")
+    v = m.get(key)
+    if v is None:
+        return "" if key.endswith("map") or key == "name" else 0.0
+    return v
+
+
+def _scope_rotation_deg(state: ShapeState) -> np.ndarray:
+    r = state.scope.rotation
+    # XYZ Euler angles (degrees) of the scope rotation, as scope.rx/ry/rz report them
+    sy = -r[2, 0]
+    ry = math.degrees(math.asin(max(-1.0, min(1.0, sy))))
+    rx = math.degrees(math.atan2(r[2, 1], r[2, 2]))
+    rz = math.degrees(math.atan2(r[1, 0], r[0, 0]))
+    return np.array([rx, ry, rz])
+
+
+_SHAPE_VALUES = {
+    "scope.sx": lambda e: float(e.state.scope.size[0]),
+    "scope.sy": lambda e: float(e.state.scope.size[1]),
+    "scope.sz": lambda e: float(e.state.scope.size[2]),
+    "scope.tx": lambda e: float(e.state.scope.origin[0]),
+    "scope.ty": lambda e: float(e.state.scope.origin[1]),
+    "scope.tz": lambda e: float(e.state.scope.origin[2]),
+    "scope.rx": lambda e: float(_scope_rotation_deg(e.state)[0]),
+    "scope.ry": lambda e: float(_scope_rotation_deg(e.state)[1]),
+    "scope.rz": lambda e: float(_scope_rotation_deg(e.state)[2]),
+    "scope.elevation": lambda e: float(e.state.scope.origin[1] - e.derivation.initial_origin[1]),
+    "split.index": lambda e: float(e.state.context.get("split.index", 0)),
+    "split.total": lambda e: float(e.state.context.get("split.total", 0)),
+    "comp.index": lambda e: float(e.state.context.get("comp.index", 0)),
+    "comp.total": lambda e: float(e.state.context.get("comp.total", 0)),
+    "comp.sel": lambda e: str(e.state.context.get("comp.sel", "")),
+    "initialShape.origin.px": lambda e: float(e.derivation.initial_origin[0]),
+    "initialShape.origin.py": lambda e: float(e.derivation.initial_origin[1]),
+    "initialShape.origin.pz": lambda e: float(e.derivation.initial_origin[2]),
+    "initialShape.origin.ox": lambda e: 0.0,
+    "initialShape.origin.oy": lambda e: 0.0,
+    "initialShape.origin.oz": lambda e: 0.0,
+    "initialShape.name": lambda e: e.derivation.name,
+    "initialShape.startRule": lambda e: e.derivation.ruleset.start_rule,
+    "seedian": lambda e: float(e.derivation.seed),
+    "pi": lambda e: math.pi,
+    "PI": lambda e: math.pi,
+    "pivot.px": lambda e: 0.0, "pivot.py": lambda e: 0.0, "pivot.pz": lambda e: 0.0,
+    "pivot.ox": lambda e: 0.0, "pivot.oy": lambda e: 0.0, "pivot.oz": lambda e: 0.0,
+}
+
+class Derivation:
+    """One derivation of a rule set on one initial shape.
+
+    Parameters
+    ----------
+    ruleset : RuleSet
+    state : ShapeState
+        The initial shape (lot or facade) with its scope and geometry.
+    name : str
+        Initial shape name (``initialShape.name``; object id in exports).
+    attrs : dict
+        ``--attr`` overrides: ``{"height": 20, "facade.floorHeight": 3.5}``.
+    seed : int
+    strict : bool
+        Turn CGA warnings into ``DerivationError``.
+    assets : AssetResolver or None
+    """
+
+    def __init__(self, ruleset: RuleSet, state: ShapeState, name: str = "building",
+                 attrs: dict | None = None, seed: int = 0, strict: bool = False, assets=None,
+                 limits: Limits | None = None, start_rule: str | None = None, street_edges=None):
+        self.ruleset = ruleset
+        self.initial = state
+        self.name = name
+        self.overrides = dict(attrs or {})
+        self.seed = int(seed)
+        self.strict = strict
+        self.assets = assets
+        self.limits = limits or Limits()
+        self.start_rule = start_rule or ruleset.start_rule
+        self.initial_origin = state.scope.origin.copy()
+        self.object_scope = state.scope.copy()
+        self.street_edges = street_edges
+        self.warnings: list[str] = []
+        self.reports: dict[str, list] = {}
+        self.prints: list[str] = []
+        self.parts: list[Part] = []
+        self._attr_cache: dict = {}
+        self._attr_busy: set = set()
+        self.shape_count = 0
+        self._deadline = 0.0
+        self.occluders: list = []  # (node id, ancestors, (2,3) bounds) for occlusion queries
+
+    # -- attributes --------------------------------------------------------------------------
+    def attr_value(self, module: Module, adef: A.AttrDef, state: ShapeState):
+        key = (id(module), adef.name)
+        if key in state.attrs:
+            return state.attrs[key]
+        if key in self._attr_cache:
+            return self._attr_cache[key]
+        qualified = f"{module.name}.{adef.name}" if module.name else adef.name
+        if not adef.const and qualified in self.overrides:
+            value = _coerce_override(self.overrides[qualified], adef)
+        elif not adef.const and module is not self.ruleset.main and adef.name in self.ruleset.main.attrs:
+            # CityEngine propagates an importer's attribute to same-named attributes of imports
+            main_def = self.ruleset.main.attrs[adef.name]
+            value = self.attr_value(self.ruleset.main, main_def, state)
+        else:
+            if key in self._attr_busy:
+                raise CGARuntimeError(f"attribute '{adef.name}' depends on itself")
+            self._attr_busy.add(key)
+            try:
+                value = Env(self, module, {}, self.initial.copy()).evaluator(adef.value)
+            finally:
+                self._attr_busy.discard(key)
+        self._attr_cache[key] = value
+        return value
+
+    # -- warnings ----------------------------------------------------------------------------
+    def warn(self, message: str, node=None, rule: str | None = None) -> None:
+        where = ""
+        if node is not None and getattr(node, "line", 0):
+            path = self.current_path or self.ruleset.main.path
+            where = f"{path}:{node.line}:{node.column}: "
+        text = where + message + (f" (in rule {rule})" if rule else "")
+        if self.strict:
+            raise DerivationError(text + "; derivation stopped because of --strict")
+        if len(self.warnings) < self.limits.max_warnings:
+            if text not in self.warnings:
+                self.warnings.append(text)
+
+    current_path = ""
+
+    # -- main loop ---------------------------------------------------------------------------
+    def run(self) -> Model:
+        self._deadline = time.perf_counter() + self.limits.max_seconds
+        root = Shape(self.start_rule, self.initial.scope.copy(), operator="initial")
+        state = self.initial.copy()
+        state.seed = self.seed * 0x9E3779B1 + 0x7F4A7C15
+        state.label = ""
+        queue: deque = deque([(root, state, self.start_rule, (), self.ruleset.main, 0)])
+        while queue:
+            node, st, name, args, module, depth = queue.popleft()
+            self._apply(queue, node, st, name, args, module, depth)
+        model = Model(self.parts, root, self.reports, self.warnings, self.name)
+        model.attributes = {"startRule": self.start_rule, "seed": self.seed}
+        return model
+
+    def _apply(self, queue, node, state, name, args, module, depth):
+        found = module.rule(name, len(args))
+        if found is None:
+            if module.has_rule_name(name):
+                self.warn(f"rule '{name}' has no overload with {len(args)} parameters; shape left as is")
+            self._output(node, state, name)
+            return
+        mod, rdef = found
+        if depth >= self.limits.max_depth:
+            raise DerivationError(
+                f"derivation deeper than {self.limits.max_depth} levels in rule '{name}' "
+                f"({mod.path}:{rdef.line}); a rule probably calls itself without shrinking its shape")
+        if time.perf_counter() > self._deadline:
+            raise DerivationError(f"derivation took longer than {self.limits.max_seconds:.0f} s "
+                                  f"(while in rule '{name}', {mod.path}:{rdef.line})")
+        hint = label_for_name(name.split(".")[-1])
+        if hint is not None:
+            state.label = hint.value
+        local_vars = {}
+        for p, v in zip(rdef.params, args):
+            local_vars[p.name] = v
+        env = Env(self, mod, local_vars, state, name)
+        self.current_path = mod.path
+        ctx = _RunContext(self, queue, node, depth, name)
+        consumed = ctx.run(rdef.body, state, env, None)
+        if not consumed:
+            self._output(node, state, name)
+
+    def _output(self, node: Shape, state: ShapeState, symbol: str) -> None:
+        node.scope = state.scope
+        node.geometry = state.geometry
+        node.tags.update(state.tags)
+        label = state.label
+        leaf_hint = label_for_name(symbol.split(".")[-1])
+        if leaf_hint is not None:
+            label = leaf_hint.value
+        if "label" in state.context:
+            label = state.context["label"]
+        node.label = label
+        if state.geometry.n_faces == 0:
+            return
+        node.material = self.material(state)
+        self.parts.append(Part(state.geometry, label, node.material, symbol, node.id))
+
+    def material(self, state: ShapeState) -> Material:
+        m = state.material
+        tex = m.get("colormap") or None
+        path = None
+        if tex and self.assets is not None:
+            path = self.assets.texture(tex, self)
+        color = tuple(float(c) for c in m.get("color", (1.0, 1.0, 1.0)))
+        name = m.get("name") or (f"tex_{tex}" if tex else "#" + "".join(
+            f"{int(round(max(0, min(1, c)) * 255)):02x}" for c in color))
+        return Material(name=str(name), color=color, opacity=float(m.get("opacity", 1.0)),
+                        texture=path, metallic=float(m.get("metallic", 0.0)),
+                        roughness=float(m.get("roughness", 0.9)))
+
+    def count_shape(self, rule: str) -> None:
+        self.shape_count += 1
+        if self.shape_count > self.limits.max_shapes:
+            raise DerivationError(f"more than {self.limits.max_shapes} shapes (last rule '{rule}'); "
+                                  "a repeat split on a huge scope or a runaway recursion?")
+
+
+class _RunContext:
+    """Runs the operation sequence of one rule application."""
+
+    __slots__ = ("d", "queue", "node", "depth", "rule", "emitted")
+
+    def __init__(self, derivation, queue, node, depth, rule):
+        self.d, self.queue, self.node, self.depth, self.rule = derivation, queue, node, depth, rule
+        self.emitted = 0
+
+    def emit(self, state: ShapeState, name: str, args: tuple, module: Module, origin, leaf=False):
+        child_state = state.child(self.emitted)
+        self.emitted += 1
+        self.d.count_shape(name)
+        child = Shape(name, child_state.scope.copy())
+        if origin:
+            child.operator, child.params = origin
+        self.node.children.append(child)
+        if leaf:
+            self.d._output(child, child_state, name)
+        else:
+            self.queue.append((child, child_state, name, args, module, self.depth + 1))
+
+    def run(self, ops: tuple, state: ShapeState, env: Env, origin) -> bool:
+        """Run ``ops`` on ``state``; returns whether the shape was consumed (replaced)."""
+        consumed = False
+        for i, op in enumerate(ops):
+            t = type(op)
+            try:
+                if t is A.Successor:
+                    spec = OPERATIONS.get(op.name) if (op.has_parens or op.name in _NOARG_OPS) else None
+                    if spec is not None and not env.module.has_rule_name(op.name):
+                        self.call_op(spec, op, state, env, ())
+                        if spec.consumes:
+                            return True
+                    else:
+                        args = tuple(env.evaluator(a) for a in op.args)
+                        self.emit(state, op.name, args, env.module, origin)
+                        consumed = True
+                elif t is A.Leaf:
+                    self.emit(state, op.name, (), env.module, origin, leaf=True)
+                    consumed = True
+                elif t is A.BodyOp:
+                    spec = OPERATIONS.get(op.name)
+                    if spec is None or not spec.body:
+                        raise CGARuntimeError(f"'{op.name}' takes no {{ … }} body")
+                    pieces = self.call_op(spec, op, state, env, op.branches)
+                    for piece_state, piece_ops, info in pieces or ():
+                        sub = env.with_state(piece_state)
+                        if not self.run(piece_ops, piece_state, sub, (op.name, info)):
+                            self.d.count_shape(self.rule)
+                            piece = Shape(self.rule, piece_state.scope.copy(), operator=op.name,
+                                          params=info)
+                            self.node.children.append(piece)
+                            self.d._output(piece, piece_state, self.rule)
+                    if i + 1 < len(ops):
+                        self.d.warn(f"operations after {op.name}{{…}} have no shape to work on",
+                                    ops[i + 1], self.rule)
+                    return True
+                elif t is A.Push:
+                    sub_state = state.copy()
+                    sub_state.draws = state.draws
+                    if self.run(op.ops, sub_state, env.with_state(sub_state), origin):
+                        consumed = True
+                    state.draws = sub_state.draws
+                elif t is A.Nil:
+                    return True
+                elif t is A.CaseOps:
+                    chosen = op.otherwise
+                    for cond, branch in op.branches:
+                        if to_bool(env.evaluator(cond)):
+                            chosen = branch
+                            break
+                    return self.run(chosen, state, env, origin) or consumed
+                elif t is A.StochasticOps:
+                    r = state.random_float() * 100.0
+                    chosen, acc = op.otherwise, 0.0
+                    for pct, branch in op.branches:
+                        acc += pct
+                        if r < acc:
+                            chosen = branch
+                            break
+                    return self.run(chosen, state, env, origin) or consumed
+            except CGARuntimeError as e:
+                self.d.warn(str(e), op, self.rule)
+        return consumed
+
+    def call_op(self, spec, op, state, env, branches):
+        n = len(op.args)
+        if not spec.min_args <= n <= spec.max_args:
+            want = spec.min_args if spec.min_args == spec.max_args else f"{spec.min_args} to {spec.max_args}"
+            raise CGARuntimeError(f"{spec.name}() takes {want} arguments, got {n}")
+        args = []
+        for k, a in enumerate(op.args):
+            if k in spec.selectors and isinstance(a, A.Name) and a.name not in env.locals \
+                    and env.module.attr(a.name) is None:
+                args.append(a.name)
+            else:
+                args.append(env.evaluator(a))
+        call = OpCall(spec.name, args, state, self.d, env, branches, getattr(op, "repeat", False))
+        call.rule = self.rule  # type: ignore[attr-defined]
+        call.run = self  # type: ignore[attr-defined]
+        return spec.fn(call)
+
+
+# operations that may be written without parentheses
+_NOARG_OPS = {"NIL"}
+
+
+def _coerce_override(value, adef: A.AttrDef):
+    """``--attr`` values arrive as text: convert to the attribute's declared or default type."""
+    if not isinstance(value, str):
+        return value
+    kind = adef.type
+    if kind is None:
+        init = adef.value
+        kind = {A.Num: "float", A.Str: "string", A.Bool: "bool"}.get(type(init))
+        if isinstance(init, A.Unary) and isinstance(init.operand, A.Num):
+            kind = "float"
+    if kind == "float":
+        try:
+            return float(value)
+        except ValueError:
+            raise RuleError(f"attribute '{adef.name}' is a float; cannot set it to '{value}'") from None
+    if kind == "bool":
+        if value.lower() not in ("true", "false", "1", "0"):
+            raise RuleError(f"attribute '{adef.name}' is a bool; use true or false, not '{value}'")
+        return value.lower() in ("true", "1")
+    if kind == "string":
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        return value
+
+
+__all__ = ["Derivation", "Env", "Limits", "to_float", "to_str"]

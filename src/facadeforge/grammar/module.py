@@ -1,0 +1,186 @@
+"""Linked rule files: a ``Module`` per .cga file with its imports, attributes, functions, rules."""
+
+from __future__ import annotations
+
+import difflib
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from ..errors import RuleError, RuleSyntaxError
+from . import ast as A
+from .parser import parse_rules
+
+MAX_IMPORT_DEPTH = 32
+
+# names the runtime provides inside expressions (beside attributes, constants and parameters)
+BUILTIN_NAMES = {
+    "scope.sx", "scope.sy", "scope.sz", "scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry",
+    "scope.rz", "scope.elevation", "split.index", "split.total", "comp.index", "comp.total",
+    "comp.sel", "initialShape.origin.px", "initialShape.origin.py", "initialShape.origin.pz",
+    "initialShape.origin.ox", "initialShape.origin.oy", "initialShape.origin.oz",
+    "initialShape.name", "initialShape.startRule", "seedian", "pi", "PI", "nil",
+    "material.name", "material.color.r", "material.color.g", "material.color.b",
+    "material.color.a", "material.opacity", "material.colormap", "material.bumpmap",
+    "material.normalmap", "material.specularmap", "material.opacitymap", "material.dirtmap",
+    "material.shininess", "material.metallic", "material.roughness", "material.reflectivity",
+    "material.color.rgb", "material.colormap.su", "material.colormap.sv",
+    "material.colormap.tu", "material.colormap.tv", "material.colormap.rw",
+    "material.ambient.r", "material.ambient.g", "material.ambient.b",
+    "material.specular.r", "material.specular.g", "material.specular.b", "pivot.px", "pivot.py",
+    "pivot.pz", "pivot.ox", "pivot.oy", "pivot.oz", "world.up",
+}
+
+
+class Module:
+    """One parsed .cga file, linked to the modules it imports.
+
+    Parameters
+    ----------
+    rule_file : RuleFile
+        Parsed AST.
+    name : str
+        ``""`` for the main file, else the import alias chain (``"facade"``, ``"facade.win"``).
+    """
+
+    def __init__(self, rule_file: A.RuleFile, name: str = ""):
+        self.ast = rule_file
+        self.path = rule_file.path
+        self.name = name
+        self.imports: dict[str, Module] = {}
+        self.attrs: dict[str, A.AttrDef] = {a.name: a for a in rule_file.attrs}
+        self.functions: dict[str, dict[int, A.FuncDef]] = {}
+        for f in rule_file.functions:
+            self.functions.setdefault(f.name, {})[len(f.params)] = f
+        self.rules: dict[str, dict[int, A.RuleDef]] = {}
+        for r in rule_file.rules:
+            self.rules.setdefault(r.name, {})[len(r.params)] = r
+        self.start_rules = [r.name for r in rule_file.rules
+                            if any(a.name == "StartRule" for a in r.annotations)]
+
+    # -- lookups -----------------------------------------------------------------------------
+    def resolve(self, qualified: str) -> tuple[Module, str] | None:
+        """``"F.G.Rule"`` → (module of G, "Rule"); ``None`` if an alias is unknown."""
+        mod, parts = self, qualified.split(".")
+        for alias in parts[:-1]:
+            nxt = mod.imports.get(alias)
+            if nxt is None:
+                return None
+            mod = nxt
+        return mod, parts[-1]
+
+    def rule(self, name: str, arity: int) -> tuple[Module, A.RuleDef] | None:
+        found = self.resolve(name) if "." in name else (self, name)
+        if found is None:
+            return None
+        mod, short = found
+        overloads = mod.rules.get(short)
+        if overloads is None or arity not in overloads:
+            return None
+        return mod, overloads[arity]
+
+    def has_rule_name(self, name: str) -> bool:
+        found = self.resolve(name) if "." in name else (self, name)
+        return found is not None and found[1] in found[0].rules
+
+    def function(self, name: str, arity: int) -> tuple[Module, A.FuncDef] | None:
+        found = self.resolve(name) if "." in name else (self, name)
+        if found is None:
+            return None
+        mod, short = found
+        f = mod.functions.get(short, {}).get(arity)
+        return (mod, f) if f is not None else None
+
+    def attr(self, name: str) -> tuple[Module, A.AttrDef] | None:
+        found = self.resolve(name) if "." in name else (self, name)
+        if found is None:
+            return None
+        mod, short = found
+        a = mod.attrs.get(short)
+        return (mod, a) if a is not None else None
+
+    def all_modules(self):
+        seen, stack = [], [self]
+        while stack:
+            m = stack.pop()
+            if any(m is s for s in seen):
+                continue
+            seen.append(m)
+            stack.extend(m.imports.values())
+        return seen
+
+
+class RuleSet:
+    """A main module and everything it imports.
+
+    Parameters
+    ----------
+    main : Module
+    start_rule : str
+        The rule derivation starts with (``@StartRule`` or the first rule unless overridden).
+    asset_root : Path or None
+        Folder against which relative asset paths resolve.
+    """
+
+    def __init__(self, main: Module, start_rule: str | None = None, asset_root=None,
+                 resolver=None):
+        self.main = main
+        self.asset_root = Path(asset_root) if asset_root else None
+        self.resolver = resolver
+        if start_rule is None:
+            if main.start_rules:
+                start_rule = main.start_rules[0]
+            elif main.ast.rules:
+                start_rule = main.ast.rules[0].name
+            else:
+                raise RuleError("the rule file defines no rules", main.path)
+        elif not main.has_rule_name(start_rule):
+            raise RuleError(f"start rule '{start_rule}' is not defined{_did_you_mean(start_rule, main.rules)}",
+                            main.path)
+        self.start_rule = start_rule
+
+
+def _did_you_mean(name: str, candidates) -> str:
+    close = difflib.get_close_matches(name, list(candidates), n=1)
+    return f"; did you mean '{close[0]}'?" if close else ""
+
+
+def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | None = None) -> Module:
+    """Parse ``text`` and, through ``read(importer_path, import_path) -> (text, path)``, its imports."""
+    main = Module(parse_rules(text, path))
+    pending = [(main, 0)]
+    cache: dict[str, Module] = {os.path.normpath(path): main}
+    while pending:
+        mod, depth = pending.pop()
+        for imp in mod.ast.imports:
+            if depth >= MAX_IMPORT_DEPTH:
+                raise RuleError("imports nest deeper than 32 files (an import cycle?)", mod.path,
+                                imp.line, imp.column)
+            if read is None:
+                raise RuleError(f"cannot import '{imp.path}' from rule text without a file",
+                                mod.path, imp.line, imp.column)
+            try:
+                itext, ipath = read(mod.path, imp.path)
+            except (OSError, KeyError) as e:
+                raise RuleError(f"cannot import '{imp.path}': {e}; check the path relative to "
+                                f"{Path(mod.path).name}", mod.path, imp.line, imp.column) from None
+            key = os.path.normpath(ipath)
+            child = cache.get(key)
+            if child is None:
+                try:
+                    child = Module(parse_rules(itext, ipath),
+                                   f"{mod.name}.{imp.alias}" if mod.name else (imp.alias or ""))
+                except RuleSyntaxError:
+                    raise
+                cache[key] = child
+                pending.append((child, depth + 1))
+            if imp.alias:
+                mod.imports[imp.alias] = child
+            else:  # anonymous import: its definitions join the importer's namespace
+                for k, v in child.attrs.items():
+                    mod.attrs.setdefault(k, v)
+                for k, v in child.functions.items():
+                    mod.functions.setdefault(k, v)
+                for k, v in child.rules.items():
+                    mod.rules.setdefault(k, v)
+    return main

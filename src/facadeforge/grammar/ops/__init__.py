@@ -1,0 +1,96 @@
+"""Operation registry: one small function per CGA operation (ShapeML habit).
+
+An operation is registered with its name, argument count range and which argument positions are
+selector keywords (``split(x)``, ``offset(-1, inside)``).  The interpreter validates the call, then
+hands the op an ``OpCall`` holding the evaluated arguments and the current shape state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from ..values import CGARuntimeError, Floating, Relative, to_float, to_str
+
+
+@dataclass(frozen=True)
+class OpSpec:
+    name: str
+    fn: Callable
+    min_args: int
+    max_args: int
+    selectors: frozenset = field(default_factory=frozenset)
+    body: bool = False
+    consumes: bool = False  # the shape is replaced (split, comp): later ops in a sequence see nothing
+
+
+OPERATIONS: dict[str, OpSpec] = {}
+
+# functions that read the current shape (``geometry.area``, ``fileExists``…): name -> fn(env, args)
+SHAPE_FUNCTIONS: dict[str, Callable] = {}
+
+
+def shape_function(name: str):
+    def deco(fn):
+        SHAPE_FUNCTIONS[name] = fn
+        return fn
+    return deco
+
+
+def operation(name: str, min_args: int = 0, max_args: int | None = None, selectors=(),
+              body: bool = False, consumes: bool = False):
+    def deco(fn):
+        OPERATIONS[name] = OpSpec(name, fn, min_args, min_args if max_args is None else max_args,
+                                  frozenset(selectors), body, consumes or body)
+        return fn
+    return deco
+
+
+@dataclass
+class OpCall:
+    """What an operation receives."""
+
+    name: str
+    args: list
+    state: object  # ShapeState
+    derivation: object  # Derivation (assets, warnings, reports)
+    env: object  # Env (to evaluate split sizes lazily, read attributes)
+    branches: tuple = ()
+    repeat: bool = False
+
+    def num(self, i: int, default: float | None = None) -> float:
+        if i >= len(self.args):
+            if default is None:
+                raise CGARuntimeError(f"{self.name}: argument {i + 1} is missing")
+            return default
+        return to_float(self.args[i], f"{self.name} argument {i + 1}")
+
+    def size(self, i: int, current: float, default: float | None = None) -> float:
+        """A size argument: number, ``'relative`` (× current) or ``~float`` (taken as is)."""
+        if i >= len(self.args):
+            if default is None:
+                raise CGARuntimeError(f"{self.name}: argument {i + 1} is missing")
+            return default
+        v = self.args[i]
+        if isinstance(v, Relative):
+            return v.value * current
+        if isinstance(v, Floating):
+            return v.value
+        return to_float(v, f"{self.name} argument {i + 1}")
+
+    def text(self, i: int, default: str | None = None) -> str:
+        if i >= len(self.args):
+            if default is None:
+                raise CGARuntimeError(f"{self.name}: argument {i + 1} is missing")
+            return default
+        return to_str(self.args[i])
+
+    def sel(self, i: int, default: str | None = None) -> str:
+        return self.text(i, default)
+
+
+def load_all() -> dict[str, OpSpec]:
+    """Import every op module so that their decorators register them."""
+    from . import appearance, geometry, meta, roofs, subdivision, transform  # noqa: F401
+
+    return OPERATIONS

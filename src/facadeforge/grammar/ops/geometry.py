@@ -1,0 +1,476 @@
+"""Geometry-creating operations: extrude, offset, convexify, primitives, asset insertion…"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import InputError
+from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, triangulate_polygon
+from ...geometry.primitives import PRIMITIVES
+from ...model.scope import Scope
+from ..values import CGARuntimeError, to_bool, to_float, to_str
+from . import operation, shape_function
+from .subdivision import classify_faces, face_scope
+
+
+# ---- extrude ----------------------------------------------------------------------------------
+
+def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, list[str]]:
+    """Prism of every face: bottom (reversed), side quads, top.  Returns mesh and face kinds."""
+    polys, kinds = [], []
+    normals = mesh.face_normals()
+    for f in range(mesh.n_faces):
+        p = mesh.vertices[mesh.face(f)]
+        d = direction_of_face(normals[f]) * distance
+        top = p + d
+        bottom = p[::-1]
+        faces = [bottom]
+        k = len(p)
+        for j in range(k):
+            a, b = p[j], p[(j + 1) % k]
+            faces.append(np.array([a, b, b + d, a + d]))
+        faces.append(top)
+        if distance < 0:
+            faces = [q[::-1] for q in faces]
+        polys.extend(faces)
+        kinds.extend(["bottom"] + ["side"] * k + ["top"])
+    return Mesh.from_polygons(polys), kinds
+
+
+@operation("extrude", 1, 2, selectors=(0,))
+def op_extrude(call):
+    """Extrude each face along its normal (or ``world.y``); the scope keeps its orientation."""
+    st = call.state
+    if len(call.args) == 2:
+        mode, dist = call.sel(0), call.num(1)
+    else:
+        mode, dist = "face.normal", call.num(0)
+    if abs(dist) < EPS or not st.geometry.n_faces:
+        return
+    if mode in ("world.y", "world.up", "world.up.flatTop"):
+        def direction(n):
+            return np.array([0.0, 1.0 if n[1] >= 0 else -1.0, 0.0])
+    elif mode in ("face.normal", "vertex.normal", "normal"):
+        def direction(n):
+            return n
+    else:
+        raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or world.y")
+    st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
+    st.context["face_kinds"] = kinds
+    st.fit_scope()
+
+
+# ---- offset -----------------------------------------------------------------------------------
+
+def _offset_ring(xy: np.ndarray, d: float) -> np.ndarray | None:
+    """Mitre offset of a CCW ring by ``d`` (negative = inward), vertex for vertex; None if invalid."""
+    k = len(xy)
+    e = np.roll(xy, -1, axis=0) - xy
+    length = np.linalg.norm(e, axis=1)
+    if np.any(length < EPS):
+        return None
+    t = e / length[:, None]
+    n_out = np.column_stack([t[:, 1], -t[:, 0]])  # right of a CCW edge = outside
+    p = xy + n_out * d  # points on the offset lines
+    out = np.empty_like(xy)
+    for j in range(k):
+        i = (j - 1) % k  # previous edge
+        a1, d1, a2, d2 = p[i], t[i], p[j], t[j]
+        den = d1[0] * d2[1] - d1[1] * d2[0]
+        if abs(den) < 1e-12:
+            out[j] = xy[j] + n_out[j] * d
+        else:
+            s = ((a2 - a1)[0] * d2[1] - (a2 - a1)[1] * d2[0]) / den
+            out[j] = a1 + s * d1
+    import shapely
+
+    poly = shapely.Polygon(out)
+    if not poly.is_valid or poly.area < EPS:
+        return None
+    x, y = out[:, 0], out[:, 1]
+    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= 0:
+        return None
+    return out
+
+
+@operation("offset", 1, 2, selectors=(1,))
+def op_offset(call):
+    """Offset every face in its plane.  ``inside`` keeps the inner polygon, ``border`` the ring,
+    ``all`` (default) both, tagged so that ``comp(f){ inside : … | border : … }`` can pick them."""
+    import shapely
+
+    st = call.state
+    d = call.num(0)
+    mode = call.sel(1, "all")
+    if mode not in ("all", "inside", "border"):
+        raise CGARuntimeError(f"offset mode must be all, inside or border, not '{mode}'")
+    mesh = st.geometry
+    polys, kinds = [], []
+    normals = mesh.face_normals()
+    for f in range(mesh.n_faces):
+        p = mesh.vertices[mesh.face(f)]
+        n = normals[f]
+        if not n.any():
+            continue
+        basis = plane_basis(n, p[1] - p[0])
+        xy = (p - p[0]) @ basis[:, :2]
+        lift = lambda q, p0=p[0], b=basis: p0 + q @ b[:, :2].T  # noqa: E731
+        inner = _offset_ring(xy, d)
+        if inner is not None:
+            if mode in ("all", "inside"):
+                polys.append(lift(inner))
+                kinds.append("inside")
+            if mode in ("all", "border"):
+                k = len(xy)
+                outer_ring, inner_ring = (xy, inner) if d < 0 else (inner, xy)
+                for j in range(k):
+                    jn = (j + 1) % k
+                    quad = np.array([outer_ring[j], outer_ring[jn], inner_ring[jn], inner_ring[j]])
+                    polys.append(lift(quad))
+                    kinds.append("border")
+            continue
+        # large offsets: shapely's mitre buffer, border triangulated
+        base = shapely.Polygon(xy).buffer(0)
+        off = base.buffer(d, join_style="mitre", mitre_limit=10.0)
+        if mode in ("all", "inside"):
+            for g in getattr(off, "geoms", [off]):
+                if g.geom_type == "Polygon" and g.area > EPS:
+                    ring = np.asarray(g.exterior.coords)[:-1]
+                    polys.append(lift(ring if g.exterior.is_ccw else ring[::-1]))
+                    kinds.append("inside")
+        if mode in ("all", "border"):
+            ring_geom = base.difference(off) if d < 0 else off.difference(base)
+            for g in getattr(ring_geom, "geoms", [ring_geom]):
+                if g.geom_type != "Polygon" or g.area <= EPS:
+                    continue
+                for tri in _triangulate_with_holes(g):
+                    polys.append(lift(tri))
+                    kinds.append("border")
+    st.geometry = Mesh.from_polygons(polys)
+    st.context["face_kinds"] = kinds
+    if st.geometry.n_faces:
+        st.fit_scope()
+
+
+def _triangulate_with_holes(g) -> list[np.ndarray]:
+    import mapbox_earcut as earcut
+
+    rings = [np.asarray(g.exterior.coords)[:-1]] + [np.asarray(r.coords)[:-1] for r in g.interiors]
+    flat = np.concatenate(rings)
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    tri = np.asarray(earcut.triangulate_float64(flat, ends), np.int64).reshape(-1, 3)
+    out = []
+    for t in tri:
+        q = flat[t]
+        x, y = q[:, 0], q[:, 1]
+        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+            q = q[::-1]
+        out.append(q)
+    return out
+
+
+# ---- convexify --------------------------------------------------------------------------------
+
+def convex_parts(poly: np.ndarray) -> list[np.ndarray]:
+    """Hertel–Mehlhorn: triangulate, then drop diagonals while the merged pieces stay convex."""
+    n = polygon_normal(poly)
+    if not n.any():
+        return []
+    basis = plane_basis(n)
+    xy = (poly - poly[0]) @ basis[:, :2]
+    if _is_convex2(xy):
+        return [poly]
+    tris = [list(t) for t in triangulate_polygon(poly)]
+    pieces = [t for t in tris]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(pieces)):
+            for j in range(i + 1, len(pieces)):
+                m = _merge(pieces[i], pieces[j])
+                if m is not None and _is_convex2(xy[m]):
+                    pieces[i] = m
+                    del pieces[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [poly[p] for p in pieces]
+
+
+def _merge(a: list, b: list) -> list | None:
+    ea = {(a[k], a[(k + 1) % len(a)]): k for k in range(len(a))}
+    for k in range(len(b)):
+        u, v = b[k], b[(k + 1) % len(b)]
+        if (v, u) in ea:
+            ka = ea[(v, u)]
+            # a: ... v u ...  insert b's path from v around to u (exclusive) after v
+            rest_b = [b[(k + 2 + s) % len(b)] for s in range(len(b) - 2)]
+            return a[:ka + 1] + rest_b + a[ka + 1:]
+    return None
+
+
+def _is_convex2(xy: np.ndarray) -> bool:
+    e = np.roll(xy, -1, axis=0) - xy
+    c = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+    return bool(np.all(c >= -1e-12))
+
+
+@operation("convexify", 0, 1)
+def op_convexify(call):
+    st = call.state
+    polys = []
+    for p in st.geometry.polygons():
+        polys.extend(convex_parts(p))
+    st.geometry = Mesh.from_polygons(polys)
+
+
+# ---- small geometry edits -------------------------------------------------------------------------
+
+@operation("reverseNormals", 0)
+def op_reverse_normals(call):
+    call.state.geometry = call.state.geometry.reversed()
+
+
+for _name in ("cleanupGeometry", "reduceGeometry", "trim", "deleteHoles", "softenNormals",
+              "setNormals", "resetGeometry", "modify"):
+    operation(_name, 0, 8, selectors=tuple(range(8)))(lambda call: None)
+
+
+@operation("envelope", 3, 8, selectors=(0,))
+def op_envelope(call):
+    """``envelope(direction, maxHeight, baseHeight, angle…)``: walls up to ``baseHeight``, then
+    planes inclined inwards at the first angle (straight skeleton), cut flat at ``maxHeight``."""
+    from ...geometry.roofs import roof_hip
+
+    st = call.state
+    max_h, base_h = call.num(1), call.num(2)
+    angle = call.num(3, 45.0)
+    polys = []
+    for p in st.geometry.polygons():
+        n = polygon_normal(p)
+        basis = plane_basis(n, p[1] - p[0])
+        xy = (p - p[0]) @ basis[:, :2]
+        walls, _ = extrude_mesh(Mesh.from_polygons([p]), lambda nn: nn, base_h)
+        keep = [q for q in walls.polygons() if abs(polygon_normal(q) @ n) < 0.99 or
+                polygon_normal(q) @ n < 0]
+        polys.extend(keep)
+        faces, _ = roof_hip(xy, angle)
+        h_top = max_h - base_h
+        for q in faces:
+            q = np.asarray(q, float)
+            polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(np.minimum(q[:, 2], h_top) + base_h, n))
+    st.geometry = Mesh.from_polygons([q for q in polys if np.linalg.norm(np.cross(q[1] - q[0], q[-1] - q[0])) > 0])
+    st.fit_scope()
+
+
+# ---- primitives and assets -------------------------------------------------------------------
+
+def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
+    """Place a mesh given in its own frame into the scope, scaled to the scope size.
+
+    Zero scope dimensions take the asset's proportions: they are scaled by the mean factor of the
+    non-zero dimensions (CityEngine keeps aspect ratios the same way).
+    """
+    lo, hi = bounds
+    ext = hi - lo
+    size = st.scope.size.copy()
+    factors = np.where((ext > EPS) & (size > EPS), size / np.where(ext > EPS, ext, 1.0), np.nan)
+    known = factors[~np.isnan(factors)]
+    fill = float(known.mean()) if len(known) else 1.0
+    factors = np.where(np.isnan(factors), fill, factors)
+    new_size = np.where(ext > EPS, ext * factors, size)
+    local = (mesh.vertices - lo) * factors
+    st.scope.size = new_size
+    st.geometry = mesh.with_vertices(st.scope.to_world(local))
+
+
+@operation("i", 1, 3, selectors=(1, 2))
+def op_insert(call):
+    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope."""
+    st = call.state
+    name = call.text(0)
+    if name.startswith("builtin:"):
+        kind = name.split(":")[1]
+        make = PRIMITIVES.get(kind)
+        if make is None:
+            raise CGARuntimeError(f"unknown builtin asset '{name}'; use one of "
+                                  + ", ".join("builtin:" + k for k in sorted(PRIMITIVES)))
+        mesh = make()
+        _fit_unit_mesh(st, mesh, mesh.bounds())
+        st.context.pop("face_kinds", None)
+        return
+    resolver = call.derivation.assets
+    if resolver is None:
+        raise CGARuntimeError(f"asset '{name}' cannot be inserted: no asset folder was given (--assets DIR)")
+    try:
+        asset = resolver.mesh(name)
+    except InputError as e:
+        raise CGARuntimeError(str(e)) from None
+    if asset is None:
+        raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
+    _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
+    st.context.pop("face_kinds", None)
+    if asset.material.texture and "colormap" not in st.material:
+        st.material["colormap"] = asset.material.texture
+    if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):
+        st.material["color"] = tuple(asset.material.color)
+
+
+def _primitive_op(kind):
+    def fn(call):
+        st = call.state
+        mesh = PRIMITIVES[kind](*[call.num(k) for k in range(len(call.args))][:0])
+        if call.args and kind in ("cube",) and len(call.args) == 3:
+            st.scope.size = np.array([call.num(0), call.num(1), call.num(2)])
+        _fit_unit_mesh(st, mesh, mesh.bounds())
+        st.context.pop("face_kinds", None)
+    return fn
+
+
+for _op, _kind in (("primitiveCube", "cube"), ("primitiveQuad", "quad"),
+                   ("primitiveCylinder", "cylinder"), ("primitiveSphere", "sphere"),
+                   ("primitiveCone", "cone"), ("primitiveDisk", "disk")):
+    operation(_op, 0, 3)(_primitive_op(_kind))
+
+
+# ---- shape functions reading geometry ----------------------------------------------------------
+
+def _face_selection(env, args) -> np.ndarray:
+    st = env.state
+    mesh = st.geometry
+    if not args:
+        return np.ones(mesh.n_faces, bool)
+    key = to_str(args[0])
+    table = classify_faces(mesh.face_normals(), st.scope.rotation,
+                           env.derivation.object_scope.rotation)
+    if key not in table:
+        raise CGARuntimeError(f"unknown face selector '{key}'")
+    return table[key]
+
+
+@shape_function("geometry.area")
+def _geometry_area(env, args):
+    mesh = env.state.geometry
+    if not mesh.n_faces:
+        return 0.0
+    return float(mesh.face_areas()[_face_selection(env, args)].sum())
+
+
+@shape_function("geometry.volume")
+def _geometry_volume(env, args):
+    mesh = env.state.geometry
+    return abs(mesh.volume()) if mesh.is_closed() else 0.0
+
+
+@shape_function("geometry.nFaces")
+def _geometry_nfaces(env, args):
+    return float(env.state.geometry.n_faces)
+
+
+@shape_function("geometry.nVertices")
+def _geometry_nvertices(env, args):
+    return float(len(env.state.geometry.used_vertices()))
+
+
+@shape_function("geometry.nEdges")
+def _geometry_nedges(env, args):
+    return float(len(env.state.geometry.corners))
+
+
+@shape_function("geometry.isClosedSurface")
+def _geometry_closed(env, args):
+    return env.state.geometry.is_closed()
+
+
+@shape_function("geometry.isPlanar")
+def _geometry_planar(env, args):
+    mesh = env.state.geometry
+    tol = to_float(args[0]) if args else 0.0
+    n = mesh.face_normals()
+    return bool(len(n)) and bool(np.all(np.degrees(np.arccos(np.clip(n @ n[0], -1, 1))) <= tol + 1e-6))
+
+
+@shape_function("geometry.isRectangular")
+def _geometry_rectangular(env, args):
+    mesh = env.state.geometry
+    tol = to_float(args[0]) if args else 0.0
+    if mesh.n_faces != 1 or mesh.face_sizes[0] != 4:
+        return False
+    p = mesh.vertices[mesh.face(0)]
+    e = np.roll(p, -1, axis=0) - p
+    e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), EPS)
+    ang = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", e, np.roll(e, -1, axis=0))), 0, 1)))
+    return bool(np.all(90 - ang <= tol + 1e-6))
+
+
+@shape_function("geometry.height")
+def _geometry_height(env, args):
+    b = env.state.geometry.bounds()
+    return float(b[1, 1] - b[0, 1])
+
+
+@shape_function("geometry.angle")
+def _geometry_angle(env, args):
+    mesh = env.state.geometry
+    if not mesh.n_faces:
+        return 0.0
+    n = mesh.face_normals()[0]
+    which = to_str(args[0]) if args else "maxSlope"
+    if which == "azimuth":
+        return float(np.degrees(np.arctan2(n[0], n[2])) % 360)
+    return float(np.degrees(np.arccos(np.clip(abs(n[1]), 0, 1))))
+
+
+@shape_function("fileExists")
+def _file_exists(env, args):
+    res = env.derivation.assets
+    if res is None:
+        return False
+    try:
+        return res.resolve(to_str(args[0])) is not None
+    except InputError:
+        return False
+
+
+@shape_function("fileSearch")
+def _file_search(env, args):
+    res = env.derivation.assets
+    items = res.search(to_str(args[0])) if res is not None else []
+    return "".join(x + ";" for x in items)
+
+
+@shape_function("fileRandom")
+def _file_random(env, args):
+    res = env.derivation.assets
+    items = res.search(to_str(args[0])) if res is not None else []
+    if not items:
+        return ""
+    return items[min(int(env.random_float() * len(items)), len(items) - 1)]
+
+
+@shape_function("assetInfo")
+def _asset_info(env, args):
+    res = env.derivation.assets
+    name = to_str(args[0])
+    key = to_str(args[1]) if len(args) > 1 else "sx"
+    if name.startswith("builtin:"):
+        return 1.0
+    try:
+        asset = res.mesh(name) if res is not None else None
+    except InputError:
+        asset = None
+    if asset is None:
+        return 0.0
+    lo, hi = asset.mesh.bounds()
+    table = {"sx": hi[0] - lo[0], "sy": hi[1] - lo[1], "sz": hi[2] - lo[2], "tx": lo[0],
+             "ty": lo[1], "tz": lo[2]}
+    return float(table.get(key, 0.0))
+
+
+@shape_function("assetApproxRatio")
+def _asset_ratio(env, args):
+    return 1.0
+
+
+__all__ = ["Scope", "convex_parts", "extrude_mesh", "face_scope", "to_bool"]

@@ -1,0 +1,79 @@
+"""Roof operations on the straight skeleton: ``roofHip roofGable roofPyramid roofShed``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
+from ..values import CGARuntimeError
+from . import operation
+
+
+def _roof(call, builder):
+    st = call.state
+    mesh = st.geometry
+    if not mesh.n_faces:
+        return
+    polys = []
+    for p in mesh.polygons():
+        n = polygon_normal(p)
+        if not n.any():
+            continue
+        basis = plane_basis(n, p[1] - p[0])
+        xy = (p - p[0]) @ basis[:, :2]
+        x, y = xy[:, 0], xy[:, 1]
+        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
+            continue
+        try:
+            faces = builder(xy)
+        except ValueError as e:
+            raise CGARuntimeError(f"{call.name}: {e}") from None
+        for q in faces:
+            q = np.asarray(q, float)
+            polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
+    st.geometry = Mesh.from_polygons(polys)
+    st.context.pop("face_kinds", None)
+    st.fit_scope()
+
+
+def _angle(call, k=0):
+    a = call.num(k)
+    if not 0 < a < 90:
+        raise CGARuntimeError(f"{call.name}: the roof angle must be between 0 and 90 degrees, not {a}")
+    return a
+
+
+@operation("roofHip", 1, 3, selectors=(0,))
+def op_roof_hip(call):
+    from ...geometry.roofs import roof_hip
+
+    angle = _angle(call)
+    overhang = call.num(1, 0.0)
+    _roof(call, lambda xy: roof_hip(xy, angle, overhang)[0])
+
+
+@operation("roofGable", 1, 5, selectors=(0,))
+def op_roof_gable(call):
+    from ...geometry.roofs import roof_gable
+
+    angle = _angle(call)
+    ox, oy = call.num(1, 0.0), call.num(2, 0.0)
+    even = bool(call.args[3]) if len(call.args) > 3 else False
+    _roof(call, lambda xy: roof_gable(xy, angle, ox, oy, even)[0])
+
+
+@operation("roofPyramid", 1, 2, selectors=(0,))
+def op_roof_pyramid(call):
+    from ...geometry.roofs import roof_pyramid
+
+    angle = _angle(call)
+    _roof(call, lambda xy: roof_pyramid(xy, angle)[0])
+
+
+@operation("roofShed", 1, 2, selectors=(0,))
+def op_roof_shed(call):
+    from ...geometry.roofs import roof_shed
+
+    angle = _angle(call)
+    edge = int(call.num(1, 0.0))
+    _roof(call, lambda xy: roof_shed(xy, angle, edge)[0])

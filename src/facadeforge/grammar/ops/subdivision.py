@@ -1,0 +1,476 @@
+"""Subdivision operations: ``split``, ``comp``, ``setback`` (CityEngine semantics)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...geometry.cut import split_along_axis
+from ...geometry.mesh import EPS, Mesh
+from ...model.scope import Scope
+from .. import ast as A
+from ..values import CGARuntimeError, Floating, Relative, to_float
+from . import operation
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+# ---- split --------------------------------------------------------------------------------
+
+@dataclass
+class SizeItem:
+    kind: str  # "abs", "rel", "float"
+    value: float
+    branch: A.Branch
+
+
+@dataclass
+class RepeatItem:
+    items: list
+
+
+def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, float]]:
+    """Positions of the pieces of a split (CityEngine semantics).
+
+    Parameters
+    ----------
+    items : list of SizeItem | RepeatItem
+        The split pattern; a whole-split repeat ``{…}*`` is one ``RepeatItem``.
+    total : float
+        Scope size along the split axis.
+
+    Returns
+    -------
+    list of (branch, start, size)
+        Only pieces with positive size inside ``[0, total]``; the last one may be cut.
+
+    Notes
+    -----
+    Absolute sizes are taken as is, relative ones (``'r``) as ``r * total``.  A repeat group is
+    repeated ``n`` times: with floating sizes inside, ``n = max(1, rint(space / pattern))`` so the
+    floats stretch as little as possible; with fixed sizes only, as often as it starts inside the
+    space (the last copy is cut at the border).  Floating sizes then share what fixed sizes leave,
+    in proportion to their nominal sizes; when nothing is left they are not generated.
+    """
+    def nominal(it: SizeItem) -> float:
+        return it.value * total if it.kind == "rel" else it.value
+
+    top_fixed = sum(nominal(it) for it in items if isinstance(it, SizeItem) and it.kind != "float")
+    top_float = sum(it.value for it in items if isinstance(it, SizeItem) and it.kind == "float")
+    groups = [it for it in items if isinstance(it, RepeatItem)]
+    space = total - top_fixed - top_float
+    pattern_len = [sum(max(nominal(x), 0.0) for x in g.items) for g in groups]
+    all_len = sum(pattern_len)
+    flat: list[SizeItem] = []
+    for it in items:
+        if isinstance(it, SizeItem):
+            flat.append(it)
+            continue
+        k = groups.index(it)
+        plen = pattern_len[k]
+        if plen <= EPS:
+            continue
+        share = space * plen / all_len if all_len > 0 else 0.0
+        has_float = any(x.kind == "float" for x in it.items)
+        if share <= EPS:
+            n = 0
+        elif has_float:
+            n = max(1, int(math.floor(share / plen + 0.5)))
+        else:
+            n = int(math.ceil(share / plen - 1e-9))
+        n = min(n, 1_000_000)
+        flat.extend(it.items * n)
+    fixed = sum(nominal(it) for it in flat if it.kind != "float")
+    floats = sum(it.value for it in flat if it.kind == "float" and it.value > 0)
+    rest = total - fixed
+    out, pos = [], 0.0
+    for it in flat:
+        if it.kind == "float":
+            size = it.value * rest / floats if (rest > EPS and floats > 0 and it.value > 0) else 0.0
+        else:
+            size = nominal(it)
+        if size <= EPS:
+            continue
+        if pos >= total - EPS:
+            break
+        size = min(size, total - pos)
+        out.append((it.branch, pos, size))
+        pos += size
+    return out
+
+
+def _size_items(branches, env) -> list:
+    items = []
+    for b in branches:
+        if isinstance(b, A.RepeatGroup):
+            items.append(RepeatItem(_size_items(b.branches, env)))
+            continue
+        v = env.evaluator(b.selector)
+        if isinstance(v, Relative):
+            items.append(SizeItem("rel", v.value, b))
+        elif isinstance(v, Floating):
+            items.append(SizeItem("float", v.value, b))
+        else:
+            items.append(SizeItem("abs", to_float(v, "split size"), b))
+    return items
+
+
+@operation("split", 1, 2, selectors=(0, 1), body=True)
+def op_split(call):
+    axis_name = call.sel(0)
+    if axis_name in ("u", "v"):
+        raise CGARuntimeError("split in texture space (u, v) is not supported yet")
+    axis = _AXES.get(axis_name)
+    if axis is None:
+        raise CGARuntimeError(f"split axis must be x, y or z, not '{axis_name}'")
+    adjust = call.sel(1, "adjust") != "noAdjust"
+    st = call.state
+    total = float(st.scope.size[axis])
+    items = _size_items(call.branches, call.env)
+    if call.repeat:
+        items = [RepeatItem(items)]
+    pieces = resolve_split(items, total)
+    if not pieces:
+        return []
+    cuts = [pieces[0][1]] + [p[1] + p[2] for p in pieces]
+    local = st.local_geometry()
+    meshes = (split_along_axis(local, axis, np.array(cuts)) if local.n_faces
+              else [Mesh() for _ in pieces])
+    out = []
+    n = len(pieces)
+    for i, ((branch, start, size), mesh) in enumerate(zip(pieces, meshes)):
+        if local.n_faces and mesh.is_empty:
+            continue
+        ps = st.child(i)
+        ps.pivot = st.scope.copy()
+        origin_local = np.zeros(3)
+        origin_local[axis] = start
+        sc = st.scope.copy()
+        sc.origin = st.scope.to_world(origin_local[None])[0]
+        sc.size = st.scope.size.copy()
+        sc.size[axis] = size
+        ps.scope = sc
+        ps.geometry = mesh.with_vertices(st.scope.to_world(mesh.vertices)) if mesh.n_faces else mesh
+        if adjust and ps.geometry.n_faces:
+            ps.fit_scope()
+        ps.context = {**st.context, "split.index": i, "split.total": n}
+        ps.context.pop("face_kinds", None)
+        out.append((ps, branch.ops, {"axis": axis_name, "index": i}))
+    return out
+
+
+# ---- comp ---------------------------------------------------------------------------------
+
+_DIRS = ("right", "left", "top", "bottom", "front", "back")  # +x, -x, +y, -y, +z, -z
+_WORLD = {"world.east": 0, "world.west": 1, "world.up": 2, "world.down": 3, "world.south": 4,
+          "world.north": 5}
+
+
+def _direction_index(local_normals: np.ndarray) -> np.ndarray:
+    """Index into ``_DIRS`` of the quadrant each (F, 3) normal falls in."""
+    ax = np.argmax(np.abs(local_normals), axis=1)
+    neg = local_normals[np.arange(len(ax)), ax] < 0
+    return ax * 2 + neg
+
+
+def _angle_class(local_y: np.ndarray) -> np.ndarray:
+    ang = np.degrees(np.arcsin(np.clip(local_y, -1, 1)))
+    out = np.full(len(ang), "vertical", dtype=object)
+    out[ang > 11.25] = "aslant"
+    out[ang > 78.75] = "horizontal"
+    out[ang < -11.25] = "nutant"
+    out[ang < -78.75] = "horizontal"
+    return out
+
+
+def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.ndarray) -> dict:
+    """Selector keywords matching each face: {keyword: (F,) bool}."""
+    loc = normals @ scope_rot
+    d = _direction_index(loc)
+    sel = {name: d == i for i, name in enumerate(_DIRS)}
+    sel["side"] = d < 2
+    sel["side"] |= d >= 4
+    ang = _angle_class(loc[:, 1])
+    for k in ("vertical", "horizontal", "aslant", "nutant"):
+        sel[k] = ang == k
+    obj = _direction_index(normals @ object_rot)
+    for i, name in enumerate(_DIRS):
+        sel["object." + name] = obj == i
+    sel["object.side"] = (obj < 2) | (obj >= 4)
+    wd = _direction_index(normals)
+    for name, i in _WORLD.items():
+        sel[name] = wd == i
+    sel["world.side"] = (wd < 2) | (wd >= 4)
+    # street.* need street-edge data from the initial shape; the object frame stands in for it
+    sel["street.front"] = sel["object.front"]
+    sel["street.back"] = sel["object.back"]
+    sel["street.side"] = sel["object.left"] | sel["object.right"]
+    sel["all"] = np.ones(len(normals), bool)
+    return sel
+
+
+def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
+    """Scope of a face: x along its first edge, z along its normal, fitted to the face."""
+    x = None
+    for k in range(len(poly)):
+        e = poly[(k + 1) % len(poly)] - poly[k]
+        e = e - normal * (e @ normal)
+        if np.linalg.norm(e) > EPS:
+            x = e
+            break
+    if x is None or not normal.any():
+        sc = Scope(poly.min(axis=0), np.eye(3), np.ptp(poly, axis=0))
+        return sc
+    x = x / np.linalg.norm(x)
+    y = np.cross(normal, x)
+    sc = Scope(poly[0], np.column_stack([x, y, normal]), np.zeros(3))
+    sc.fit_to(poly)
+    return sc
+
+
+def _selector_key(call, branch) -> object:
+    s = branch.selector
+    if isinstance(s, A.Name):
+        return s.name
+    v = call.env.evaluator(s)
+    if isinstance(v, bool):
+        return v
+    if isinstance(v, (int, float)):
+        return int(v)
+    return str(v)
+
+
+@operation("comp", 1, 2, selectors=(0, 1), body=True)
+def op_comp(call):
+    kind = call.sel(0)
+    st = call.state
+    if kind == "f":
+        return _comp_faces(call, st)
+    if kind in ("e", "fe"):
+        return _comp_edges(call, st)
+    if kind in ("v", "fv"):
+        return _comp_vertices(call, st)
+    raise CGARuntimeError(f"comp({kind}) is not supported; use f, e or v")
+
+
+def _match(key, sel_table, n, extra=None) -> np.ndarray:
+    if isinstance(key, bool):
+        return np.full(n, key)
+    if isinstance(key, int):
+        m = np.zeros(n, bool)
+        if 0 <= key < n:
+            m[key] = True
+        return m
+    if extra is not None and key in extra:
+        return extra[key]
+    if key in sel_table:
+        return sel_table[key]
+    raise CGARuntimeError(f"unknown comp selector '{key}'")
+
+
+def _comp_faces(call, st):
+    mesh = st.geometry
+    n = mesh.n_faces
+    if n == 0:
+        return []
+    normals = mesh.face_normals()
+    table = classify_faces(normals, st.scope.rotation, call.derivation.object_scope.rotation)
+    kinds = st.context.get("face_kinds")
+    extra = None
+    if kinds is not None and len(kinds) == n:
+        k = np.asarray(kinds, dtype=object)
+        extra = {"inside": k == "inside", "border": k == "border", "remainder": k == "remainder"}
+    else:
+        extra = {"inside": np.zeros(n, bool), "border": np.zeros(n, bool)}
+    taken = np.zeros(n, bool)
+    out = []
+    for branch in call.branches:
+        if isinstance(branch, A.RepeatGroup):
+            raise CGARuntimeError("comp bodies cannot contain repeat groups")
+        key = _selector_key(call, branch)
+        m = _match(key, table, n, extra) & ~taken
+        idx = np.flatnonzero(m)
+        taken |= m
+        if len(idx) == 0:
+            continue
+        sel_name = key if isinstance(key, str) else str(key)
+        if branch.mode == "=":
+            sub = mesh.subset(idx)
+            ps = st.child(len(out))
+            ps.scope = face_scope(mesh.vertices[mesh.face(idx[0])], normals[idx[0]])
+            ps.geometry = sub
+            ps.fit_scope()
+            ps.context = {**_clean(st.context), "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
+            out.append((ps, branch.ops, {"sel": sel_name}))
+            continue
+        for j, f in enumerate(idx):
+            ps = st.child(len(out))
+            poly = mesh.vertices[mesh.face(f)]
+            ps.scope = face_scope(poly, normals[f])
+            ps.geometry = mesh.subset([f])
+            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+                          "comp.sel": sel_name}
+            out.append((ps, branch.ops, {"sel": sel_name, "index": j}))
+    return out
+
+
+def _clean(ctx: dict) -> dict:
+    return {k: v for k, v in ctx.items() if k != "face_kinds"}
+
+
+def _comp_edges(call, st):
+    mesh = st.geometry
+    if mesh.n_faces == 0:
+        return []
+    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
+    _, weld = np.unique(key, axis=0, return_inverse=True)
+    weld = weld.reshape(-1)
+    edges, seen = [], {}
+    normals = mesh.face_normals()
+    for f in range(mesh.n_faces):
+        face = mesh.face(f)
+        for a, b in zip(face, np.roll(face, -1)):
+            k = (min(weld[a], weld[b]), max(weld[a], weld[b]))
+            if k[0] == k[1]:
+                continue
+            if k in seen:
+                edges[seen[k]][3] += 1
+                continue
+            seen[k] = len(edges)
+            edges.append([mesh.vertices[a], mesh.vertices[b], normals[f], 1])
+    n = len(edges)
+    dirs = np.array([e[1] - e[0] for e in edges])
+    lengths = np.linalg.norm(dirs, axis=1)
+    unit = dirs / np.maximum(lengths, EPS)[:, None]
+    loc_y = np.abs(unit @ st.scope.rotation[:, 1])
+    table = {"all": np.ones(n, bool), "vertical": loc_y > math.cos(math.radians(11.25)),
+             "horizontal": loc_y < math.sin(math.radians(11.25)),
+             "border": np.array([e[3] == 1 for e in edges]),
+             "inside": np.array([e[3] > 1 for e in edges])}
+    table["aslant"] = ~table["vertical"] & ~table["horizontal"]
+    # the side an edge faces: its face normal crossed with the edge, in the scope frame
+    outward = np.array([np.cross(u, e[2]) for u, e in zip(unit, edges)])
+    d = _direction_index(outward @ st.scope.rotation) if n else np.zeros(0, int)
+    for i, name in enumerate(_DIRS):
+        table[name] = d == i
+    table["side"] = (d < 2) | (d >= 4)
+    taken = np.zeros(n, bool)
+    out = []
+    for branch in call.branches:
+        k = _selector_key(call, branch)
+        idx = np.flatnonzero(_match(k, table, n) & ~taken)
+        taken[idx] = True
+        for j, e in enumerate(idx):
+            a, b, normal, _ = edges[e]
+            ps = st.child(len(out))
+            up = normal if abs(unit[e] @ normal) < 0.99 else st.scope.rotation[:, 1]
+            y = up - unit[e] * (up @ unit[e])
+            if np.linalg.norm(y) < EPS:
+                y = np.array([0.0, 1.0, 0.0])
+            ps.scope = Scope.from_axes(a, unit[e], y, (lengths[e], 0.0, 0.0))
+            ps.geometry = Mesh()
+            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+                          "comp.sel": str(k)}
+            out.append((ps, branch.ops, {"sel": str(k), "index": j}))
+    return out
+
+
+def _comp_vertices(call, st):
+    mesh = st.geometry
+    pts = mesh.used_vertices()
+    n = len(pts)
+    table = {"all": np.ones(n, bool)}
+    out = []
+    taken = np.zeros(n, bool)
+    for branch in call.branches:
+        k = _selector_key(call, branch)
+        idx = np.flatnonzero(_match(k, table, n) & ~taken)
+        taken[idx] = True
+        for j, v in enumerate(idx):
+            ps = st.child(len(out))
+            ps.scope = Scope(pts[v], st.scope.rotation.copy(), np.zeros(3))
+            ps.geometry = Mesh()
+            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+                          "comp.sel": str(k)}
+            out.append((ps, branch.ops, {"sel": str(k), "index": j}))
+    return out
+
+
+# ---- setback ------------------------------------------------------------------------------
+
+@operation("setback", 1, 1, body=True)
+def op_setback(call):
+    """``setback(d){ selector : A | remainder : B }`` on a planar shape.
+
+    Edges are selected like ``comp(e)`` (front/back/left/right/side/all/index); the band of width
+    ``d`` along the selected edges becomes one shape per branch, the rest is ``remainder``.
+    """
+    import shapely
+
+    st = call.state
+    d = call.num(0)
+    mesh = st.geometry
+    if mesh.n_faces != 1:
+        raise CGARuntimeError("setback needs a single planar face (use comp(f) first)")
+    poly = mesh.vertices[mesh.face(0)]
+    normal = mesh.face_normals()[0]
+    sc = face_scope(poly, normal)
+    xy = sc.to_local(poly)[:, :2]
+    shape = shapely.Polygon(xy).buffer(0)
+    k = len(xy)
+    e = np.roll(xy, -1, axis=0) - xy
+    outward3 = np.cross(np.column_stack([e, np.zeros(k)]) @ sc.rotation.T, normal)
+    d_idx = _direction_index(outward3 @ st.scope.rotation)
+    table = {name: d_idx == i for i, name in enumerate(_DIRS)}
+    table["side"] = (d_idx < 2) | (d_idx >= 4)
+    table["all"] = np.ones(k, bool)
+    table["street.front"] = table["front"]
+    table["street.back"] = table["back"]
+    table["street.side"] = table["side"] & ~table["front"] & ~table["back"]
+    remaining = shape
+    out = []
+    remainder_branch = None
+    taken = np.zeros(k, bool)
+    for branch in call.branches:
+        key = _selector_key(call, branch)
+        if key == "remainder":
+            remainder_branch = branch
+            continue
+        idx = np.flatnonzero(_match(key, table, k) & ~taken)
+        taken[idx] = True
+        band = shapely.Polygon()
+        for i in idx:
+            a, b = xy[i], xy[(i + 1) % k]
+            t = (b - a) / max(np.linalg.norm(b - a), EPS)
+            inward = np.array([-t[1], t[0]])
+            strip = shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward * d,
+                                     a - t * 1e3 + inward * d])
+            band = band.union(strip)
+        piece = remaining.intersection(band)
+        remaining = remaining.difference(band)
+        if piece.area > EPS:
+            out.append((branch, piece))
+    if remainder_branch is not None and remaining.area > EPS:
+        out.append((remainder_branch, remaining))
+    result = []
+    for i, (branch, geom) in enumerate(out):
+        polys = [g for g in getattr(geom, "geoms", [geom]) if g.geom_type == "Polygon" and g.area > EPS]
+        faces = []
+        for g in polys:
+            ring = np.asarray(g.exterior.coords)[:-1]
+            if not g.exterior.is_ccw:
+                ring = ring[::-1]
+            faces.append(sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
+        if not faces:
+            continue
+        ps = st.child(i)
+        ps.geometry = Mesh.from_polygons(faces)
+        ps.scope = face_scope(faces[0], normal)
+        ps.fit_scope()
+        result.append((ps, branch.ops, {"index": i}))
+    return result
+
+
+__all__ = ["classify_faces", "face_scope", "resolve_split", "to_float"]

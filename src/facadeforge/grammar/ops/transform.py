@@ -1,0 +1,211 @@
+"""Scope and geometry transformations: ``t s r center rotateScope align… mirror translate``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...geometry.mesh import EPS
+from ..values import CGARuntimeError, Relative
+from . import operation
+
+
+def _vec(call, start: int, size: np.ndarray) -> np.ndarray:
+    return np.array([call.size(start + k, float(size[k])) for k in range(3)])
+
+
+@operation("t", 3)
+def op_t(call):
+    """Translate the scope (and geometry) along the scope axes; ``'`` is relative to the size."""
+    st = call.state
+    d = st.scope.rotation @ _vec(call, 0, st.scope.size)
+    st.scope.origin = st.scope.origin + d
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
+
+
+@operation("s", 3)
+def op_s(call):
+    """Set the scope size; the geometry is scaled with it, anchored at the scope origin."""
+    st = call.state
+    old = st.scope.size.copy()
+    new = _vec(call, 0, old)
+    if np.any(new < 0):
+        new = np.abs(new)
+    if st.geometry.n_faces:
+        factor = np.where(old > EPS, new / np.where(old > EPS, old, 1.0), 1.0)
+        local = st.scope.to_local(st.geometry.vertices) * factor
+        st.geometry = st.geometry.with_vertices(st.scope.to_world(local))
+    st.scope.size = new
+
+
+def rotation_xyz(angles_deg) -> np.ndarray:
+    """Rotation matrix of successive rotations about x, then y, then z (degrees)."""
+    ax, ay, az = np.radians(angles_deg)
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+@operation("r", 3, 4, selectors=(0,))
+def op_r(call):
+    """Rotate scope and geometry about the scope origin (or ``scopeCenter``), x then y then z."""
+    st = call.state
+    pivot_mode = "scopeOrigin"
+    args = call.args
+    if len(args) == 4:
+        pivot_mode = str(args[0])
+        angles = [call.num(k) for k in (1, 2, 3)]
+    else:
+        angles = [call.num(k) for k in range(3)]
+    local_rot = rotation_xyz(angles)
+    world_rot = st.scope.rotation @ local_rot @ st.scope.rotation.T
+    pivot = st.scope.center if pivot_mode == "scopeCenter" else st.scope.origin.copy()
+    st.scope.rotation = st.scope.rotation @ local_rot
+    st.scope.origin = (st.scope.origin - pivot) @ world_rot.T + pivot
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
+
+
+@operation("rotateScope", 3)
+def op_rotate_scope(call):
+    """Rotate only the scope about its centre; the geometry stays, the scope is refitted."""
+    st = call.state
+    st.scope.rotation = st.scope.rotation @ rotation_xyz([call.num(k) for k in range(3)])
+    if st.geometry.n_faces:
+        st.fit_scope()
+
+
+@operation("center", 1, 1, selectors=(0,))
+def op_center(call):
+    """Move the scope so its centre matches the predecessor's scope centre on the given axes."""
+    st = call.state
+    axes = call.sel(0)
+    ref = st.pivot if st.pivot is not None else st.scope
+    ref_center_local = st.scope.to_local(ref.center[None])[0]
+    my_center_local = st.scope.size / 2
+    delta = np.zeros(3)
+    for k, a in enumerate("xyz"):
+        if a in axes:
+            delta[k] = ref_center_local[k] - my_center_local[k]
+    d = st.scope.rotation @ delta
+    st.scope.origin = st.scope.origin + d
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
+
+
+@operation("alignScopeToAxes", 0, 1, selectors=(0,))
+def op_align_scope_to_axes(call):
+    st = call.state
+    axis = call.sel(0, "xyz")
+    if axis in ("y", "world.y"):
+        # keep the scope's x direction projected onto the ground, y up
+        x = st.scope.rotation[:, 0].copy()
+        x[1] = 0
+        if np.linalg.norm(x) < EPS:
+            x = np.array([1.0, 0, 0])
+        x /= np.linalg.norm(x)
+        st.scope.rotation = np.column_stack([x, [0, 1, 0], np.cross(x, [0, 1, 0])])
+    else:
+        st.scope.rotation = np.eye(3)
+    if st.geometry.n_faces:
+        st.fit_scope()
+
+
+@operation("alignScopeToGeometry", 1, 3, selectors=(0, 1, 2))
+def op_align_scope_to_geometry(call):
+    """Scope axis ``upAxis`` along the normal of face ``faceIndex``, x along edge ``edgeIndex``."""
+    st = call.state
+    mesh = st.geometry
+    if not mesh.n_faces:
+        return
+    up = call.sel(0, "zUp")
+    fsel = call.args[1] if len(call.args) > 1 else 0
+    esel = call.args[2] if len(call.args) > 2 else 0
+    normals = mesh.face_normals()
+    areas = mesh.face_areas()
+    if isinstance(fsel, str):
+        f = int(np.argmax(areas)) if fsel == "largest" else 0
+    else:
+        f = int(fsel) % mesh.n_faces
+    poly = mesh.vertices[mesh.face(f)]
+    k = len(poly)
+    if isinstance(esel, str):
+        lengths = np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1)
+        e = int(np.argmax(lengths)) if esel == "longest" else int(np.argmin(lengths))
+    else:
+        e = int(esel) % k
+    n = normals[f]
+    x = poly[(e + 1) % k] - poly[e]
+    x = x - n * (x @ n)
+    if np.linalg.norm(x) < EPS:
+        raise CGARuntimeError("alignScopeToGeometry: degenerate edge")
+    x /= np.linalg.norm(x)
+    if up in ("yUp", "world.y"):
+        rot = np.column_stack([x, n, np.cross(x, n)])
+    else:
+        rot = np.column_stack([x, np.cross(n, x), n])
+    st.scope.rotation = rot
+    st.scope.origin = poly[e].copy()
+    st.fit_scope()
+
+
+@operation("mirror", 3)
+def op_mirror(call):
+    """Mirror the geometry inside the scope along the axes whose flag is true."""
+    st = call.state
+    flags = [bool(call.args[k]) for k in range(3)]
+    if not st.geometry.n_faces or not any(flags):
+        return
+    local = st.scope.to_local(st.geometry.vertices)
+    for k, f in enumerate(flags):
+        if f:
+            local[:, k] = st.scope.size[k] - local[:, k]
+    mirrored = st.geometry.with_vertices(st.scope.to_world(local))
+    st.geometry = mirrored.reversed() if sum(flags) % 2 else mirrored
+
+
+@operation("translate", 5, selectors=(0, 1))
+def op_translate(call):
+    """``translate(rel|abs, scope|world|object, x, y, z)``."""
+    st = call.state
+    mode, frame = call.sel(0), call.sel(1)
+    v = np.array([call.num(k) for k in (2, 3, 4)])
+    if frame == "world":
+        d = v
+    elif frame == "object":
+        d = call.derivation.object_scope.rotation @ v
+    else:
+        d = st.scope.rotation @ v
+    if mode == "abs":
+        if frame == "scope":
+            raise CGARuntimeError("translate(abs, scope, …) is not meaningful; use rel")
+        target = v if frame == "world" else call.derivation.object_scope.to_world(v[None])[0]
+        d = target - st.scope.origin
+    st.scope.origin = st.scope.origin + d
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
+
+
+@operation("rotate", 5, selectors=(0, 1))
+def op_rotate(call):
+    """``rotate(rel|abs, scope|world|object, x, y, z)`` about the scope origin."""
+    st = call.state
+    frame = call.sel(1)
+    angles = [call.num(k) for k in (2, 3, 4)]
+    r = rotation_xyz(angles)
+    if frame == "world":
+        world_rot = r
+    elif frame == "object":
+        o = call.derivation.object_scope.rotation
+        world_rot = o @ r @ o.T
+    else:
+        world_rot = st.scope.rotation @ r @ st.scope.rotation.T
+    pivot = st.scope.origin.copy()
+    st.scope.rotation = world_rot @ st.scope.rotation
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
+
+
+__all__ = ["Relative", "rotation_xyz"]

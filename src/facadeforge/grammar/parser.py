@@ -1,0 +1,312 @@
+"""Parse CGA text into the typed AST (``ast.py``) with Lark; syntax errors become ``RuleSyntaxError``."""
+
+from __future__ import annotations
+
+import functools
+import re
+from importlib import resources
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import LarkError, UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, VisitError
+
+from ..errors import RuleSyntaxError
+from . import ast as A
+
+MAX_SOURCE_BYTES = 8 * 1024 * 1024  # a rule file larger than this is not a rule file
+
+
+@functools.lru_cache(maxsize=1)
+def _parser() -> Lark:
+    text = resources.files(__package__).joinpath("cga.lark").read_text(encoding="utf-8")
+    return Lark(text, parser="lalr", propagate_positions=True, maybe_placeholders=True,
+                cache=False)
+
+
+def _pos(meta_or_token) -> dict:
+    line = getattr(meta_or_token, "line", 0) or 0
+    col = getattr(meta_or_token, "column", 0) or 0
+    return {"line": line, "column": col}
+
+
+_ESCAPES = {"n": "\n", "t": "\t", "r": "\r", '"': '"', "\\": "\\", "'": "'"}
+
+
+def _unquote(tok: str) -> str:
+    body = tok[1:-1]
+    return re.sub(r"\\(.)", lambda m: _ESCAPES.get(m.group(1), m.group(1)), body)
+
+
+def _percent(tok: str) -> float:
+    return float(tok.rstrip().rstrip("%").strip())
+
+
+@v_args(meta=True)
+class _ToAst(Transformer):
+    # -- expressions --
+    def number(self, meta, c):
+        return A.Num(float(c[0]), **_pos(meta))
+
+    def string(self, meta, c):
+        return A.Str(_unquote(str(c[0])), **_pos(meta))
+
+    def true(self, meta, c):
+        return A.Bool(True, **_pos(meta))
+
+    def false(self, meta, c):
+        return A.Bool(False, **_pos(meta))
+
+    def name(self, meta, c):
+        return A.Name(str(c[0]), **_pos(meta))
+
+    def call(self, meta, c):
+        args = tuple(a for a in c[1:] if a is not None)
+        return A.Call(str(c[0]), args, **_pos(meta))
+
+    def index(self, meta, c):
+        return A.Index(c[0], tuple(c[1:]), **_pos(meta))
+
+    def array(self, meta, c):
+        rows = c[0] if c and c[0] is not None else ()
+        return A.Array(tuple(rows), **_pos(meta))
+
+    def array_rows(self, meta, c):
+        return tuple(c)
+
+    def array_row(self, meta, c):
+        return tuple(c)
+
+    def _fold(self, meta, c, default_op=None):
+        if len(c) == 1:
+            return c[0]
+        node = c[0]
+        i = 1
+        while i < len(c):
+            if isinstance(c[i], Token):
+                op, rhs = str(c[i]), c[i + 1]
+                i += 2
+            else:
+                op, rhs = default_op, c[i]
+                i += 1
+            node = A.Binary(op, node, rhs, **_pos(meta))
+        return node
+
+    def or_(self, meta, c):
+        return self._fold(meta, c, "||")
+
+    def and_(self, meta, c):
+        return self._fold(meta, c, "&&")
+
+    def compare(self, meta, c):
+        return self._fold(meta, c)
+
+    def arith(self, meta, c):
+        return self._fold(meta, c)
+
+    def power(self, meta, c):
+        return c[0] if len(c) == 1 else A.Binary("^", c[0], c[1], **_pos(meta))
+
+    def neg(self, meta, c):
+        if isinstance(c[0], A.Num):
+            return A.Num(-c[0].value, **_pos(meta))
+        return A.Unary("-", c[0], **_pos(meta))
+
+    def not_(self, meta, c):
+        return A.Unary("!", c[0], **_pos(meta))
+
+    def relative(self, meta, c):
+        return A.Unary("'", c[0], **_pos(meta))
+
+    def floating(self, meta, c):
+        return A.Unary("~", c[0], **_pos(meta))
+
+    def unary_expr(self, meta, c):  # unary plus
+        return c[0]
+
+    def case_expr(self, meta, c):
+        pairs = tuple((c[i], c[i + 1]) for i in range(0, len(c) - 1, 2))
+        return A.CaseExpr(pairs, c[-1], **_pos(meta))
+
+    def stochastic_expr(self, meta, c):
+        pairs = tuple((_percent(c[i]), c[i + 1]) for i in range(0, len(c) - 1, 2))
+        return A.StochasticExpr(pairs, c[-1], **_pos(meta))
+
+    # -- operations --
+    def args(self, meta, c):
+        return tuple(a for a in c if a is not None)
+
+    def successor(self, meta, c):
+        has = len(c) > 1 and c[1] is not None
+        return A.Successor(str(c[0]), c[1] if has else (), has, **_pos(meta))
+
+    def leaf(self, meta, c):
+        return A.Leaf(str(c[0]), **_pos(meta))
+
+    def nil(self, meta, c):
+        return A.Nil(**_pos(meta))
+
+    def push(self, meta, c):
+        return A.Push(c[0], **_pos(meta))
+
+    def ops(self, meta, c):
+        return tuple(c)
+
+    def ops_single(self, meta, c):
+        return (c[0],)
+
+    def body_op(self, meta, c):
+        repeat = len(c) > 3 and c[3] is not None
+        return A.BodyOp(str(c[0]), c[1] or (), c[2], repeat, **_pos(meta))
+
+    def body(self, meta, c):
+        return tuple(c)
+
+    def branch_each(self, meta, c):
+        return A.Branch(c[0], ":", c[1], **_pos(meta))
+
+    def branch_all(self, meta, c):
+        return A.Branch(c[0], "=", c[1], **_pos(meta))
+
+    def nested_repeat(self, meta, c):
+        return A.RepeatGroup(c[0], **_pos(meta))
+
+    def case_ops(self, meta, c):
+        pairs = tuple((c[i], c[i + 1]) for i in range(0, len(c) - 1, 2))
+        return A.CaseOps(pairs, c[-1], **_pos(meta))
+
+    def stochastic_ops(self, meta, c):
+        pairs = tuple((_percent(c[i]), c[i + 1]) for i in range(0, len(c) - 1, 2))
+        return A.StochasticOps(pairs, c[-1], **_pos(meta))
+
+    def rule_body(self, meta, c):
+        return c[0]
+
+    # -- declarations --
+    def annotation(self, meta, c):
+        args = tuple(a for a in c[1:] if a is not None)
+        return A.Annotation(str(c[0])[1:], args, **_pos(meta))
+
+    def named_arg(self, meta, c):
+        return c[1]
+
+    def param(self, meta, c):
+        if len(c) == 2:
+            return A.Param(str(c[1]), str(c[0]) if c[0] is not None else None, **_pos(meta))
+        return A.Param(str(c[0]), **_pos(meta))
+
+    def params(self, meta, c):
+        return tuple(p for p in c if p is not None)
+
+    def decl_name(self, meta, c):
+        return c[0] if isinstance(c[0], tuple) else (None, str(c[0]))
+
+    def typed_name(self, meta, c):
+        return (str(c[0]), str(c[1]))
+
+    def attr_def(self, meta, c):
+        typ, name = c[0]
+        return A.AttrDef(name, c[1], False, typ, **_pos(meta))
+
+    def const_def(self, meta, c):
+        typ, name = c[0]
+        return A.AttrDef(name, c[1], True, typ, **_pos(meta))
+
+    def func_def(self, meta, c):
+        params = c[1] if len(c) == 3 else ()
+        return A.FuncDef(str(c[0]), params or (), c[-1], **_pos(meta))
+
+    def rule_def(self, meta, c):
+        params = c[1] if len(c) == 3 else ()
+        return A.RuleDef(str(c[0]), params or (), c[-1], **_pos(meta))
+
+    def style_def(self, meta, c):
+        return None
+
+    def annotated(self, meta, c):
+        *anns, decl = c
+        if decl is None:
+            return None
+        return type(decl)(**{**decl.__dict__, "annotations": tuple(anns)})
+
+    def version(self, meta, c):
+        return ("version", _unquote(str(c[0])))
+
+    def import_stmt(self, meta, c):
+        overrides = tuple(str(x) for x in (c[2] or ())) if len(c) > 2 and c[2] else ()
+        return A.Import(str(c[0]), _unquote(str(c[1])), overrides, **_pos(meta))
+
+    def import_anon(self, meta, c):
+        return A.Import(None, _unquote(str(c[0])), (), **_pos(meta))
+
+    def import_overrides(self, meta, c):
+        return tuple(x for x in c if x is not None)
+
+
+def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:
+    """Parse CGA source.
+
+    Parameters
+    ----------
+    text : str
+        The rule file's content.
+    path : str
+        Shown in error messages.
+
+    Raises
+    ------
+    RuleSyntaxError
+        With file:line:col, the offending source line and a caret.  It is the only exception this
+        function raises for any text.
+    """
+    if not isinstance(text, str):
+        raise RuleSyntaxError("rule text must be a str", path)
+    if len(text) > MAX_SOURCE_BYTES:
+        raise RuleSyntaxError(f"rule file is larger than {MAX_SOURCE_BYTES} bytes", path)
+    lines = text.splitlines()
+    try:
+        tree = _parser().parse(text)
+        items = _ToAst().transform(tree).children
+    except UnexpectedInput as e:
+        line, col = getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0
+        src = lines[line - 1] if 0 < line <= len(lines) else ""
+        raise RuleSyntaxError(_describe(e), path, line, col, src) from None
+    except (VisitError, LarkError, RecursionError, ValueError) as e:
+        raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
+    version, imports, attrs, funcs, rules = None, [], [], [], []
+    for item in items:
+        if item is None:
+            continue
+        if isinstance(item, tuple) and item[0] == "version":
+            version = item[1]
+        elif isinstance(item, A.Import):
+            imports.append(item)
+        elif isinstance(item, A.AttrDef):
+            attrs.append(item)
+        elif isinstance(item, A.FuncDef):
+            funcs.append(item)
+        elif isinstance(item, A.RuleDef):
+            rules.append(item)
+    return A.RuleFile(path, version, tuple(imports), tuple(attrs), tuple(funcs), tuple(rules))
+
+
+_TOKEN_WORDS = {
+    "RULE_HEAD": "a rule definition", "FUNC_HEAD": "a function definition", "NAME": "a name",
+    "QNAME": "a dotted name", "NUMBER": "a number", "STRING": "a string", "PERCENT": "a percentage",
+    "LPAR": "'('", "RPAR": "')'", "LBRACE": "'{'", "RBRACE": "'}'", "LSQB": "'['", "RSQB": "']'",
+    "COLON": "':'", "COMMA": "','", "VBAR": "'|'", "EQUAL": "'='", "ELSE": "'else'",
+    "__ANON_0": "'-->'",
+}
+
+
+def _describe(e: UnexpectedInput) -> str:
+    if isinstance(e, UnexpectedEOF):
+        return "unexpected end of file (an unclosed '(', '{' or '[', or a case without else?)"
+    if isinstance(e, UnexpectedCharacters):
+        return f"unexpected character {e.char!r}"
+    tok = getattr(e, "token", None)
+    expected = sorted(getattr(e, "expected", None) or [])
+    words = sorted({_TOKEN_WORDS.get(x, x.lower().strip("_")) for x in expected})[:6]
+    got = "end of file" if tok is None or tok.type == "$END" else repr(str(tok))
+    hint = ""
+    if tok is not None and str(tok) == "-->":
+        hint = " (a rule name must start a new definition)"
+    return f"unexpected {got}" + (f"; expected {', '.join(words)}" if words else "") + hint

@@ -1,0 +1,116 @@
+"""CityEngine rule packages (``.rpk``): 7z archives of rules, assets and a ``.resolvemap.xml``.
+
+An open runtime can only run CGA *source*: packages exported with "include CGA source" carry the
+``.cga`` next to the compiled ``.cgb``; packages with ``.cgb`` only are refused with that hint.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path, PurePosixPath
+
+from ..errors import InputError
+
+MAX_UNPACKED_BYTES = 2 * 1024**3
+MAX_MEMBERS = 100_000
+
+
+@dataclass
+class RulePackage:
+    root: Path  # unpacked folder (a temporary directory owned by this object)
+    main: Path  # main .cga file
+    resolve_map: dict  # project-absolute path -> file in root
+
+    def cleanup(self) -> None:
+        shutil.rmtree(self.root, ignore_errors=True)
+
+
+def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
+    """Unpack a rule package safely and find its main rule file.
+
+    Parameters
+    ----------
+    path : path to the ``.rpk``
+    rule : str, optional
+        Main rule file inside the package (``rules/building.cga``); default as CityEngine: the
+        rule file that has a compiled ``.cgb`` twin at the top of ``rules/``, else the only
+        ``.cga`` there, else the one with ``@StartRule``.
+    """
+    import py7zr
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"rule package '{path}' does not exist")
+    root = Path(tempfile.mkdtemp(prefix="facadeforge-rpk-"))
+    try:
+        try:
+            with py7zr.SevenZipFile(p, "r") as z:
+                infos = z.list()
+                if len(infos) > MAX_MEMBERS:
+                    raise InputError(f"'{path}' has more than {MAX_MEMBERS} members")
+                total = 0
+                for info in infos:
+                    name = PurePosixPath(info.filename.replace("\\", "/"))
+                    if name.is_absolute() or ".." in name.parts:
+                        raise InputError(f"'{path}' contains an unsafe member path '{info.filename}'")
+                    total += info.uncompressed or 0
+                if total > MAX_UNPACKED_BYTES:
+                    raise InputError(f"'{path}' unpacks to more than 2 GiB")
+                z.extractall(path=root)
+        except InputError:
+            raise
+        except Exception as e:  # py7zr raises many types for corrupt archives
+            raise InputError(f"'{path}' is not a readable rule package (7z): {e}") from None
+        resolve_map = _read_resolvemap(root)
+        main = _find_main(root, rule, path)
+        return RulePackage(root, main, resolve_map)
+    except BaseException:
+        shutil.rmtree(root, ignore_errors=True)
+        raise
+
+
+def _read_resolvemap(root: Path) -> dict:
+    out = {}
+    for xml in root.rglob("*.resolvemap.xml"):
+        try:
+            tree = ET.parse(xml)
+        except ET.ParseError:
+            continue
+        for el in tree.iter():
+            key, value = el.attrib.get("key"), el.attrib.get("value")
+            if not key or not value:
+                continue
+            target = (root / value.lstrip("/")).resolve()
+            if root.resolve() in target.parents and target.is_file():
+                out[key] = target
+    return out
+
+
+def _find_main(root: Path, rule: str | None, path) -> Path:
+    cgas = sorted(root.rglob("*.cga"))
+    if rule:
+        cand = (root / rule.lstrip("/")).resolve()
+        if root.resolve() not in cand.parents or not cand.is_file():
+            names = ", ".join(str(c.relative_to(root)) for c in cgas) or "none"
+            raise InputError(f"--rule '{rule}' is not in '{path}' (rule files: {names})")
+        return cand
+    if not cgas:
+        cgbs = sorted(root.rglob("*.cgb"))
+        if cgbs:
+            raise InputError(f"'{path}' holds only compiled rules ({cgbs[0].name}); export it from "
+                             "CityEngine with 'Include CGA source', or pass the .cga file")
+        raise InputError(f"'{path}' holds no rule file")
+    top = [c for c in cgas if c.parent.name == "rules"] or cgas
+    with_cgb = [c for c in top if c.with_suffix(".cgb").is_file()]
+    if len(with_cgb) == 1:
+        return with_cgb[0]
+    if len(top) == 1:
+        return top[0]
+    starts = [c for c in top if "@StartRule" in c.read_text(encoding="utf-8", errors="replace")]
+    if len(starts) >= 1:
+        return starts[0]
+    raise InputError(f"'{path}' has several rule files; choose one with --rule "
+                     f"({', '.join(str(c.relative_to(root)) for c in top)})")

@@ -1,0 +1,86 @@
+"""What the engine produces and the exporters consume."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..geometry.mesh import Mesh
+
+if TYPE_CHECKING:
+    from .shape import Shape
+
+
+@dataclass(frozen=True)
+class Material:
+    """Appearance of a leaf shape (CGA ``material.*`` attributes that exporters understand).
+
+    ``texture`` is a resolved, readable file path (or ``None``); ``color`` is linear-ish sRGB in 0–1.
+    """
+
+    name: str = "default"
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    opacity: float = 1.0
+    texture: str | None = None
+    metallic: float = 0.0
+    roughness: float = 0.9
+
+    def key(self) -> tuple:
+        return (self.name, tuple(round(c, 4) for c in self.color), round(self.opacity, 4),
+                self.texture, round(self.metallic, 3), round(self.roughness, 3))
+
+
+@dataclass
+class Part:
+    """Geometry of one leaf shape, in world coordinates, with its semantics."""
+
+    mesh: Mesh
+    label: str = ""
+    material: Material = field(default_factory=Material)
+    symbol: str = ""
+    shape_id: int = 0
+
+
+@dataclass
+class Model:
+    """One derived building (or facade): its leaf geometry, its shape tree and what rules reported.
+
+    Parameters
+    ----------
+    parts : list of Part
+        Leaf geometry in world coordinates (metres, y up, CGA convention).
+    root : Shape or None
+        The derivation tree.
+    reports : dict of str to list
+        Values collected by ``report(name, value)``.
+    warnings : list of str
+        CGA warnings (missing assets, runtime problems inside rules) in derivation order.
+    name : str
+        Identifier of the building, used as object id by exporters.
+    """
+
+    parts: list[Part] = field(default_factory=list)
+    root: Shape | None = None
+    reports: dict[str, list] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    name: str = "building"
+    attributes: dict[str, object] = field(default_factory=dict)
+
+    # -- statistics used by ``--stats`` and the benchmark --------------------------------------
+    def mesh(self) -> Mesh:
+        return Mesh.merge(p.mesh for p in self.parts)
+
+    def stats(self) -> dict:
+        faces = sum(len(p.mesh.faces) for p in self.parts)
+        tris = sum(p.mesh.triangle_count() for p in self.parts)
+        verts = sum(len(p.mesh.vertices) for p in self.parts)
+        area = sum(p.mesh.area() for p in self.parts)
+        bounds = [p.mesh.bounds() for p in self.parts if not p.mesh.is_empty]
+        if bounds:
+            b = np.stack(bounds)
+            bbox = [b[:, 0].min(axis=0).tolist(), b[:, 1].max(axis=0).tolist()]
+        else:
+            bbox = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
+        return {"faces": faces, "triangles": tris, "vertices": verts, "area": area, "bbox": bbox}
