@@ -1,1 +1,38 @@
-"""facadeforge."""
+"""facadeforge: facade imagery → semantic, procedural, editable 3D building models.
+
+The public API; every CLI command calls one of these.
+"""
+
+from .engine import Rules, derive, load_rules, stats
+from .errors import (
+    DerivationError,
+    FacadeForgeError,
+    InputError,
+    RuleError,
+    RuleSyntaxError,
+)
+from .model import Labels, Material, Model, Part, Scope, Shape
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DerivationError", "FacadeForgeError", "InputError", "Labels", "Material", "Model", "Part",
+    "RuleError", "RuleSyntaxError", "Rules", "Scope", "Shape", "derive", "export", "load_rules",
+    "render", "stats",
+]
+
+
+def export(models, path, **options):
+    """Write models to ``path``; the format follows the suffix (see ``exchange.EXPORTERS``)."""
+    from .exchange import export as _export
+
+    return _export(models, path, **options)
+
+
+def render(models_or_path, out_png, **options):
+    """CPU preview render of models (or of a .glb/.obj file) to a PNG."""
+    from .exchange import render as _render
+
+    if isinstance(models_or_path, (str, bytes)) or hasattr(models_or_path, "__fspath__"):
+        return _render.render_file(models_or_path, out_png, **options)
+    return _render.render_preview(models_or_path, out_png, **options)

@@ -48,13 +48,13 @@ class _Checker:
         if t is A.Name:
             if self.known_name(node.name, scope):
                 return
-            if selector_ok:
+            if selector_ok and (node.name in _KEYWORDS or "." in node.name):
                 return
             if "." in node.name and self.m.resolve(node.name) is None:
                 self.fail(f"unknown import '{node.name.split('.')[0]}' in '{node.name}'", node,
                           self.m.imports)
             self.fail(f"unknown attribute or variable '{node.name}'", node,
-                      list(scope) + list(self.m.attrs))
+                      list(scope) + list(self.m.attrs) + (sorted(_KEYWORDS) if selector_ok else []))
         elif t is A.Call:
             n = len(node.args)
             if not (self.m.function(node.name, n) is not None or node.name in FUNCTIONS

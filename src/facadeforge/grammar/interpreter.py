@@ -370,6 +370,7 @@ class _RunContext:
                         raise CGARuntimeError(f"'{op.name}' takes no {{ … }} body")
                     pieces = self.call_op(spec, op, state, env, op.branches)
                     for piece_state, piece_ops, info in pieces or ():
+                        piece_state.pivot = piece_state.scope.copy()
                         sub = env.with_state(piece_state)
                         if not self.run(piece_ops, piece_state, sub, (op.name, info)):
                             self.d.count_shape(self.rule)
@@ -416,8 +417,9 @@ class _RunContext:
             raise CGARuntimeError(f"{spec.name}() takes {want} arguments, got {n}")
         args = []
         for k, a in enumerate(op.args):
-            if k in spec.selectors and isinstance(a, A.Name) and a.name not in env.locals \
-                    and env.module.attr(a.name) is None:
+            if isinstance(a, A.Name) and (k in spec.names or (
+                    k in spec.selectors and a.name not in env.locals
+                    and env.module.attr(a.name) is None)):
                 args.append(a.name)
             else:
                 args.append(env.evaluator(a))

@@ -22,6 +22,7 @@ class OpSpec:
     selectors: frozenset = field(default_factory=frozenset)
     body: bool = False
     consumes: bool = False  # the shape is replaced (split, comp): later ops in a sequence see nothing
+    names: frozenset = field(default_factory=frozenset)  # positions taking a bare name (set)
 
 
 OPERATIONS: dict[str, OpSpec] = {}
@@ -38,10 +39,11 @@ def shape_function(name: str):
 
 
 def operation(name: str, min_args: int = 0, max_args: int | None = None, selectors=(),
-              body: bool = False, consumes: bool = False):
+              body: bool = False, consumes: bool = False, names=()):
     def deco(fn):
         OPERATIONS[name] = OpSpec(name, fn, min_args, min_args if max_args is None else max_args,
-                                  frozenset(selectors), body, consumes or body)
+                                  frozenset(selectors) | frozenset(names), body, consumes or body,
+                                  frozenset(names))
         return fn
     return deco
 

@@ -9,7 +9,7 @@ from . import operation
 from .appearance import set_material
 
 
-@operation("set", 2, selectors=(0,))
+@operation("set", 2, names=(0,))
 def op_set(call):
     """``set(attr, value)`` for this shape and its descendants; ``set(material.x, v)``."""
     st = call.state

@@ -144,7 +144,6 @@ def op_split(call):
         if local.n_faces and mesh.is_empty:
             continue
         ps = st.child(i)
-        ps.pivot = st.scope.copy()
         origin_local = np.zeros(3)
         origin_local[axis] = start
         sc = st.scope.copy()

@@ -1,0 +1,150 @@
+"""Command line: ``facadeforge derive | render | demo``.  Thin: each command calls the public API.
+
+Errors print one line (``facadeforge: error: …``) and exit with status 2; no tracebacks.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from .errors import FacadeForgeError
+
+EXAMPLES = {
+    "derive": """examples:
+  facadeforge derive examples/grammars/building.cga --lot 24x14 -o building.glb --stats
+  facadeforge derive rules.cga --footprint lots.geojson --assets assets/ --attr height=30 -o city.city.json
+  facadeforge derive package.rpk --rule rules/main.cga --footprint lots.geojson -o out.obj""",
+    "render": """examples:
+  facadeforge render building.glb -o preview.png
+  facadeforge render building.obj -o preview.png --size 1600x1200""",
+    "demo": """examples:
+  facadeforge demo -o demo-out""",
+}
+
+
+def _parse_attr(text: str) -> tuple[str, str]:
+    if "=" not in text:
+        raise argparse.ArgumentTypeError(f"--attr '{text}' must be name=value")
+    k, v = text.split("=", 1)
+    return k.strip(), v.strip()
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = text.lower().split("x")
+        return int(w), int(h)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--size '{text}' must be WIDTHxHEIGHT, e.g. 1200x900") from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="facadeforge", description=__doc__.splitlines()[0])
+    sub = p.add_subparsers(dest="command", required=True)
+
+    d = sub.add_parser("derive", help="derive CGA rules on footprints and export a 3D model",
+                       epilog=EXAMPLES["derive"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    d.add_argument("rules", help=".cga file or CityEngine rule package (.rpk)")
+    src = d.add_mutually_exclusive_group(required=True)
+    src.add_argument("--footprint", help="GeoJSON (Polygon/FeatureCollection) or OBJ initial shapes")
+    src.add_argument("--lot", help="a rectangular lot WIDTHxDEPTH in metres, e.g. 24x14")
+    d.add_argument("--start", help="start rule (default: @StartRule, else the first rule)")
+    d.add_argument("--rule", help="main rule file inside an .rpk")
+    d.add_argument("--attr", action="append", type=_parse_attr, default=[], metavar="NAME=VALUE",
+                   help="override an attribute (repeatable); imported ones as alias.name=value")
+    d.add_argument("--assets", help="asset folder (relative asset paths resolve here)")
+    d.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    d.add_argument("--strict", action="store_true", help="CGA warnings become errors")
+    d.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
+    d.add_argument("-o", "--output", required=True,
+                   help="output file: .glb, .obj, .city.json, or .png/.svg (2D label layout)")
+    d.add_argument("--stats", action="store_true", help="print statistics as one JSON object")
+
+    r = sub.add_parser("render", help="CPU preview render of a .glb or .obj model",
+                       epilog=EXAMPLES["render"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    r.add_argument("model")
+    r.add_argument("-o", "--output", required=True, help="PNG file")
+    r.add_argument("--size", type=_size, default=(1200, 900), help="WIDTHxHEIGHT (default 1200x900)")
+
+    m = sub.add_parser("demo", help="derive the example building, export and render it",
+                       epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    m.add_argument("-o", "--output", default="demo-out", help="output folder (default demo-out)")
+    return p
+
+
+def cmd_derive(args) -> int:
+    from . import engine, export
+
+    t0 = time.perf_counter()
+    models = engine.derive(args.rules, args.footprint, lot_size=args.lot, start=args.start,
+                           attrs=dict(args.attr), assets=args.assets, seed=args.seed,
+                           strict=args.strict, rule=args.rule, workers=args.workers)
+    export(models, args.output)
+    seconds = time.perf_counter() - t0
+    if args.stats:
+        print(json.dumps(engine.stats(models, seconds)))
+    else:
+        s = engine.stats(models, seconds)
+        print(f"{len(models)} building(s), {s['faces']} faces, {s['triangles']} triangles, "
+              f"{len(s['warnings'])} warning(s) → {args.output} ({seconds:.2f} s)")
+        for w in s["warnings"][:10]:
+            print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def cmd_render(args) -> int:
+    from . import render
+
+    render(args.model, args.output, size=args.size)
+    print(f"rendered {args.model} → {args.output}")
+    return 0
+
+
+def cmd_demo(args) -> int:
+    from . import engine, export, render
+
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    grammar = Path(__file__).resolve().parent / "data" / "building.cga"
+    t0 = time.perf_counter()
+    models = engine.derive(grammar, lot_size="24x14")
+    seconds = time.perf_counter() - t0
+    files = []
+    for suffix in ("glb", "obj", "city.json"):
+        files += [str(p) for p in export(models, out / f"building.{suffix}")]
+    render(models, out / "preview.png")
+    files.append(str(out / "preview.png"))
+    s = engine.stats(models, seconds)
+    print(f"derived {grammar.name} on a 24 m × 14 m lot in {seconds:.2f} s: {s['shapes']} shapes, "
+          f"{s['faces']} faces, {s['triangles']} triangles")
+    for k, v in sorted(s["report"].items()):
+        print(f"  report {k}: n={len(v)} sum={sum(x for x in v if isinstance(x, float)):.2f}")
+    print("wrote " + ", ".join(files))
+    return 0
+
+
+COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return COMMANDS[args.command](args)
+    except FacadeForgeError as e:
+        first = str(e).splitlines()[0]
+        print(f"facadeforge: error: {first}", file=sys.stderr)
+        return 2
+    except (OSError, ValueError) as e:
+        print(f"facadeforge: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("facadeforge: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""Golden shape-tree dumps per operation, plus targeted checks of CityEngine semantics.
+
+Regenerate the golden files after an intended change with ``UPDATE_GOLDEN=1 pytest tests/grammar``
+and review the diff.
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from facadeforge import derive, load_rules
+from facadeforge.engine import stats
+
+GOLDEN = Path(__file__).resolve().parents[1] / "data" / "golden"
+
+CASES = {
+    "extrude": "Lot --> extrude(10) X.",
+    "comp_faces": "Lot --> extrude(6) comp(f) { front : F | side : S | top : T. | bottom : NIL }",
+    "comp_merged": "Lot --> extrude(6) comp(f) { side = S | all : O }",
+    "split_floors": "Lot --> extrude(11) comp(f) { front : Fa | all : NIL }\n"
+                    "Fa --> split(y) { 4 : G | { ~3 : Fl(split.index, split.total) }* }\n"
+                    "Fl(i, n) --> split(x) { ~1 : W | { 2 : T | ~1 : W }* }",
+    "split_volume": "Lot --> extrude(9) split(y) { ~3 : Floor }*",
+    "split_noadjust": "Lot --> extrude(4) comp(f) { front : split(x, noAdjust) { '0.3 : A | ~1 : B } | all : NIL }",
+    "transforms": "Lot --> [ t(1, 2, 3) s(2, '0.5, 1) A ] [ r(0, 90, 0) B ] center(xz) C",
+    "offset": "Lot --> offset(-2) comp(f) { inside : I | border : B }",
+    "insert_builtin": "Lot --> extrude(3) comp(f) { front : split(x) { { 2 : s('0.8, '0.5, 0.3) center(xy) i(\"builtin:cube\") Box }* } | all : NIL }",
+    "stochastic_case": "attr h = 7\nLot --> case h > 5 : extrude(h) A else : B\nA --> 50% : X. else : Y.",
+    "nested_inline": "Lot --> extrude(5) comp(f) { front : split(y) { 2 : color(\"#ff0000\") Red | ~1 : split(x) { ~1 : L | ~1 : R } } | all : NIL }",
+    "convexify": "Lot --> convexify() comp(f) { all : P }",
+}
+
+
+def derive_text(src: str, lot="10x8", **kw):
+    return derive(load_rules(src), lot_size=lot, **kw)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_golden_dump(name):
+    lot = "12x8"
+    fp = None
+    if name == "convexify":
+        from facadeforge.geometry.footprints import Footprint
+
+        poly = np.array([[0, 0, 0], [0, 0, 6], [6, 0, 6], [6, 0, 3], [3, 0, 3], [3, 0, 0]], float)[::-1]
+        fp = [Footprint("L", poly)]
+    models = derive(load_rules(CASES[name]), fp, lot_size=None if fp else lot)
+    text = models[0].root.dump() + "\n"
+    path = GOLDEN / f"{name}.txt"
+    if os.environ.get("UPDATE_GOLDEN") or not path.exists():
+        path.write_text(text)
+    assert text == path.read_text()
+
+
+def test_lot_scope_and_front_face():
+    m = derive_text("Lot --> extrude(10) comp(f) { front : F | all : NIL }", lot="20x12")[0]
+    lot = m.root
+    assert np.allclose(lot.scope.size, [20, 0, 12])
+    front = [s for s in lot.walk() if s.symbol == "F"]
+    assert len(front) == 1
+    # the first lot edge faces the street (+z): the front facade is 20 m wide, 10 m tall, at z=12
+    assert np.allclose(front[0].scope.size, [20, 10, 0])
+    assert np.allclose(front[0].scope.rotation[:, 2], [0, 0, 1])
+    assert np.allclose(front[0].scope.origin, [0, 0, 12])
+
+
+def test_split_tiles_parent_area_exactly():
+    src = "Lot --> extrude(10) comp(f) { side : Fa | all : NIL }\n" \
+          "Fa --> split(y) { ~3 : split(x) { { ~2.2 : T }* } }*"
+    m = derive_text(src, lot="17.3x9.1")[0]
+    total = sum(p.mesh.area() for p in m.parts)
+    assert total == pytest.approx(2 * (17.3 + 9.1) * 10, rel=1e-9)
+
+
+def test_split_of_closed_volume_keeps_it_closed():
+    m = derive_text("Lot --> extrude(9) split(y) { ~3 : Floor. }*")[0]
+    vols = [p.mesh.volume() for p in m.parts]
+    assert len(vols) == 3 and all(v == pytest.approx(10 * 8 * 3) for v in vols)
+    assert all(p.mesh.is_closed() for p in m.parts)
+
+
+def test_l_shaped_volume_split_caps_nonconvex_section():
+    from facadeforge.geometry.footprints import Footprint
+
+    poly = np.array([[0, 0, 0], [0, 0, 6], [6, 0, 6], [6, 0, 3], [3, 0, 3], [3, 0, 0]], float)[::-1]
+    m = derive(load_rules("Lot --> extrude(6) split(y) { ~2 : F. }*"), [Footprint("L", poly)])[0]
+    assert len(m.parts) == 3
+    for p in m.parts:
+        assert p.mesh.is_closed()
+        assert p.mesh.volume() == pytest.approx(27 * 2)
+
+
+def test_attributes_overrides_and_set():
+    src = "attr h = 5\nattr name = \"a\"\nLot --> extrude(h) A\nA --> set(h, 2) report(\"h\", h) B\nB --> report(\"h2\", h) report(\"n\", name)"
+    m = derive(load_rules(src), lot_size="4x4", attrs={"h": "8", "name": "x"})[0]
+    assert m.reports == {"h": [2.0], "h2": [2.0], "n": ["x"]}
+    assert m.stats()["bbox"][1][1] == pytest.approx(8)
+
+
+def test_functions_strings_arrays():
+    src = '''attr names = "a;b;c;"
+f(x) = case x > 2 : "big" else : "small"
+g(a, b) = a * b + 1
+Lot --> report("s", f(3) + "_" + f(1)) report("g", g(2, 3)) report("n", listSize(names))
+        report("item", listItem(names, 1)) report("arr", [4, 5, 6][2]) report("sz", size([1, 2]))
+        report("find", find("facade", "a", 1)) report("sub", substring("facade", 1, 3))
+        report("mod", 7 % 3) report("pow", 2 ^ 3) report("str", str(2.5) + str(3)) report("rnd", rint(2.5))
+'''
+    m = derive_text(src)[0]
+    r = {k: v[0] for k, v in m.reports.items()}
+    assert r == {"s": "big_small", "g": 7.0, "n": 3.0, "item": "b", "arr": 6.0, "sz": 2.0,
+                 "find": 3.0, "sub": "ac", "mod": 1.0, "pow": 8.0, "str": "2.53", "rnd": 2.0}
+
+
+def test_rule_overloading_and_recursion():
+    src = "Lot --> A(3)\nA(n) --> case n > 0 : report(\"n\", n) A(n - 1) else : A\nA --> report(\"done\", 1)"
+    m = derive_text(src)[0]
+    assert m.reports == {"n": [3.0, 2.0, 1.0], "done": [1.0]}
+
+
+def test_stochastic_is_seeded_and_deterministic():
+    src = "Lot --> split(x) { { 1 : T }* }\nT --> 50% : report(\"a\", 1) else : report(\"b\", 1)"
+    a = derive_text(src, lot="40x2", seed=1)[0].reports
+    b = derive_text(src, lot="40x2", seed=1)[0].reports
+    c = derive_text(src, lot="40x2", seed=2)[0].reports
+    assert a == b
+    assert len(a.get("a", [])) + len(a.get("b", [])) == 40
+    assert 8 <= len(a.get("a", [])) <= 32
+    assert a != c
+
+
+def test_consistency_tag_makes_shapes_identical():
+    src = ("Lot --> split(x) { { 1 : T }* }\n"
+           "T --> consistent(\"tiles\") W\nW --> 50% : report(\"a\", 1) else : report(\"b\", 1)")
+    r = derive_text(src, lot="30x2", seed=3)[0].reports
+    assert len(r) == 1 and len(next(iter(r.values()))) == 30
+
+
+def test_runtime_problem_is_warning_and_strict_is_error():
+    from facadeforge.errors import DerivationError
+
+    src = 'Lot --> i("missing.obj") X'
+    m = derive_text(src)[0]
+    assert any("missing.obj" in w for w in m.warnings)
+    with pytest.raises(DerivationError, match="--strict"):
+        derive_text(src, strict=True)
+
+
+def test_caps_raise_derivation_error_naming_rule():
+    from facadeforge.errors import DerivationError
+    from facadeforge.grammar.interpreter import Limits
+
+    with pytest.raises(DerivationError, match="rule 'A'"):
+        derive(load_rules("Lot --> A\nA --> B A"), lot_size="2x2", limits=Limits(max_depth=50))
+    with pytest.raises(DerivationError, match="more than 100 shapes"):
+        derive(load_rules("Lot --> split(x) { { 0.01 : T }* }"), lot_size="5x2",
+               limits=Limits(max_shapes=100))
+
+
+def test_stats_keys():
+    models = derive_text("Lot --> extrude(3) report(\"v\", geometry.volume())")
+    s = stats(models, 0.1)
+    assert set(s) == {"shapes", "faces", "triangles", "vertices", "area", "bbox", "report",
+                      "warnings", "seconds"}
+    assert s["report"]["v"] == [pytest.approx(240)]
+    assert s["faces"] == 6 and s["triangles"] == 12
