@@ -48,7 +48,7 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
         Start rule (default: ``@StartRule``, else the first rule).
     """
     package = None
-    text_source = isinstance(rules, str) and ("\n" in rules or "-->" in rules) and not Path(rules).suffix in (".cga", ".rpk")
+    text_source = isinstance(rules, str) and ("\n" in rules or "-->" in rules) and Path(rules).suffix not in (".cga", ".rpk")
     if text_source:
         main_text, main_path, base = rules, "<rules>", None
     else:

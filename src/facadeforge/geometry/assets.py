@@ -31,8 +31,12 @@ class AssetMaterial:
 
 @dataclass
 class Asset:
+    """A loaded mesh with its materials: ``face_material[i]`` indexes ``materials``."""
+
     mesh: Mesh
     material: AssetMaterial = field(default_factory=AssetMaterial)
+    materials: list = field(default_factory=list)
+    face_material: np.ndarray | None = None
 
 
 class AssetResolver:
@@ -71,6 +75,9 @@ class AssetResolver:
             return self.resolve_map[name]
         candidates = []
         if name.startswith("/"):
+            direct = Path(name).resolve()
+            if direct.is_file() and self._allowed(direct):
+                return direct
             parts = [p for p in name.split("/") if p]
             # "/Project/assets/a.obj" → try "assets/a.obj" and "a.obj" beneath each root
             for k in range(1, len(parts)):
@@ -132,7 +139,7 @@ def load_obj(path: Path) -> Asset:
     if path.stat().st_size > MAX_ASSET_BYTES:
         raise InputError(f"asset {path} is larger than {MAX_ASSET_BYTES >> 20} MiB")
     verts, uvs, faces, face_uv = [], [], [], []
-    mtllibs, first_mtl = [], None
+    mtllibs, first_mtl, current_mtl, face_mtl = [], None, None, []
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if not line or line[0] == "#":
@@ -158,10 +165,12 @@ def load_obj(path: Path) -> Asset:
                     if len(vi) >= 3:
                         faces.append(vi)
                         face_uv.append(ti if len(ti) == len(vi) else None)
+                        face_mtl.append(current_mtl)
                 elif tag == "mtllib":
                     mtllibs.append(" ".join(parts[1:]))
-                elif tag == "usemtl" and first_mtl is None:
-                    first_mtl = " ".join(parts[1:])
+                elif tag == "usemtl":
+                    current_mtl = " ".join(parts[1:])
+                    first_mtl = first_mtl or current_mtl
             except (ValueError, IndexError):
                 raise InputError(f"{path}: malformed OBJ line: {line.strip()[:80]}") from None
     if not faces:
@@ -174,15 +183,20 @@ def load_obj(path: Path) -> Asset:
     if uvs and all(t is not None for t in face_uv):
         corner_uvs = [uv_arr[t] for t in face_uv]
     mesh = Mesh(v, faces, corner_uvs)
-    material = AssetMaterial()
+    mats: dict[str, AssetMaterial] = {}
     for lib in mtllibs:
         mp = (path.parent / lib).resolve()
         if mp.parent == path.parent.resolve() and mp.is_file():
-            mats = _read_mtl(mp)
-            if mats:
-                material = mats.get(first_mtl) or next(iter(mats.values()))
-            break
-    return Asset(mesh, material)
+            mats.update(_read_mtl(mp))
+    names = sorted({m for m in face_mtl if m is not None})
+    material_list = [mats.get(n, AssetMaterial(n)) for n in names]
+    face_material = None
+    if len(names) > 1:
+        lookup = {n: i for i, n in enumerate(names)}
+        face_material = np.array([lookup.get(m, 0) for m in face_mtl], np.int64)
+    material = mats.get(first_mtl) if first_mtl in mats else (
+        next(iter(mats.values())) if mats else AssetMaterial())
+    return Asset(mesh, material, material_list, face_material)
 
 
 def _read_mtl(path: Path) -> dict[str, AssetMaterial]:

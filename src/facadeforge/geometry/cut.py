@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import EPS, Mesh, plane_basis, polygon_normal
+from .mesh import EPS, Mesh, cross3, plane_basis, polygon_normal
 
 _OTHER = {0: (1, 2), 1: (2, 0), 2: (0, 1)}  # right-handed (u, v) for the cap plane of each axis
 
@@ -37,6 +37,10 @@ def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None =
     n = len(cuts) - 1
     if n <= 0 or mesh.is_empty:
         return [Mesh() for _ in range(max(n, 0))]
+    if mesh.n_faces == 1:
+        fast = _split_single_face(mesh, axis, cuts)
+        if fast is not None:
+            return fast
     if cap is None:
         cap = mesh.is_closed()
     coord = mesh.vertices[:, axis]
@@ -84,6 +88,82 @@ def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None =
     return out
 
 
+def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | None:
+    """Fast path for the commonest split: one convex planar face (a facade, a floor, a tile).
+
+    Sweeps the polygon once, peeling off one slab per cut with plain-float Sutherland–Hodgman
+    (numpy's per-call overhead dominates on 4-vertex polygons).  Returns ``None`` for a
+    non-convex face, which takes the general path.
+    """
+    p = mesh.vertices[mesh.corners]
+    uv = mesh.corner_uvs
+    if len(p) > 4 and not _convex_faces(mesh, mesh.face_normals())[0]:
+        return None
+    if len(p) == 4:
+        e = np.roll(p, -1, axis=0) - p
+        n = cross3(e[0], e[1]) + cross3(e[2], e[3])
+        turn = cross3(e, e[[1, 2, 3, 0]]) @ n
+        if np.any(turn < -EPS):
+            return None
+    pts = p.tolist()
+    uvs = uv.tolist() if uv is not None else None
+    lo = float(cuts[0])
+    pts, uvs = _clip_py(pts, uvs, axis, lo, keep_below=False)
+    out: list[Mesh] = []
+    for c in cuts[1:]:
+        c = float(c)
+        if len(pts) < 3:
+            out.append(Mesh())
+            continue
+        below, buv = _clip_py(pts, uvs, axis, c, keep_below=True)
+        pts, uvs = _clip_py(pts, uvs, axis, c, keep_below=False)
+        if len(below) >= 3:
+            out.append(Mesh(np.array(below), corners=np.arange(len(below)),
+                            starts=np.array([0, len(below)]),
+                            corner_uvs=None if buv is None else np.array(buv), closed=False))
+        else:
+            out.append(Mesh())
+    return out
+
+
+def _clip_py(pts, uvs, axis, value, keep_below):
+    """Sutherland–Hodgman on Python lists: keep ``coord <= value`` (or ``>=``)."""
+    k = len(pts)
+    if k == 0:
+        return pts, uvs
+    sign = 1.0 if keep_below else -1.0
+    d = [(q[axis] - value) * sign for q in pts]
+    if max(d) <= EPS:
+        return pts, uvs
+    if min(d) > EPS:
+        return [], (None if uvs is None else [])
+    out, out_uv = [], ([] if uvs is not None else None)
+    for j in range(k):
+        jn = j + 1 if j + 1 < k else 0
+        da, db = d[j], d[jn]
+        a = pts[j]
+        if da <= EPS:
+            out.append(a if abs(da) > EPS else _snap(a, axis, value))
+            if uvs is not None:
+                out_uv.append(uvs[j])
+        if (da < -EPS and db > EPS) or (da > EPS and db < -EPS):
+            t = da / (da - db)
+            b = pts[jn]
+            q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2])]
+            q[axis] = value
+            out.append(q)
+            if uvs is not None:
+                ua, ub = uvs[j], uvs[jn]
+                out_uv.append([ua[0] + t * (ub[0] - ua[0]), ua[1] + t * (ub[1] - ua[1])])
+    return out, out_uv
+
+
+def _snap(a, axis, value):
+    q = list(a)
+    q[axis] = value
+    return q
+
+
 def _convex_faces(mesh: Mesh, normals: np.ndarray) -> np.ndarray:
     if not mesh.n_faces:
         return np.zeros(0, bool)
@@ -91,7 +171,7 @@ def _convex_faces(mesh: Mesh, normals: np.ndarray) -> np.ndarray:
     nxt = np.arange(1, len(mesh.corners) + 1)
     nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
     e = p[nxt] - p
-    turn = np.einsum("ij,ij->i", np.cross(e, e[nxt]),
+    turn = np.einsum("ij,ij->i", cross3(e, e[nxt]),
                      np.repeat(normals, mesh.face_sizes, axis=0))
     return np.minimum.reduceat(turn, mesh.starts[:-1]) >= -1e-12
 

@@ -36,10 +36,11 @@ class Mesh:
         The flat form of ``uvs``.
     """
 
-    __slots__ = ("vertices", "corners", "starts", "corner_uvs")
+    __slots__ = ("vertices", "corners", "starts", "corner_uvs", "closed")
 
     def __init__(self, vertices=None, faces: Sequence | None = None, uvs: Sequence | None = None,
-                 *, corners=None, starts=None, corner_uvs=None):
+                 *, corners=None, starts=None, corner_uvs=None, closed: bool | None = None):
+        self.closed = closed  # cached topology: None = not yet known
         self.vertices = (np.zeros((0, 3)) if vertices is None
                          else np.asarray(vertices, dtype=float).reshape(-1, 3))
         if corners is not None:
@@ -114,7 +115,8 @@ class Mesh:
 
     def copy(self) -> Mesh:
         return Mesh(self.vertices.copy(), corners=self.corners.copy(), starts=self.starts.copy(),
-                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs.copy())
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs.copy(),
+                    closed=self.closed)
 
     def polygons(self) -> list[np.ndarray]:
         """Face corner positions, one (k, 3) array per face."""
@@ -126,16 +128,20 @@ class Mesh:
         if len(idx) == 0:
             return Mesh()
         lengths = self.face_sizes[idx]
-        sel = np.concatenate([np.arange(self.starts[i], self.starts[i + 1]) for i in idx])
         starts = np.concatenate([[0], np.cumsum(lengths)])
+        # corner positions of the chosen faces without a loop: face start + offset within face
+        sel = np.repeat(self.starts[idx] - starts[:-1], lengths) + np.arange(starts[-1])
         return Mesh(self.vertices[self.corners[sel]], corners=np.arange(len(sel)), starts=starts,
                     corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel])
 
     def with_vertices(self, vertices: np.ndarray) -> Mesh:
-        return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs)
+        """Same faces on moved vertices (topology, hence closedness, is kept)."""
+        return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs,
+                    closed=self.closed)
 
     def with_uvs(self, corner_uvs: np.ndarray | None) -> Mesh:
-        return Mesh(self.vertices, corners=self.corners, starts=self.starts, corner_uvs=corner_uvs)
+        return Mesh(self.vertices, corners=self.corners, starts=self.starts, corner_uvs=corner_uvs,
+                    closed=self.closed)
 
     def transformed(self, matrix: np.ndarray, offset: np.ndarray | None = None) -> Mesh:
         """Apply ``v @ matrix.T + offset``; faces are reversed when the map mirrors."""
@@ -155,7 +161,8 @@ class Mesh:
         pos = np.arange(len(self.corners)) - self.starts[face_id]
         src = self.starts[face_id] + sizes[face_id] - 1 - pos
         return Mesh(self.vertices, corners=self.corners[src], starts=self.starts,
-                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[src])
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[src],
+                    closed=self.closed)
 
     # -- measures ----------------------------------------------------------------------------
     @property
@@ -219,8 +226,15 @@ class Mesh:
 
     def is_closed(self) -> bool:
         """True when every edge (after welding coincident vertices) is used exactly twice."""
-        if not self.n_faces:
+        if self.closed is not None:
+            return self.closed
+        if self.n_faces < 4:
+            self.closed = False
             return False
+        self.closed = self._compute_closed()
+        return self.closed
+
+    def _compute_closed(self) -> bool:
         key = np.round(self.vertices / 1e-6).astype(np.int64)
         _, weld = np.unique(key, axis=0, return_inverse=True)
         w = weld.reshape(-1)[self.corners]
@@ -265,7 +279,7 @@ class Mesh:
         if quad.any():
             b = s[quad]
             p = self.vertices[self.corners[b[:, None] + np.arange(4)]]
-            n = np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
+            n = cross3(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
             e = np.roll(p, -1, axis=1) - p
             turn = np.einsum("fkj,fj->fk", np.cross(e, np.roll(e, -1, axis=1)), n)
             convex = np.all(turn >= -EPS, axis=1)
@@ -291,6 +305,13 @@ class Mesh:
 
 
 # -- polygon helpers -------------------------------------------------------------------------
+
+def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` for (..., 3) arrays without its axis juggling (a hot path on tiny arrays)."""
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
+                     a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+
 
 def _newell(p: np.ndarray) -> np.ndarray:
     q = np.roll(p, -1, axis=0)

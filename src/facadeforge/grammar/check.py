@@ -13,7 +13,7 @@ from .ops import OPERATIONS
 
 # names that are selector keywords wherever an operation takes a selector
 _KEYWORDS = {
-    "x", "y", "z", "xy", "xz", "yz", "xyz", "u", "v", "f", "e", "v", "fe", "fv", "g", "m", "h",
+    "x", "y", "z", "xy", "xz", "yz", "xyz", "u", "v", "f", "e", "fe", "fv", "g", "m", "h",
     "adjust", "noAdjust", "inside", "border", "all", "remainder", "front", "back", "left", "right",
     "top", "bottom", "side", "vertical", "horizontal", "aslant", "nutant", "scopeOrigin",
     "scopeCenter", "rel", "abs", "scope", "world", "object", "byAngle", "byHeight", "yUp", "zUp",

@@ -22,7 +22,8 @@ from . import ast as A
 from .expressions import Evaluator
 from .functions import FUNCTIONS
 from .module import Module, RuleSet
-from .ops import OPERATIONS, SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS, OpCall, load_all
+from .ops import OPERATIONS, OpCall, load_all
+from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
 from .state import ShapeState
 from .values import CGARuntimeError, to_bool, to_float, to_str
 
@@ -35,7 +36,7 @@ MAX_CALL_DEPTH = 200
 class Limits:
     """Caps that keep a derivation bounded (STYLE: "derivations and loops are bounded")."""
 
-    max_depth: int = 200
+    max_depth: int = 1024
     max_shapes: int = 2_000_000
     max_seconds: float = 600.0
     max_warnings: int = 1000
@@ -301,13 +302,32 @@ class Derivation:
         if state.geometry.n_faces == 0:
             return
         node.material = self.material(state)
+        fm = state.context.get("face_materials")
+        if fm is not None and fm[2] == state.geometry.n_faces:
+            face_material, materials, _ = fm
+            for k, am in enumerate(materials):
+                idx = np.flatnonzero(face_material == k)
+                if len(idx) == 0:
+                    continue
+                mat = self.material(state, am)
+                self.parts.append(Part(state.geometry.subset(idx), label, mat, symbol, node.id))
+            return
         self.parts.append(Part(state.geometry, label, node.material, symbol, node.id))
 
-    def material(self, state: ShapeState) -> Material:
+    def material(self, state: ShapeState, asset_material=None) -> Material:
+        """Exported material: the shape's material attributes over an asset's own material."""
         m = state.material
+        if asset_material is not None:
+            base = {"color": tuple(asset_material.color), "opacity": asset_material.opacity,
+                    "name": asset_material.name}
+            if asset_material.texture:
+                base["colormap"] = asset_material.texture
+            m = {**base, **m}
         tex = m.get("colormap") or None
         path = None
-        if tex and self.assets is not None:
+        if tex and asset_material is not None and tex == asset_material.texture:
+            path = tex  # already resolved (and confined) when the asset was read
+        elif tex and self.assets is not None:
             path = self.assets.texture(tex, self)
         color = tuple(float(c) for c in m.get("color", (1.0, 1.0, 1.0)))
         name = m.get("name") or (f"tex_{tex}" if tex else "#" + "".join(
@@ -315,6 +335,19 @@ class Derivation:
         return Material(name=str(name), color=color, opacity=float(m.get("opacity", 1.0)),
                         texture=path, metallic=float(m.get("metallic", 0.0)),
                         roughness=float(m.get("roughness", 0.9)))
+
+    def add_occluder(self, state: ShapeState):
+        """Register a closed volume about to be split into components as an occluder; return
+        the occluder ids its descendants must ignore (their own ancestors)."""
+        g = state.geometry
+        ancestors = state.context.get("occluder_ancestors", ())
+        if g.n_faces < 4 or not g.is_closed():
+            return None
+        from .ops.occlusion import Occluder
+
+        occ = Occluder(len(self.occluders), g, state.context.get("label", ""))
+        self.occluders.append(occ)
+        return (*ancestors, occ.id)
 
     def count_shape(self, rule: str) -> None:
         self.shape_count += 1
@@ -369,8 +402,11 @@ class _RunContext:
                     if spec is None or not spec.body:
                         raise CGARuntimeError(f"'{op.name}' takes no {{ … }} body")
                     pieces = self.call_op(spec, op, state, env, op.branches)
+                    own = self.d.add_occluder(state) if pieces else None
                     for piece_state, piece_ops, info in pieces or ():
                         piece_state.pivot = piece_state.scope.copy()
+                        if own is not None:
+                            piece_state.context["occluder_ancestors"] = own
                         sub = env.with_state(piece_state)
                         if not self.run(piece_ops, piece_state, sub, (op.name, info)):
                             self.d.count_shape(self.rule)

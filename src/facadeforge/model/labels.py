@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import re
-from enum import Enum
+from enum import StrEnum
+from functools import lru_cache
 
 
-class Labels(str, Enum):
+class Labels(StrEnum):
     """Canonical labels (ARCHITECTURE.md, "One data model").
 
     The value is the lower-case name, so a label serialises as itself in JSON, glTF extras and
@@ -30,9 +31,6 @@ class Labels(str, Enum):
     VEGETATION = "vegetation"
     OTHER = "other"
     GROUND = "ground"
-
-    def __str__(self) -> str:  # pragma: no cover - trivial
-        return self.value
 
 
 # Words found in rule names written by people (``Window``, ``WindowFrame``, ``GroundFloorDoor``,
@@ -72,6 +70,7 @@ _NAME_HINTS: tuple[tuple[str, Labels], ...] = (
 )
 
 
+@lru_cache(maxsize=4096)
 def label_for_name(name: str) -> Labels | None:
     """Guess the canonical label of a rule or material name, or ``None`` when nothing fits.
 

@@ -31,7 +31,10 @@ class Scope:
         self.size = np.asarray(self.size, dtype=float).reshape(3)
 
     def copy(self) -> Scope:
-        return Scope(self.origin.copy(), self.rotation.copy(), self.size.copy(), self.unit)
+        new = object.__new__(Scope)  # skip __post_init__'s conversions: this is a hot path
+        new.origin, new.rotation, new.size, new.unit = (self.origin.copy(), self.rotation.copy(),
+                                                        self.size.copy(), self.unit)
+        return new
 
     # -- frames -------------------------------------------------------------------------------
     def to_local(self, points: np.ndarray) -> np.ndarray:

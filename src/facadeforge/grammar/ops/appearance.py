@@ -106,7 +106,7 @@ def op_project_uv(call):
         return
     origin, ua, va, w, h, off = proj
     p = st.geometry.vertices[st.geometry.corners] - origin
-    uv = np.column_stack([(p @ ua + off[0]) / w, (p @ va + off[1]) / h])
+    uv = np.column_stack([(p @ ua - off[0]) / w, (p @ va - off[1]) / h])
     st.geometry = st.geometry.with_uvs(uv)
 
 

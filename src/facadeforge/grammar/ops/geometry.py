@@ -5,13 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
-from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, triangulate_polygon
+from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, polygon_normal, triangulate_polygon
 from ...geometry.primitives import PRIMITIVES
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
-
 
 # ---- extrude ----------------------------------------------------------------------------------
 
@@ -34,7 +33,9 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
             faces = [q[::-1] for q in faces]
         polys.extend(faces)
         kinds.extend(["bottom"] + ["side"] * k + ["top"])
-    return Mesh.from_polygons(polys), kinds
+    out = Mesh.from_polygons(polys)
+    out.closed = mesh.n_faces == 1  # a single face's prism is closed
+    return out, kinds
 
 
 @operation("extrude", 1, 2, selectors=(0,))
@@ -55,9 +56,25 @@ def op_extrude(call):
             return n
     else:
         raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or world.y")
+    first_normal = st.geometry.face_normals()[0]
     st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
     st.context["face_kinds"] = kinds
+    align_scope_y(st, direction(first_normal))
     st.fit_scope()
+
+
+def align_scope_y(st, y_axis: np.ndarray) -> None:
+    """Scope y along ``y_axis``, x the old x projected onto the plane normal to it, z = x × y
+    (CityEngine's scope after extrude and roof operations)."""
+    y = np.asarray(y_axis, float)
+    if np.linalg.norm(y) < EPS:
+        return
+    y = y / np.linalg.norm(y)
+    x = st.scope.rotation[:, 0] - y * (st.scope.rotation[:, 0] @ y)
+    if np.linalg.norm(x) < EPS:
+        x = st.scope.rotation[:, 2] - y * (st.scope.rotation[:, 2] @ y)
+    x = x / np.linalg.norm(x)
+    st.scope.rotation = np.column_stack([x, y, cross3(x, y)])
 
 
 # ---- offset -----------------------------------------------------------------------------------
@@ -260,7 +277,7 @@ def op_envelope(call):
         for q in faces:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(np.minimum(q[:, 2], h_top) + base_h, n))
-    st.geometry = Mesh.from_polygons([q for q in polys if np.linalg.norm(np.cross(q[1] - q[0], q[-1] - q[0])) > 0])
+    st.geometry = Mesh.from_polygons([q for q in polys if np.linalg.norm(cross3(q[1] - q[0], q[-1] - q[0])) > 0])
     st.fit_scope()
 
 
@@ -311,6 +328,10 @@ def op_insert(call):
         raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
     _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
     st.context.pop("face_kinds", None)
+    if asset.face_material is not None:
+        # several materials: kept per face until an operation changes the faces
+        st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
+        return
     if asset.material.texture and "colormap" not in st.material:
         st.material["colormap"] = asset.material.texture
     if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):

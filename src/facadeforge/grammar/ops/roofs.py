@@ -10,10 +10,15 @@ from . import operation
 
 
 def _roof(call, builder):
+    """Roof volume on every face: the roof planes (and gable/shed walls) plus the original face
+    as the bottom, as CityEngine builds it; the scope's y follows the first face normal."""
+    from .geometry import align_scope_y
+
     st = call.state
     mesh = st.geometry
     if not mesh.n_faces:
         return
+    first_normal = mesh.face_normals()[0]
     polys = []
     for p in mesh.polygons():
         n = polygon_normal(p)
@@ -28,11 +33,13 @@ def _roof(call, builder):
             faces = builder(xy)
         except ValueError as e:
             raise CGARuntimeError(f"{call.name}: {e}") from None
+        polys.append(p[::-1])  # bottom
         for q in faces:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
     st.geometry = Mesh.from_polygons(polys)
     st.context.pop("face_kinds", None)
+    align_scope_y(st, first_normal)
     st.fit_scope()
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.mesh import EPS, Mesh
+from ...geometry.mesh import EPS, Mesh, cross3
 from ...model.scope import Scope
 from .. import ast as A
 from ..values import CGARuntimeError, Floating, Relative, to_float
@@ -189,11 +189,10 @@ def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.nd
     loc = normals @ scope_rot
     d = _direction_index(loc)
     sel = {name: d == i for i, name in enumerate(_DIRS)}
-    sel["side"] = d < 2
-    sel["side"] |= d >= 4
     ang = _angle_class(loc[:, 1])
     for k in ("vertical", "horizontal", "aslant", "nutant"):
         sel[k] = ang == k
+    sel["side"] = ~sel["horizontal"]  # CityEngine: every face that is not horizontal
     obj = _direction_index(normals @ object_rot)
     for i, name in enumerate(_DIRS):
         sel["object." + name] = obj == i
@@ -223,7 +222,7 @@ def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
         sc = Scope(poly.min(axis=0), np.eye(3), np.ptp(poly, axis=0))
         return sc
     x = x / np.linalg.norm(x)
-    y = np.cross(normal, x)
+    y = cross3(normal, x)
     sc = Scope(poly[0], np.column_stack([x, y, normal]), np.zeros(3))
     sc.fit_to(poly)
     return sc
@@ -350,7 +349,7 @@ def _comp_edges(call, st):
              "inside": np.array([e[3] > 1 for e in edges])}
     table["aslant"] = ~table["vertical"] & ~table["horizontal"]
     # the side an edge faces: its face normal crossed with the edge, in the scope frame
-    outward = np.array([np.cross(u, e[2]) for u, e in zip(unit, edges)])
+    outward = np.array([cross3(u, e[2]) for u, e in zip(unit, edges)])
     d = _direction_index(outward @ st.scope.rotation) if n else np.zeros(0, int)
     for i, name in enumerate(_DIRS):
         table[name] = d == i
@@ -420,7 +419,7 @@ def op_setback(call):
     shape = shapely.Polygon(xy).buffer(0)
     k = len(xy)
     e = np.roll(xy, -1, axis=0) - xy
-    outward3 = np.cross(np.column_stack([e, np.zeros(k)]) @ sc.rotation.T, normal)
+    outward3 = cross3(np.column_stack([e, np.zeros(k)]) @ sc.rotation.T, normal)
     d_idx = _direction_index(outward3 @ st.scope.rotation)
     table = {name: d_idx == i for i, name in enumerate(_DIRS)}
     table["side"] = (d_idx < 2) | (d_idx >= 4)

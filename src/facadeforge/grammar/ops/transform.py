@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...geometry.mesh import EPS
+from ...geometry.mesh import EPS, cross3
 from ..values import CGARuntimeError, Relative
 from . import operation
 
@@ -106,7 +106,7 @@ def op_align_scope_to_axes(call):
         if np.linalg.norm(x) < EPS:
             x = np.array([1.0, 0, 0])
         x /= np.linalg.norm(x)
-        st.scope.rotation = np.column_stack([x, [0, 1, 0], np.cross(x, [0, 1, 0])])
+        st.scope.rotation = np.column_stack([x, [0, 1, 0], cross3(x, np.array([0.0, 1.0, 0.0]))])
     else:
         st.scope.rotation = np.eye(3)
     if st.geometry.n_faces:
@@ -143,9 +143,9 @@ def op_align_scope_to_geometry(call):
         raise CGARuntimeError("alignScopeToGeometry: degenerate edge")
     x /= np.linalg.norm(x)
     if up in ("yUp", "world.y"):
-        rot = np.column_stack([x, n, np.cross(x, n)])
+        rot = np.column_stack([x, n, cross3(x, n)])
     else:
-        rot = np.column_stack([x, np.cross(n, x), n])
+        rot = np.column_stack([x, cross3(n, x), n])
     st.scope.rotation = rot
     st.scope.origin = poly[e].copy()
     st.fit_scope()

@@ -1,0 +1,121 @@
+"""Occlusion queries ``inside()``, ``overlaps()``, ``touches()`` (intra-building).
+
+As in CityEngine, a shape that is split into components (``comp``, ``split``) on a closed volume
+leaves an *occluder*: its volume.  A query tests the current shape's geometry against the
+occluders of the same building that are not its own ancestors.  Occluders of other buildings
+(``inter``) are not known while buildings derive independently, so ``inter`` queries are false.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...geometry.mesh import EPS, Mesh
+from ..values import to_str
+from . import shape_function
+
+TOUCH_TOL = 1e-3
+
+
+class Occluder:
+    __slots__ = ("id", "mesh", "bounds", "planes", "convex", "label")
+
+    def __init__(self, oid: int, mesh: Mesh, label: str = ""):
+        self.id = oid
+        self.mesh = mesh
+        self.bounds = mesh.bounds()
+        self.label = label
+        n = mesh.face_normals()
+        d = np.einsum("ij,ij->i", n, mesh.vertices[mesh.corners[mesh.starts[:-1]]])
+        self.planes = (n, d)
+        # convex when every vertex lies behind every face plane
+        self.convex = bool(np.all(mesh.vertices @ n.T - d <= 1e-6))
+
+    def contains(self, pts: np.ndarray, strict: bool) -> np.ndarray:
+        """(N,) whether points are inside (strictly, or within the touch tolerance)."""
+        lo, hi = self.bounds
+        tol = -TOUCH_TOL if strict else TOUCH_TOL
+        inbox = np.all((pts >= lo - tol) & (pts <= hi + tol), axis=1)
+        if not inbox.any():
+            return inbox
+        if self.convex:
+            n, d = self.planes
+            return inbox & np.all(pts @ n.T - d <= tol, axis=1)
+        return inbox & _ray_inside(self.mesh, pts, strict)
+
+
+def _ray_inside(mesh: Mesh, pts: np.ndarray, strict: bool) -> np.ndarray:
+    """Even-odd ray casting along +x against the triangulated mesh."""
+    pos, _, _, _ = mesh.triangulate()
+    tri = pos.reshape(-1, 3, 3)
+    out = np.zeros(len(pts), bool)
+    for k, p in enumerate(pts):
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        # barycentric test in the yz plane, then intersection x beyond p.x
+        v0, v1 = b - a, c - a
+        den = v0[:, 1] * v1[:, 2] - v0[:, 2] * v1[:, 1]
+        ok = np.abs(den) > EPS
+        w = p - a
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (w[:, 1] * v1[:, 2] - w[:, 2] * v1[:, 1]) / den
+            t = (v0[:, 1] * w[:, 2] - v0[:, 2] * w[:, 1]) / den
+        hit = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
+        x = a[:, 0] + s * v0[:, 0] + t * v1[:, 0]
+        out[k] = np.count_nonzero(hit & (x > p[0] + (TOUCH_TOL if strict else -TOUCH_TOL))) % 2 == 1
+    return out
+
+
+def _candidates(env, args):
+    mode = to_str(args[0]) if args else "all"
+    label = to_str(args[1]) if len(args) > 1 else None
+    if mode == "inter":
+        return []
+    own = env.state.context.get("occluder_ancestors", ())
+    occ = [o for o in env.derivation.occluders if o.id not in own]
+    if label is not None:
+        occ = [o for o in occ if o.label == label]
+    return occ
+
+
+def _sample(mesh: Mesh) -> np.ndarray:
+    """Vertices plus face centroids: enough to tell inside from partly inside."""
+    if not mesh.n_faces:
+        return np.zeros((0, 3))
+    cent = np.add.reduceat(mesh.vertices[mesh.corners], mesh.starts[:-1], axis=0) / mesh.face_sizes[:, None]
+    return np.concatenate([mesh.used_vertices(), cent])
+
+
+def _geometry(env):
+    g = env.state.geometry
+    if g.n_faces:
+        return g
+    sc = env.state.scope  # scope-only shapes are queried with their scope box centre
+    return Mesh.from_polygons([sc.corners()[[0, 1, 3, 2]]])
+
+
+@shape_function("inside")
+def _inside(env, args):
+    pts = _sample(_geometry(env))
+    return any(bool(np.all(o.contains(pts, strict=False))) for o in _candidates(env, args)) if len(pts) else False
+
+
+@shape_function("overlaps")
+def _overlaps(env, args):
+    pts = _sample(_geometry(env))
+    return any(bool(np.any(o.contains(pts, strict=True))) for o in _candidates(env, args)) if len(pts) else False
+
+
+@shape_function("touches")
+def _touches(env, args):
+    g = _geometry(env)
+    pts = _sample(g)
+    if not len(pts):
+        return False
+    lo, hi = g.bounds() if g.n_faces else (pts.min(axis=0), pts.max(axis=0))
+    for o in _candidates(env, args):
+        olo, ohi = o.bounds
+        if np.any(lo > ohi + TOUCH_TOL) or np.any(hi < olo - TOUCH_TOL):
+            continue
+        if np.any(o.contains(pts, strict=False)):
+            return True
+    return False

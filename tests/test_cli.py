@@ -1,0 +1,81 @@
+"""CLI in-process (cjio habit): every command, its one-line errors and exit codes."""
+
+import json
+
+import pytest
+
+from facadeforge.cli import main
+
+GRAMMAR = "Lot --> extrude(6) comp(f) { side : Facade | top : Roof. | bottom : NIL }\n" \
+          "Facade --> split(y) { { ~3 : split(x) { { ~2 : Tile }* } }* }\n" \
+          "Tile --> report(\"tiles\", 1) color(\"#aa8866\")\n"
+
+
+@pytest.fixture
+def rules(tmp_path):
+    p = tmp_path / "b.cga"
+    p.write_text(GRAMMAR)
+    return p
+
+
+def test_derive_stats_json(rules, tmp_path, capsys):
+    out = tmp_path / "b.glb"
+    assert main(["derive", str(rules), "--lot", "10x6", "-o", str(out), "--stats"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["faces"] == len(s["report"]["tiles"]) + 1  # tiles + roof
+    assert s["bbox"] == [[0, 0, 0], [10, 6, 6]]
+    assert s["area"] == pytest.approx(2 * (10 + 6) * 6 + 60)
+    assert out.exists()
+
+
+def test_derive_geojson_many_footprints_in_parallel(rules, tmp_path, capsys):
+    feats = []
+    for i in range(5):
+        x = i * 20.0
+        ring = [[x, 0], [x + 10, 0], [x + 10, 8], [x, 8], [x, 0]]
+        feats.append({"type": "Feature", "properties": {"name": f"b{i}"},
+                      "geometry": {"type": "Polygon", "coordinates": [ring]}})
+    fp = tmp_path / "lots.geojson"
+    fp.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    out = tmp_path / "city.city.json"
+    assert main(["derive", str(rules), "--footprint", str(fp), "-o", str(out), "--stats",
+                 "--workers", "2"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    # GeoJSON y maps to −z: the lots span z in [−8, 0]
+    assert s["bbox"][0][2] == pytest.approx(-8) and s["bbox"][1][2] == pytest.approx(0)
+    assert s["bbox"][1][0] == pytest.approx(90)
+    city = json.loads(out.read_text())
+    assert len([o for o in city["CityObjects"].values() if o["type"] == "Building"]) == 5
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["derive", "missing.cga", "--lot", "10x6", "-o", "x.glb"], "does not exist"),
+    (["derive", "{rules}", "--lot", "10by6", "-o", "x.glb"], "WIDTHxDEPTH"),
+    (["derive", "{rules}", "--lot", "10x6", "-o", "x.xyz"], "x.xyz"),
+    (["derive", "{rules}", "--lot", "10x6", "--attr", "nope=1", "-o", "x.glb"], "no attribute 'nope'"),
+    (["derive", "{bad}", "--lot", "10x6", "-o", "x.glb"], "bad.cga:1:"),
+    (["render", "missing.glb", "-o", "x.png"], "missing.glb"),
+])
+def test_errors_are_one_line(argv, needle, rules, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    bad = tmp_path / "bad.cga"
+    bad.write_text("Lot --> split(x) { 1 : A \n")
+    argv = [a.format(rules=rules, bad=bad) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("facadeforge: error:") and needle in err[0]
+    assert not (tmp_path / "x.glb").exists()
+
+
+def test_render_and_demo(tmp_path, capsys):
+    assert main(["demo", "-o", str(tmp_path / "demo")]) == 0
+    out = capsys.readouterr().out
+    assert "faces" in out
+    for name in ("building.glb", "building.obj", "building.city.json", "preview.png"):
+        assert (tmp_path / "demo" / name).stat().st_size > 0
+    png = tmp_path / "again.png"
+    assert main(["render", str(tmp_path / "demo" / "building.glb"), "-o", str(png),
+                 "--size", "320x240"]) == 0
+    from PIL import Image
+
+    assert Image.open(png).size == (320, 240)
