@@ -50,7 +50,7 @@ EXPORTERS: dict[str, Callable[..., list[Path]]] = {
     "svg": export_label_svg,
 }
 
-#: File suffix (without the leading dot) → importer ``f(path) -> list[Model]``.
+#: File suffix (without the leading dot) → importer ``f(path, **options) -> list[Model]``.
 IMPORTERS: dict[str, Callable[..., list[Model]]] = {
     "glb": load_glb,
     "obj": load_obj,
@@ -79,7 +79,8 @@ def export(models: Model | Sequence[Model], path: str | os.PathLike, **options) 
     models : Model or sequence of Model
         What to write.
     path : path-like
-        Destination; its suffix picks the exporter (see :data:`EXPORTERS`).
+        Destination; its suffix picks the exporter (see :data:`EXPORTERS`), case-insensitively
+        and longest suffix first.  Missing parent folders are created.
     **options
         Keyword options of that exporter.
 
@@ -104,6 +105,18 @@ def export(models: Model | Sequence[Model], path: str | os.PathLike, **options) 
 
 def load(path: str | os.PathLike, **options) -> list[Model]:
     """Read models with the importer registered for the suffix of ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        A file whose suffix has an importer (see :data:`IMPORTERS`).
+    **options
+        Keyword options of that importer (``texture_dir`` for ``.glb``).
+
+    Returns
+    -------
+    list of Model
+        The models in the file, with parts carrying label, material and symbol.
 
     Raises
     ------

@@ -48,6 +48,7 @@ class Staging:
 
     def __init__(self) -> None:
         self._pending: list[tuple[Path, Path]] = []
+        self._made_dirs: list[Path] = []
         self.finals: list[Path] = []
 
     def __enter__(self) -> Staging:
@@ -57,7 +58,7 @@ class Staging:
         """A fresh temporary path that becomes ``final`` when the block succeeds."""
         final = Path(final)
         try:
-            final.parent.mkdir(parents=True, exist_ok=True)
+            self._make_dir(final.parent)
             fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".part", dir=final.parent)
         except OSError as exc:
             raise ExportError(f"cannot write {final}: {exc}") from exc
@@ -66,6 +67,15 @@ class Staging:
         self._pending.append((Path(tmp), final))
         self.finals.append(final)
         return Path(tmp)
+
+    def _make_dir(self, folder: Path) -> None:
+        missing = []
+        while not folder.exists():
+            missing.append(folder)
+            folder = folder.parent
+        for d in reversed(missing):
+            d.mkdir()
+            self._made_dirs.append(d)
 
     def write_bytes(self, final: str | os.PathLike, data: bytes) -> None:
         self.path(final).write_bytes(data)
@@ -80,6 +90,7 @@ class Staging:
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc_type is not None:
             self._discard(self._pending)
+            self._remove_made_dirs()
             return False
         for i, (tmp, final) in enumerate(self._pending):
             try:
@@ -88,6 +99,13 @@ class Staging:
                 self._discard(self._pending[i:])
                 raise ExportError(f"cannot write {final}: {err}") from err
         return False
+
+    def _remove_made_dirs(self) -> None:
+        for d in reversed(self._made_dirs):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
 
     @staticmethod
     def _discard(pending: list[tuple[Path, Path]]) -> None:

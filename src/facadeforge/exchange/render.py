@@ -1,12 +1,12 @@
 """CPU preview renderer: a shaded 3/4 view of models as a PIL image, no display and no GPU.
 
-Faces are drawn as polygons with Pillow, back to front (painter's algorithm on face centroid
-depth), with flat Lambert shading from a sun plus sky ambient, material colours (a texture is
-approximated by its mean colour, computed once per file), thin darker outlines on faces large
-enough to show them, a soft ground shadow and a sky gradient.  The picture is drawn at
-``supersample`` times the size and reduced, which anti-aliases edges.  All geometry work is
-vectorised with numpy; the per-face cost is one Pillow call, so a few hundred thousand faces
-render in seconds.
+Faces are triangulated and rasterised with a numpy depth buffer (:mod:`._zbuffer`, no Python
+loop over triangles or pixels), shaded flat with a sun (Lambert) plus sky ambient, in their
+material colours (a texture is approximated by its mean colour, computed once per file).
+Translucent materials are blended over the nearest opaque surface.  Thin darker outlines follow
+face boundaries, a soft ground disc receives the sun shadow of the models, and the sky is a
+gradient.  The picture is computed at ``supersample`` times the size and reduced, which
+anti-aliases edges.
 """
 
 from __future__ import annotations
@@ -15,13 +15,13 @@ import io
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from PIL import Image, ImageDraw
 
 from ..model.model import Model
-from ._common import Staging, as_models, face_corners, mean_texture_color
+from ._common import Staging, as_models, face_corners, mean_texture_color, triangulate_corners
+from ._zbuffer import rasterize
 from .errors import ExportError
 
 __all__ = ["render_file", "render_preview"]
@@ -34,11 +34,19 @@ _SHADOW = (150, 152, 160)
 
 @dataclass
 class _Faces:
-    """All faces of the scene flattened: corners (C, 3), face offsets (F + 1,), colours (F, 4)."""
+    """The scene flattened.
+
+    ``corners`` (C, 3) lists face corners face after face, ``offsets`` (F + 1,) where each face
+    starts, ``rgba`` (F, 4) its colour in 0–1; ``tris`` (T, 3) are triangles as corner indices
+    and ``tri_face`` (T,) the face of each.
+    """
 
     corners: np.ndarray
     offsets: np.ndarray
     rgba: np.ndarray
+    tris: np.ndarray
+    tri_face: np.ndarray
+    closed: np.ndarray  # (F,) face of a closed, opaque part: its back side is never seen
 
     @property
     def count(self) -> int:
@@ -93,11 +101,12 @@ def render_preview(models: Model | Sequence[Model], path: str | os.PathLike | No
     perspective : bool
         Perspective (``fov`` degrees) or orthographic projection.
     outlines : bool
-        Draw thin darker outlines around faces that are large on screen.
+        Darken the pixels along face boundaries.
     shadow : bool
         Draw the ground and the sun shadow of the models on it.
     supersample : int
-        Drawing scale factor for anti-aliasing.
+        Drawing scale factor for anti-aliasing; lowered automatically for scenes so large that
+        it would cost more than about 30 million covered pixels.
 
     Returns
     -------
@@ -108,10 +117,13 @@ def render_preview(models: Model | Sequence[Model], path: str | os.PathLike | No
     if width < 1 or height < 1 or supersample < 1:
         raise ExportError(f"invalid picture size {size} or supersample {supersample}")
     faces = _scene_faces(as_models(models))
-    ss = int(supersample)
-    image = _sky(width * ss, height * ss)
-    if faces.count:
-        _draw_scene(image, faces, azimuth, elevation, perspective, fov, outlines, shadow)
+    if len(faces.tris):
+        view = _View(faces, (width, height), azimuth, elevation, perspective, fov, shadow)
+        ss = view.supersample(int(supersample))
+        image = _draw_scene(_sky(width * ss, height * ss), faces, view, ss, outlines)
+    else:
+        ss = int(supersample)
+        image = _sky(width * ss, height * ss)
     if ss > 1:
         image = image.reduce(ss)
     if path is not None:
@@ -143,20 +155,33 @@ def render_file(model_path: str | os.PathLike, out_png: str | os.PathLike,
 # -- scene ------------------------------------------------------------------------------------
 
 def _scene_faces(models: list[Model]) -> _Faces:
-    corners, offsets, colors = [], [0], []
-    for model in models:
-        for part in model.parts:
-            flat, starts = face_corners(part.mesh)
-            sizes = np.diff(starts)
-            good = sizes >= 3
-            if not good.any():
-                continue
-            corners.append(part.mesh.vertices[flat[np.repeat(good, sizes)]])
-            offsets.extend((np.cumsum(sizes[good]) + offsets[-1]).tolist())
-            colors.append(np.tile(_part_rgba(part.material), (int(good.sum()), 1)))
-    if len(offsets) == 1:
-        return _Faces(np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros((0, 4)))
-    return _Faces(np.concatenate(corners), np.asarray(offsets, np.int64), np.concatenate(colors))
+    corners, offsets, colors, tris, owners, closed = [], [0], [], [], [], []
+    n_faces = 0
+    for part in (p for m in models for p in m.parts):
+        flat, starts = face_corners(part.mesh)
+        sizes = np.diff(starts)
+        good = sizes >= 3
+        if not good.any():
+            continue
+        keep = np.repeat(good, sizes)
+        renumber = np.cumsum(keep) - 1 + offsets[-1]
+        tri, face_of = triangulate_corners(part.mesh)
+        face_renumber = np.cumsum(good) - 1 + n_faces
+        rgba = _part_rgba(part.material)
+        corners.append(part.mesh.vertices[flat[keep]])
+        offsets.extend((np.cumsum(sizes[good]) + offsets[-1]).tolist())
+        colors.append(np.tile(rgba, (int(good.sum()), 1)))
+        tris.append(renumber[tri])
+        owners.append(face_renumber[face_of])
+        solid = rgba[3] >= 0.999 and part.mesh.is_closed()
+        closed.append(np.full(int(good.sum()), solid))
+        n_faces += int(good.sum())
+    if not corners:
+        empty = np.zeros(0, np.int64)
+        return _Faces(np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros((0, 4)),
+                      empty.reshape(0, 3), empty, np.zeros(0, bool))
+    return _Faces(np.concatenate(corners), np.asarray(offsets, np.int64), np.concatenate(colors),
+                  np.concatenate(tris), np.concatenate(owners), np.concatenate(closed))
 
 
 def _part_rgba(material) -> np.ndarray:
@@ -201,16 +226,48 @@ def _normals(faces: _Faces) -> np.ndarray:
     return n / np.where(length > 0, length, 1.0)
 
 
-def _shade(faces: _Faces, cam: _Camera, sun: np.ndarray) -> np.ndarray:
-    """RGBA fill colours (F, 4) in 0–255: sky ambient plus Lambert sun, both sides lit."""
-    n = _normals(faces)
-    sizes = np.diff(faces.offsets)[:, None]
-    centroid = faces.sums(faces.corners) / sizes
-    to_eye = cam.eye - centroid if cam.perspective else -cam.forward[None, :]
-    n = np.where(np.sum(n * to_eye, axis=1, keepdims=True) < 0, -n, n)
+def _shade(faces: _Faces, normals: np.ndarray, facing: np.ndarray,
+           sun: np.ndarray) -> np.ndarray:
+    """RGB colours (F, 3) in 0–1: sky ambient plus Lambert sun, both sides of a face lit."""
+    n = np.where(facing[:, None], normals, -normals)
     light = 0.5 + 0.1 * n[:, 1] + 0.5 * np.clip(n @ sun, 0.0, None)
-    rgb = np.clip(faces.rgba[:, :3] * light[:, None], 0.0, 1.0) * 255
-    return np.column_stack([rgb, faces.rgba[:, 3] * 255]).round().astype(np.int64)
+    return np.clip(faces.rgba[:, :3] * light[:, None], 0.0, 1.0)
+
+
+class _View:
+    """Camera, sun and framing of a scene, and which triangles can be seen at all."""
+
+    _SAMPLE_BUDGET = 30_000_000
+
+    def __init__(self, faces: _Faces, size: tuple[int, int], azimuth: float, elevation: float,
+                 perspective: bool, fov: float, shadow: bool) -> None:
+        self.lo, self.hi = faces.corners.min(axis=0), faces.corners.max(axis=0)
+        self.cam = _camera(self.lo, self.hi, azimuth, elevation, perspective, fov)
+        self.sun = _sun(azimuth)
+        self.shadow = _shadow_points(faces.corners, self.sun, self.lo[1]) if shadow else None
+        fit = faces.corners if self.shadow is None else np.concatenate([faces.corners,
+                                                                         self.shadow])
+        self.to_screen = _fit(self.cam, fit, size)
+        self.normals = _normals(faces)
+        centroid = faces.sums(faces.corners) / np.diff(faces.offsets)[:, None]
+        to_eye = self.cam.eye - centroid if perspective else -self.cam.forward[None, :]
+        self.facing = np.sum(self.normals * to_eye, axis=1) >= 0
+        visible = self.facing | ~faces.closed
+        self.tris = np.nonzero(visible[faces.tri_face])[0]
+        self.screen = self.to_screen(faces.corners)
+        view_z = self.cam.view(faces.corners)[:, 2]
+        self.near = 1.0 / np.maximum(view_z, 1e-9) if perspective else -view_z
+        self.faces = faces
+
+    def supersample(self, wanted: int) -> int:
+        """The largest factor up to ``wanted`` whose covered-pixel count fits the budget."""
+        xy = self.screen[self.faces.tris[self.tris]]
+        e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
+        covered = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2)
+        ss = wanted
+        while ss > 1 and covered * ss * ss > self._SAMPLE_BUDGET:
+            ss -= 1
+        return ss
 
 
 # -- drawing ----------------------------------------------------------------------------------
@@ -221,32 +278,85 @@ def _sky(width: int, height: int) -> Image.Image:
     return Image.fromarray(np.repeat(rows[:, None, :], width, axis=1))
 
 
-def _draw_scene(image: Image.Image, faces: _Faces, azimuth: float, elevation: float,
-                perspective: bool, fov: float, outlines: bool, shadow: bool) -> None:
-    lo, hi = faces.corners.min(axis=0), faces.corners.max(axis=0)
-    cam = _camera(lo, hi, azimuth, elevation, perspective, fov)
-    sun = _sun(azimuth)
-    shadow_pts = _shadow_points(faces.corners, sun, lo[1]) if shadow else None
-    fit_pts = faces.corners if shadow_pts is None else np.concatenate([faces.corners, shadow_pts])
-    to_screen = _fit(cam, fit_pts, image.size)
-    if shadow:
-        _draw_ground(image, cam, to_screen, lo, hi)
-        _draw_shadow(image, faces, to_screen(shadow_pts))
-    screen = to_screen(faces.corners)
-    order = _paint_order(faces, cam)
-    _draw_faces(image, faces, screen, _shade(faces, cam, sun), order, outlines)
+def _draw_scene(image: Image.Image, faces: _Faces, view: _View, ss: int,
+                outlines: bool) -> Image.Image:
+    def to_screen(points: np.ndarray) -> np.ndarray:
+        return view.to_screen(points) * ss
+
+    if view.shadow is not None:
+        _draw_ground(image, view.cam, to_screen, view.lo, view.hi)
+        _draw_shadow(image, faces, to_screen(view.shadow))
+    tris = faces.tris[view.tris]
+    xy = (view.screen * ss)[tris]
+    sub = _Faces(faces.corners, faces.offsets, faces.rgba, tris, faces.tri_face[view.tris],
+                 faces.closed)
+    face_ids = _visible_faces(sub, xy, view.near[tris], image.size)
+    shade = _shade(faces, view.normals, view.facing, view.sun)
+    return _compose(image, faces, shade, face_ids, outlines)
 
 
-def _paint_order(faces: _Faces, cam: _Camera) -> np.ndarray:
-    """Back-to-front face order: by farthest corner, then by mean depth.
+def _visible_faces(faces: _Faces, xy: np.ndarray, near: np.ndarray,
+                   size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pixel: the nearest opaque face, the nearest translucent face in front of it and the
+    nearness of the opaque one."""
+    alpha = faces.rgba[faces.tri_face, 3]
+    solid = np.nonzero(alpha >= 0.999)[0]
+    glass = np.nonzero((alpha < 0.999) & (alpha > 0.0))[0]
+    zbuf, opaque = rasterize(xy[solid], near[solid], size)
+    _, clear = rasterize(xy[glass], near[glass], size, in_front_of=zbuf)
+    return (_face_of(opaque, faces.tri_face[solid]), _face_of(clear, faces.tri_face[glass]),
+            zbuf)
 
-    Sorting on the farthest corner draws a large face (a wall) before the small faces lying on
-    or just in front of it (windows, sills, signs), which sorting on centroids gets wrong.
-    """
-    depth = cam.view(faces.corners)[:, 2]
-    far = np.maximum.reduceat(depth, faces.offsets[:-1])
-    mean = faces.sums(depth) / np.diff(faces.offsets)
-    return np.lexsort((-mean, -far))
+
+def _face_of(tri_ids: np.ndarray, tri_face: np.ndarray) -> np.ndarray:
+    """Map a triangle-index buffer to face indices (``-1`` stays ``-1``)."""
+    out = np.full(len(tri_ids), -1, np.int64)
+    hit = tri_ids >= 0
+    out[hit] = tri_face[tri_ids[hit]]
+    return out
+
+
+def _compose(image: Image.Image, faces: _Faces, shade: np.ndarray,
+             face_ids: tuple[np.ndarray, np.ndarray, np.ndarray], outlines: bool) -> Image.Image:
+    """Colour the pixels: opaque faces, translucent faces blended over them, outlines."""
+    width, height = image.size
+    opaque, clear, zbuf = face_ids
+    out = np.array(image, np.uint8).reshape(-1, 3)
+    hit = np.nonzero(opaque >= 0)[0]
+    out[hit] = (shade * 255 + 0.5).astype(np.uint8)[opaque[hit]]
+    seen = np.nonzero(clear >= 0)[0]
+    if len(seen):
+        a = faces.rgba[clear[seen], 3:4].astype(np.float32)
+        mixed = a * shade[clear[seen]].astype(np.float32) * 255 + (1 - a) * out[seen]
+        out[seen] = (mixed + 0.5).astype(np.uint8)
+    if outlines:
+        top = np.where(clear >= 0, clear, opaque).reshape(height, width)
+        edge = _edges(top, shade, zbuf.reshape(height, width))
+        out[edge] = (out[edge] * 0.72).astype(np.uint8)
+    return Image.fromarray(out.reshape(height, width, 3))
+
+
+def _edges(ids: np.ndarray, shade: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Flat indices of pixels on a visible boundary: the face changes and so does the colour or
+    the depth, or a face meets the background.  Coplanar faces of one colour (tiles, triangles
+    of one polygon) get no line."""
+    h, w = ids.shape
+    flat_ids, flat_near = ids.reshape(-1), near.reshape(-1)
+    found = []
+    for step, change in ((1, ids[:, 1:] != ids[:, :-1]), (w, ids[1:, :] != ids[:-1, :])):
+        r, c = np.nonzero(change)
+        pb = r * w + c
+        pa = pb + step
+        ia, ib = flat_ids[pa], flat_ids[pb]
+        background = (ia < 0) | (ib < 0)
+        colour = np.abs(shade[ia] - shade[ib]).max(axis=1) > 0.04
+        za, zb = flat_near[pa], flat_near[pb]
+        with np.errstate(invalid="ignore"):
+            depth = np.abs(za - zb) > 0.01 * np.maximum(np.abs(za), np.abs(zb))
+        line = background | colour | depth
+        found.append(pa[line & (ia >= 0)])
+        found.append(pb[line & (ib >= 0) & (ia < 0)])
+    return np.unique(np.concatenate(found))
 
 
 def _fit(cam: _Camera, points: np.ndarray, size: tuple[int, int], margin: float = 0.06):
@@ -290,38 +400,11 @@ def _draw_ground(image: Image.Image, cam: _Camera, to_screen, lo: np.ndarray,
 
 
 def _draw_shadow(image: Image.Image, faces: _Faces, screen: np.ndarray) -> None:
+    """Darken the ground where the models' sun shadow falls (polygon fills: order is moot)."""
     mask = Image.new("L", image.size, 0)
     draw = ImageDraw.Draw(mask)
     flat = screen.ravel().tolist()
     off = (faces.offsets * 2).tolist()
     for i in range(faces.count):
-        draw.polygon(flat[off[i]:off[i + 1]], fill=255)
-    mask = mask.point(lambda v: v * 140 // 255)
+        draw.polygon(flat[off[i]:off[i + 1]], fill=140)
     image.paste(Image.new("RGB", image.size, _SHADOW), mask=mask)
-
-
-def _draw_faces(image: Image.Image, faces: _Faces, screen: np.ndarray, rgba: np.ndarray,
-                order: np.ndarray, outlines: bool) -> None:
-    draw = ImageDraw.Draw(image, "RGBA")
-    flat = screen.ravel().tolist()
-    off = (faces.offsets * 2).tolist()
-    fills = [tuple(c) for c in rgba.tolist()]
-    lines = _outline_colors(faces, screen, rgba, image.size) if outlines else None
-    for i in order.tolist():
-        coords = flat[off[i]:off[i + 1]]
-        outline = None if lines is None else lines[i]
-        draw.polygon(coords, fill=fills[i], outline=outline)
-
-
-def _outline_colors(faces: _Faces, screen: np.ndarray, rgba: np.ndarray,
-                    size: tuple[int, int]) -> list:
-    """Darker edge colour for faces big enough on screen, ``None`` for the others."""
-    lo = np.minimum.reduceat(screen, faces.offsets[:-1], axis=0)
-    hi = np.maximum.reduceat(screen, faces.offsets[:-1], axis=0)
-    extent = hi - lo
-    min_side = max(size) / 250
-    big = (extent.min(axis=1) > min_side) & (rgba[:, 3] > 0)
-    dark = rgba.copy()
-    dark[:, :3] = (rgba[:, :3] * 0.62).astype(np.int64)
-    dark[:, 3] = np.maximum(rgba[:, 3], 160)
-    return [tuple(c) if b else None for c, b in zip(dark.tolist(), big.tolist())]

@@ -1,0 +1,158 @@
+"""CityJSON 2.0 export, schema validation and reading back."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pytest
+from referencing import Registry, Resource
+
+from facadeforge.exchange import EXPORTERS, ExportError, export, load
+from facadeforge.exchange.cityjson import DEFAULT_SEMANTIC_MAP, SEMANTIC_TYPES, export_cityjson
+from facadeforge.model import Labels, Model
+
+SCHEMAS = Path(__file__).resolve().parents[1] / "data" / "cityjson-2.0"
+
+
+@pytest.fixture(scope="module")
+def validator() -> jsonschema.Draft7Validator:
+    resources = []
+    for file in sorted(SCHEMAS.glob("*.schema.json")):
+        schema = json.loads(file.read_text())
+        resources.append((schema["$id"], Resource.from_contents(schema)))
+    registry = Registry().with_resources(resources)
+    root = json.loads((SCHEMAS / "cityjson.schema.json").read_text())
+    return jsonschema.Draft7Validator(root, registry=registry)
+
+
+def _errors(validator, doc) -> list[str]:
+    return [f"{list(e.absolute_path)}: {e.message}" for e in validator.iter_errors(doc)]
+
+
+def _export(tmp_path: Path, models, **options) -> dict:
+    export(models, tmp_path / "out.city.json", **options)
+    return json.loads((tmp_path / "out.city.json").read_text())
+
+
+def _real_vertices(doc: dict) -> np.ndarray:
+    tr = doc["transform"]
+    return np.asarray(doc["vertices"]) * tr["scale"] + tr["translate"]
+
+
+def test_registered_and_suffix(tmp_path: Path, house: Model):
+    assert EXPORTERS["city.json"] is export_cityjson
+    assert export(house, tmp_path / "a.city.json") == [tmp_path / "a.city.json",
+                                                        tmp_path / "textures" / "brick.png"]
+
+
+def test_schema_valid(tmp_path: Path, house: Model, house_factory, validator):
+    doc = _export(tmp_path, [house, house_factory(name="other"), Model(name="empty")],
+                  reference_system="EPSG:7415",
+                  metadata={"title": "test", "pointOfContact": {
+                      "contactName": "Ada", "emailAddress": "ada@example.org"}})
+    assert _errors(validator, doc) == []
+    assert doc["version"] == "2.0"
+    assert doc["metadata"]["referenceSystem"] == "https://www.opengis.net/def/crs/EPSG/0/7415"
+    assert set(doc["CityObjects"]) == {"house", "other", "empty"}
+    assert "geometry" not in doc["CityObjects"]["empty"]
+
+
+def test_schema_rejects_broken_files(tmp_path: Path, house: Model, validator):
+    doc = _export(tmp_path, house)
+    broken = json.loads(json.dumps(doc))
+    del broken["transform"]
+    assert _errors(validator, broken)
+    broken = json.loads(json.dumps(doc))
+    broken["CityObjects"]["house"]["geometry"][0]["lod"] = "7"
+    assert _errors(validator, broken)
+    broken = json.loads(json.dumps(doc))
+    broken["CityObjects"]["house"]["geometry"][0]["semantics"]["surfaces"][0]["type"] = "Roof"
+    assert _errors(validator, broken)
+
+
+def test_geometry_semantics_and_axes(tmp_path: Path, house: Model):
+    doc = _export(tmp_path, house)
+    assert doc["transform"]["scale"] == [0.001] * 3
+    assert all(isinstance(v, int) for row in doc["vertices"] for v in row)
+    obj = doc["CityObjects"]["house"]
+    assert obj["type"] == "Building"
+    assert obj["attributes"] == {"height": 6.0, "floors": 2, "style": "test"}
+    (geom,) = obj["geometry"]
+    assert geom["type"] == "MultiSurface" and geom["lod"] == "3"
+    n_faces = sum(p.mesh.n_faces for p in house.parts)
+    assert len(geom["boundaries"]) == len(geom["semantics"]["values"]) == n_faces
+    surfaces = geom["semantics"]["surfaces"]
+    kinds = {s["facadeforge_label"]: s["type"] for s in surfaces}
+    assert kinds == {"wall": "WallSurface", "roof": "RoofSurface", "ground": "GroundSurface",
+                     "window": "Window", "door": "Door", "deco": "WallSurface"}
+    real = _real_vertices(doc)
+    # CGA y (height 6 m) is CityJSON z; CGA z (depth 4 m) is CityJSON -y.
+    assert real[:, 2].max() == pytest.approx(6.0)
+    assert real[:, 1].min() == pytest.approx(-4.01) and real[:, 1].max() == pytest.approx(0.0)
+    # rings stay counter-clockwise seen from outside: the roof's normal points up
+    roof = next(i for i, v in enumerate(geom["semantics"]["values"])
+                if surfaces[v]["type"] == "RoofSurface")
+    ring = real[geom["boundaries"][roof][0]]
+    assert np.cross(ring[1] - ring[0], ring[2] - ring[1])[2] > 0
+    area = sum(np.linalg.norm(sum(np.cross(p[i], p[(i + 1) % len(p)]) for i in range(len(p)))) / 2
+               for p in (real[s[0]] for s in geom["boundaries"]))
+    assert area == pytest.approx(house.mesh().area(), abs=1e-3)
+
+
+def test_appearance(tmp_path: Path, house: Model):
+    doc = _export(tmp_path, house)
+    app = doc["appearance"]
+    glass = next(m for m in app["materials"] if m["name"] == "glass")
+    assert glass["diffuseColor"] == pytest.approx([0.2, 0.4, 0.6])
+    assert glass["transparency"] == pytest.approx(0.5)
+    assert app["textures"] == [{"type": "PNG", "image": "textures/brick.png", "wrapMode": "wrap"}]
+    geom = doc["CityObjects"]["house"]["geometry"][0]
+    textured = [v for v in geom["texture"]["facadeforge"]["values"] if v != [[None]]]
+    assert len(textured) == 4 and all(len(v[0]) == 5 for v in textured)
+    assert len(app["vertices-texture"]) == 16
+
+
+def test_semantic_map_option(tmp_path: Path, house: Model, validator):
+    doc = _export(tmp_path, house, semantic_map={"deco": "+Ornament", "ground": None})
+    assert _errors(validator, doc) == []
+    geom = doc["CityObjects"]["house"]["geometry"][0]
+    types = {s["type"] for s in geom["semantics"]["surfaces"]}
+    assert "+Ornament" in types and "GroundSurface" not in types
+    assert None in geom["semantics"]["values"]
+    with pytest.raises(ExportError, match="semantic surface type"):
+        export(house, tmp_path / "x.city.json", semantic_map={"deco": "Ornament"})
+    assert not (tmp_path / "x.city.json").exists()
+
+
+def test_default_map_covers_every_label():
+    assert {label.value for label in Labels} <= set(DEFAULT_SEMANTIC_MAP)
+    assert set(DEFAULT_SEMANTIC_MAP.values()) <= SEMANTIC_TYPES
+
+
+def test_origin_and_options(tmp_path: Path, house: Model, validator):
+    doc = _export(tmp_path, house, origin=(85000.0, 446000.0, -2.0), scale=0.01, lod="2.2",
+                  textures=False)
+    assert _errors(validator, doc) == []
+    real = _real_vertices(doc)
+    assert real[:, 0].min() == pytest.approx(85000.0) and real[:, 2].min() == pytest.approx(-2.0)
+    assert "textures" not in doc["appearance"]
+    with pytest.raises(ExportError, match="level of detail"):
+        export(house, tmp_path / "y.city.json", lod="5")
+    with pytest.raises(ExportError, match="EPSG"):
+        export(house, tmp_path / "y.city.json", reference_system="wgs84")
+
+
+def test_read_back(tmp_path: Path, house: Model):
+    export(house, tmp_path / "h.city.json")
+    (back,) = load(tmp_path / "h.city.json")
+    assert back.name == "house"
+    assert back.mesh().area() == pytest.approx(house.mesh().area(), abs=1e-3)
+    assert sum(p.mesh.n_faces for p in back.parts) == sum(p.mesh.n_faces for p in house.parts)
+    colors = {p.label: p.material.color for p in back.parts}
+    assert colors["roof"] == pytest.approx((0.6, 0.2, 0.1))
+    wall = next(p for p in back.parts if p.label == "wall")
+    assert Path(wall.material.texture) == tmp_path / "textures" / "brick.png"
+    assert np.allclose(back.mesh().bounds(), house.mesh().bounds(), atol=1e-3)

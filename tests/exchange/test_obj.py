@@ -1,0 +1,107 @@
+"""OBJ + MTL export and import."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from facadeforge.exchange import EXPORTERS, IMPORTERS, export, load
+from facadeforge.exchange.obj import export_obj, load_obj
+from facadeforge.model import Model
+
+
+def _by_label(models: list[Model]) -> dict:
+    out: dict[str, dict] = {}
+    for m in models:
+        for p in m.parts:
+            d = out.setdefault(p.label, {"area": 0.0, "faces": 0, "material": p.material,
+                                         "symbols": set()})
+            d["area"] += p.mesh.area()
+            d["faces"] += p.mesh.n_faces
+            d["symbols"].add(p.symbol)
+    return out
+
+
+def test_registered():
+    assert EXPORTERS["obj"] is export_obj
+    assert IMPORTERS["obj"] is load_obj
+
+
+def test_round_trip(tmp_path: Path, house: Model, texture_png: str):
+    written = export(house, tmp_path / "out" / "house.obj")
+    out = tmp_path / "out"
+    assert written == [out / "house.obj", out / "house.mtl", out / "textures" / "brick.png"]
+    assert (out / "textures" / "brick.png").read_bytes() == Path(texture_png).read_bytes()
+
+    models = load(out / "house.obj")
+    assert [m.name for m in models] == ["house"]
+    back = models[0]
+    assert back.attributes == house.attributes
+    assert len(back.parts) == len(house.parts)
+    assert sum(p.mesh.n_faces for p in back.parts) == sum(p.mesh.n_faces for p in house.parts)
+    assert back.mesh().area() == pytest.approx(house.mesh().area(), abs=1e-4)
+    before, after = _by_label([house]), _by_label(models)
+    assert set(after) == set(before)
+    for label, d in before.items():
+        assert after[label]["faces"] == d["faces"]
+        assert after[label]["area"] == pytest.approx(d["area"], abs=1e-4)
+        assert after[label]["symbols"] == d["symbols"]
+        assert after[label]["material"].color == pytest.approx(d["material"].color)
+        assert after[label]["material"].opacity == pytest.approx(d["material"].opacity)
+    wall = next(p for p in back.parts if p.label == "wall")
+    assert Path(wall.material.texture) == out / "textures" / "brick.png"
+    assert wall.mesh.corner_uvs is not None
+    assert [p.shape_id for p in back.parts] == [p.shape_id for p in house.parts]
+
+
+def test_polygons_stay_polygons(tmp_path: Path, house: Model):
+    export(house, tmp_path / "h.obj")
+    text = (tmp_path / "h.obj").read_text()
+    sizes = sorted(len(line.split()) - 1 for line in text.splitlines() if line.startswith("f "))
+    assert sizes == sorted(int(n) for p in house.parts for n in p.mesh.face_sizes)
+    assert "mtllib h.mtl" in text and "usemtl glass" in text and "g Window" in text
+    mtl = (tmp_path / "h.mtl").read_text()
+    assert "map_Kd textures/brick.png" in mtl
+    assert "Kd 0.2 0.4 0.6" in mtl and "d 0.5" in mtl
+
+
+def test_unreadable_texture_is_skipped(tmp_path: Path, house_factory):
+    written = export(house_factory(str(tmp_path / "missing.png")), tmp_path / "h.obj")
+    assert written == [tmp_path / "h.obj", tmp_path / "h.mtl"]
+    assert "map_Kd" not in (tmp_path / "h.mtl").read_text()
+    assert not (tmp_path / "textures").exists()
+
+
+def test_several_models(tmp_path: Path, house_factory):
+    export([house_factory(name="left house"), house_factory(name="right")], tmp_path / "m.obj")
+    assert [m.name for m in load(tmp_path / "m.obj")] == ["left_house", "right"]
+
+
+def test_foreign_obj(tmp_path: Path):
+    (tmp_path / "f.mtl").write_text("newmtl red\nKd 1 0 0\nTr 0.25\n")
+    (tmp_path / "f.obj").write_text(
+        "mtllib f.mtl\n"
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\n"
+        "g WindowFrame\nusemtl red\nf 1//1 2//1 3//1 4//1\n"
+        "g Stuff\nf -4 -3 -2\n")
+    (model,) = load(tmp_path / "f.obj")
+    assert model.name == "f"
+    assert [(p.symbol, p.label, p.mesh.n_faces) for p in model.parts] == [
+        ("WindowFrame", "window", 1), ("Stuff", "", 1)]
+    assert model.parts[0].material.color == (1.0, 0.0, 0.0)
+    assert model.parts[0].material.opacity == pytest.approx(0.75)
+    assert model.mesh().area() == pytest.approx(1.5)
+
+
+def test_bad_face_index(tmp_path: Path):
+    (tmp_path / "b.obj").write_text("v 0 0 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="b.obj:2"):
+        load(tmp_path / "b.obj")
+
+
+def test_trimesh_reads_it(tmp_path: Path, house: Model):
+    trimesh = pytest.importorskip("trimesh")
+    export(house, tmp_path / "h.obj")
+    scene = trimesh.load(tmp_path / "h.obj", force="scene", group_material=False)
+    assert sum(g.area for g in scene.dump()) == pytest.approx(house.mesh().area(), rel=1e-5)

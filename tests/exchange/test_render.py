@@ -1,0 +1,124 @@
+"""CPU preview renderer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from facadeforge.exchange import ExportError, export, render_file, render_preview
+from facadeforge.model import Material, Model
+
+
+def _sky_fraction(img: Image.Image) -> float:
+    """Share of pixels that look like the sky gradient (light, blue-ish, low saturation)."""
+    arr = np.asarray(img.convert("RGB"), float)
+    top = arr[0, 0]
+    return float(np.mean(np.all(np.abs(arr - top) < 25, axis=2)))
+
+
+def test_render_returns_image_of_size(house: Model):
+    img = render_preview(house, size=(320, 240))
+    assert img.size == (320, 240) and img.mode == "RGB"
+    arr = np.asarray(img)
+    assert len(np.unique(arr.reshape(-1, 3), axis=0)) > 50
+    center = arr[80:160, 110:210].reshape(-1, 3).astype(float)
+    assert np.abs(center - arr[0, 0]).max() > 60  # the building, not the sky, is in the middle
+    assert _sky_fraction(img) < 0.6
+
+
+def test_material_colours_show(house_factory):
+    red = house_factory()
+    for part in red.parts:
+        part.material = Material("red", (0.9, 0.05, 0.05))
+    arr = np.asarray(render_preview(red, size=(200, 150), shadow=False), float)
+    reddish = (arr[..., 0] > 1.8 * arr[..., 1]) & (arr[..., 0] > 1.8 * arr[..., 2])
+    assert reddish.mean() > 0.2
+
+
+def test_textures_use_their_mean_colour(house: Model, texture_png: str):
+    from facadeforge.exchange._common import mean_texture_color
+
+    assert mean_texture_color(texture_png) == pytest.approx([150 / 255, 75 / 255, 100 / 255])
+    render_preview(house, size=(64, 48))
+
+
+def test_saves_png(tmp_path: Path, house: Model):
+    img = render_preview([house], tmp_path / "p.png", size=(160, 120), azimuth=30,
+                         elevation=10, perspective=False)
+    with Image.open(tmp_path / "p.png") as saved:
+        assert saved.size == (160, 120)
+        assert np.array_equal(np.asarray(saved.convert("RGB")), np.asarray(img))
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".obj", ".city.json"])
+def test_render_file(tmp_path: Path, house: Model, suffix: str):
+    export(house, tmp_path / f"h{suffix}")
+    img = render_file(tmp_path / f"h{suffix}", tmp_path / "preview.png", size=(120, 90))
+    assert (tmp_path / "preview.png").is_file() and img.size == (120, 90)
+    assert _sky_fraction(img) < 0.7
+
+
+def test_empty_and_invalid():
+    img = render_preview(Model(), size=(40, 30))
+    assert img.size == (40, 30)
+    with pytest.raises(ExportError):
+        render_preview(Model(), size=(0, 10))
+
+
+def test_many_faces_render_quickly(box):
+    import time
+
+    from facadeforge.geometry.mesh import Mesh
+    from facadeforge.model import Part
+
+    rng = np.random.default_rng(1)
+    polys = []
+    for x, z, h in zip(rng.uniform(0, 100, 2000), rng.uniform(0, 100, 2000),
+                       rng.uniform(2, 20, 2000)):
+        polys.extend(box((x, 0, z), (x + 1, h, z + 1)).values())
+    model = Model(parts=[Part(Mesh.from_polygons(polys), "wall")])
+    start = time.perf_counter()
+    img = render_preview(model, size=(400, 300))
+    assert time.perf_counter() - start < 5.0  # 24 000 triangles; typically well under a second
+    assert img.size == (400, 300)
+
+
+def test_zbuffer_keeps_the_nearest_whatever_the_order():
+    from facadeforge.exchange._zbuffer import rasterize
+
+    square = np.array([[[0, 0], [10, 0], [10, 10]], [[0, 0], [10, 10], [0, 10]]], float)
+    far, near = np.full((2, 3), 1.0), np.full((2, 3), 2.0)
+    small = square * 0.5 + 2
+    for order in ((0, 1), (1, 0)):
+        tris = [square, small][order[0]], [square, small][order[1]]
+        depth = [far, near][order[0]], [far, near][order[1]]
+        zbuf, ids = rasterize(np.concatenate(tris), np.concatenate(depth), (10, 10))
+        grid = ids.reshape(10, 10)
+        small_ids = {2, 3} if order == (0, 1) else {0, 1}
+        assert {int(i) for i in np.unique(grid[2:7, 2:7])} <= small_ids
+        assert (grid >= 0).all() and zbuf.max() == 2.0
+    _, cover = rasterize(square[:1], None, (10, 10))
+    assert (cover >= 0).sum() == 55  # pixel centres on or under the diagonal of a 10 × 10 square
+
+
+def test_small_faces_in_front_of_big_ones_are_seen():
+    from facadeforge.geometry.mesh import Mesh
+    from facadeforge.model import Part
+
+    wall = np.array([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]], float)
+    sign = np.array([[7, 4, 0.05], [9, 4, 0.05], [9, 6, 0.05], [7, 6, 0.05]], float)
+    glass = np.array([[1, 4, 0.05], [3, 4, 0.05], [3, 6, 0.05], [1, 6, 0.05]], float)
+    model = Model(parts=[
+        Part(Mesh.from_polygons([wall]), "wall", Material("w", (0.1, 0.2, 0.9))),
+        Part(Mesh.from_polygons([sign]), "shop", Material("s", (0.95, 0.05, 0.05))),
+        Part(Mesh.from_polygons([glass]), "window", Material("g", (0.9, 0.9, 0.1), opacity=0.5)),
+    ])
+    arr = np.asarray(render_preview(model, size=(200, 150), azimuth=0, elevation=0,
+                                    shadow=False), float)
+    red = (arr[..., 0] > 150) & (arr[..., 1] < 60) & (arr[..., 2] < 60)
+    assert red.sum() > 100
+    mixed = ((arr > 60) & (arr < 180)).all(axis=2)
+    assert mixed[:, :100].sum() > 100  # translucent yellow over blue, on the left
