@@ -272,7 +272,7 @@ def op_envelope(call):
         keep = [q for q in walls.polygons() if abs(polygon_normal(q) @ n) < 0.99 or
                 polygon_normal(q) @ n < 0]
         polys.extend(keep)
-        faces, _ = roof_hip(xy, angle)
+        faces = roof_hip(xy, angle).faces
         h_top = max_h - base_h
         for q in faces:
             q = np.asarray(q, float)

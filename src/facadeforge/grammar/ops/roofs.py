@@ -56,7 +56,7 @@ def op_roof_hip(call):
 
     angle = _angle(call)
     overhang = call.num(1, 0.0)
-    _roof(call, lambda xy: roof_hip(xy, angle, overhang)[0])
+    _roof(call, lambda xy: roof_hip(xy, angle, overhang).faces)
 
 
 @operation("roofGable", 1, 5, selectors=(0,))
@@ -64,9 +64,10 @@ def op_roof_gable(call):
     from ...geometry.roofs import roof_gable
 
     angle = _angle(call)
-    ox, oy = call.num(1, 0.0), call.num(2, 0.0)
+    ox = call.num(1, 0.0)
+    oy = call.num(2, ox)  # CityEngine: the y overhang defaults to the x overhang
     even = bool(call.args[3]) if len(call.args) > 3 else False
-    _roof(call, lambda xy: roof_gable(xy, angle, ox, oy, even)[0])
+    _roof(call, lambda xy: roof_gable(xy, angle, ox, oy, even).faces)
 
 
 @operation("roofPyramid", 1, 2, selectors=(0,))
@@ -74,7 +75,7 @@ def op_roof_pyramid(call):
     from ...geometry.roofs import roof_pyramid
 
     angle = _angle(call)
-    _roof(call, lambda xy: roof_pyramid(xy, angle)[0])
+    _roof(call, lambda xy: roof_pyramid(xy, angle).faces)
 
 
 @operation("roofShed", 1, 2, selectors=(0,))
@@ -83,4 +84,4 @@ def op_roof_shed(call):
 
     angle = _angle(call)
     edge = int(call.num(1, 0.0))
-    _roof(call, lambda xy: roof_shed(xy, angle, edge)[0])
+    _roof(call, lambda xy: roof_shed(xy, angle, edge).faces)
