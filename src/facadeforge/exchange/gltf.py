@@ -173,28 +173,34 @@ class _GlbBuilder:
         self.gltf.nodes.append(node)
 
     def _primitive(self, parts: list[Part], label: str) -> gl.Primitive | None:
-        pos, uv, records, symbols = [], [], [], []
-        any_uv, start = False, 0
-        for part in parts:
-            p, u, has = _part_triangles(part.mesh)
-            if len(p) == 0:
+        # one merged mesh per group: triangulation and the part records are vectorised
+        meshes = [p.mesh for p in parts]
+        merged = Mesh.merge(meshes)
+        if not merged.n_faces:
+            return None
+        tri, face_of = triangulate_corners(merged)
+        corners, _ = face_corners(merged)
+        uv_all, any_uv = corner_uvs(merged)
+        p = merged.vertices[corners[tri]].reshape(-1, 3)
+        u = uv_all[tri].reshape(-1, 2)
+        face_counts = np.array([m.n_faces for m in meshes])
+        part_of_face = np.repeat(np.arange(len(parts)), face_counts)
+        tris_per_part = np.bincount(part_of_face[face_of], minlength=len(parts))
+        first_tri = np.concatenate([[0], np.cumsum(tris_per_part)[:-1]])
+        symbols: list[str] = []
+        records = []
+        for k, part in enumerate(parts):
+            if tris_per_part[k] == 0:
                 continue
             if part.symbol not in symbols:
                 symbols.append(part.symbol)
-            records.append([symbols.index(part.symbol), start, len(p) // 3, int(part.shape_id)])
-            pos.append(p)
-            uv.append(u)
-            any_uv |= has
-            start += len(p) // 3
-        if not pos:
-            return None
-        positions = np.concatenate(pos)
+            records.append([symbols.index(part.symbol), int(first_tri[k]), int(tris_per_part[k]),
+                            int(part.shape_id)])
+        positions = p
         attrs = gl.Attributes(POSITION=self._accessor(positions, gl.VEC3, bounds=True),
                               NORMAL=self._accessor(_flat_normals(positions), gl.VEC3))
         if any_uv:
-            tex = np.concatenate(uv)
-            attrs.TEXCOORD_0 = self._accessor(np.column_stack([tex[:, 0], 1.0 - tex[:, 1]]),
-                                              gl.VEC2)
+            attrs.TEXCOORD_0 = self._accessor(np.column_stack([u[:, 0], 1.0 - u[:, 1]]), gl.VEC2)
         return gl.Primitive(attributes=attrs, mode=gl.TRIANGLES,
                             material=self.material(parts[0].material),
                             extras={"label": label, "symbols": symbols, "parts": records})

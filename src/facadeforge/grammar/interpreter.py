@@ -200,6 +200,7 @@ class Derivation:
         self.prints: list[str] = []
         self.parts: list[Part] = []
         self._attr_cache: dict = {}
+        self._materials: dict = {}
         self._attr_busy: set = set()
         self.shape_count = 0
         self._deadline = 0.0
@@ -248,7 +249,7 @@ class Derivation:
     # -- main loop ---------------------------------------------------------------------------
     def run(self) -> Model:
         self._deadline = time.perf_counter() + self.limits.max_seconds
-        root = Shape(self.start_rule, self.initial.scope.copy(), operator="initial")
+        root = Shape(self.start_rule, self.initial.scope, operator="initial")
         state = self.initial.copy()
         state.seed = self.seed * 0x9E3779B1 + 0x7F4A7C15
         state.label = ""
@@ -316,6 +317,19 @@ class Derivation:
 
     def material(self, state: ShapeState, asset_material=None) -> Material:
         """Exported material: the shape's material attributes over an asset's own material."""
+        try:
+            key = (tuple(sorted(state.material.items())), id(asset_material))
+            hit = self._materials.get(key)
+        except TypeError:  # an unhashable material value (an array): no caching
+            key, hit = None, None
+        if hit is not None:
+            return hit
+        mat = self._make_material(state, asset_material)
+        if key is not None:
+            self._materials[key] = mat
+        return mat
+
+    def _make_material(self, state: ShapeState, asset_material) -> Material:
         m = state.material
         if asset_material is not None:
             base = {"color": tuple(asset_material.color), "opacity": asset_material.opacity,
@@ -369,7 +383,7 @@ class _RunContext:
         child_state = state.child(self.emitted)
         self.emitted += 1
         self.d.count_shape(name)
-        child = Shape(name, child_state.scope.copy())
+        child = Shape(name, child_state.scope)
         if origin:
             child.operator, child.params = origin
         self.node.children.append(child)
@@ -404,13 +418,13 @@ class _RunContext:
                     pieces = self.call_op(spec, op, state, env, op.branches)
                     own = self.d.add_occluder(state) if pieces else None
                     for piece_state, piece_ops, info in pieces or ():
-                        piece_state.pivot = piece_state.scope.copy()
+                        piece_state.mark_pivot()
                         if own is not None:
                             piece_state.context["occluder_ancestors"] = own
                         sub = env.with_state(piece_state)
                         if not self.run(piece_ops, piece_state, sub, (op.name, info)):
                             self.d.count_shape(self.rule)
-                            piece = Shape(self.rule, piece_state.scope.copy(), operator=op.name,
+                            piece = Shape(self.rule, piece_state.scope, operator=op.name,
                                           params=info)
                             self.node.children.append(piece)
                             self.d._output(piece, piece_state, self.rule)

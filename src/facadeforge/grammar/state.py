@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from ..geometry.mesh import Mesh
@@ -20,7 +18,6 @@ def splitmix64(x: int) -> int:
     return x ^ (x >> 31)
 
 
-@dataclass
 class ShapeState:
     """Scope, geometry and attributes of the current shape.
 
@@ -28,22 +25,55 @@ class ShapeState:
     this shape and its descendants.  ``seed`` drives ``rand`` and stochastic rules: it is derived
     from the initial shape's seed and the shape's path in the tree, so results do not depend on
     the order in which shapes are derived.
+
+    The scope is shared copy-on-write between a state, its copies, its successors and the shape
+    tree: read ``scope`` freely, but change it only through ``own_scope()``.  Most shapes never
+    move their scope, so most copies never happen.
     """
 
-    scope: Scope
-    geometry: Mesh
-    material: dict = field(default_factory=dict)
-    attrs: dict = field(default_factory=dict)
-    context: dict = field(default_factory=dict)  # split.index, comp.sel, …
-    projections: dict = field(default_factory=dict)  # uv set -> (origin, u axis, v axis, w, h)
-    label: str = ""
-    tags: dict = field(default_factory=dict)
-    seed: int = 0
-    draws: int = 0
-    pivot: Scope | None = None  # scope of the predecessor (for ``center``)
+    __slots__ = ("_scope", "_own", "geometry", "material", "attrs", "context", "projections",
+                 "label", "tags", "seed", "draws", "pivot")
+
+    def __init__(self, scope: Scope, geometry: Mesh, material=None, attrs=None, context=None,
+                 projections=None, label: str = "", tags=None, seed: int = 0, draws: int = 0,
+                 pivot: Scope | None = None):
+        self._scope = scope
+        self._own = False
+        self.geometry = geometry
+        self.material = {} if material is None else material
+        self.attrs = {} if attrs is None else attrs
+        self.context = {} if context is None else context
+        self.projections = {} if projections is None else projections
+        self.label = label
+        self.tags = {} if tags is None else tags
+        self.seed = seed
+        self.draws = draws
+        self.pivot = pivot
+
+    @property
+    def scope(self) -> Scope:
+        return self._scope
+
+    @scope.setter
+    def scope(self, value: Scope) -> None:
+        self._scope = value
+        self._own = False  # whoever handed it over may still hold it
+
+    def own_scope(self) -> Scope:
+        """The scope, copied first if it may be shared: call before changing it."""
+        if not self._own:
+            self._scope = self._scope.copy()
+            self._own = True
+        return self._scope
+
+    def mark_pivot(self) -> None:
+        """The current scope becomes the pivot scope (``center`` aligns to it)."""
+        self.pivot = self._scope
+        self._own = False
 
     def copy(self) -> ShapeState:
-        return ShapeState(self.scope.copy(), self.geometry, dict(self.material), dict(self.attrs),
+        self._own = False
+        return ShapeState(self._scope, self.geometry, dict(self.material), dict(self.attrs),
                           dict(self.context), dict(self.projections), self.label, dict(self.tags),
                           self.seed, 0, self.pivot)
 
@@ -51,7 +81,7 @@ class ShapeState:
         """Copy for the ``index``-th successor, with its own random stream."""
         c = self.copy()
         c.seed = splitmix64(self.seed ^ ((index + 1) * 0x632BE59BD9B4E019 & MASK64))
-        c.pivot = self.scope.copy()
+        c.pivot = self._scope
         return c
 
     def random_float(self) -> float:
@@ -62,15 +92,15 @@ class ShapeState:
     def local_geometry(self) -> Mesh:
         """Geometry in the scope frame."""
         g = self.geometry
-        return g.with_vertices(self.scope.to_local(g.vertices)) if g.n_faces else g
+        return g.with_vertices(self._scope.to_local(g.vertices)) if g.n_faces else g
 
     def set_local_geometry(self, mesh: Mesh) -> None:
-        self.geometry = mesh.with_vertices(self.scope.to_world(mesh.vertices)) if mesh.n_faces else mesh
+        self.geometry = mesh.with_vertices(self._scope.to_world(mesh.vertices)) if mesh.n_faces else mesh
 
     def fit_scope(self) -> None:
         """Scope to the bounding box of the geometry, orientation kept (CGA's default adjust)."""
         if self.geometry.n_faces:
-            self.scope.fit_to(self.geometry.vertices[self.geometry.corners])
+            self.own_scope().fit_to(self.geometry.vertices[self.geometry.corners])
 
     def world_size(self) -> np.ndarray:
-        return self.scope.size
+        return self._scope.size

@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from ..geometry.mesh import Mesh
 
 if TYPE_CHECKING:
@@ -73,14 +71,12 @@ class Model:
         return Mesh.merge(p.mesh for p in self.parts)
 
     def stats(self) -> dict:
-        faces = sum(len(p.mesh.faces) for p in self.parts)
-        tris = sum(p.mesh.triangle_count() for p in self.parts)
-        verts = sum(len(p.mesh.vertices) for p in self.parts)
-        area = sum(p.mesh.area() for p in self.parts)
-        bounds = [p.mesh.bounds() for p in self.parts if not p.mesh.is_empty]
-        if bounds:
-            b = np.stack(bounds)
-            bbox = [b[:, 0].min(axis=0).tolist(), b[:, 1].max(axis=0).tolist()]
-        else:
-            bbox = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
-        return {"faces": faces, "triangles": tris, "vertices": verts, "area": area, "bbox": bbox}
+        """Face, triangle and vertex counts, surface area (m²) and bounding box of all parts."""
+        mesh = self.mesh()
+        if not mesh.n_faces:
+            return {"faces": 0, "triangles": 0, "vertices": 0, "area": 0.0,
+                    "bbox": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]}
+        b = mesh.bounds()
+        return {"faces": mesh.n_faces, "triangles": mesh.triangle_count(),
+                "vertices": len(mesh.vertices), "area": mesh.area(),
+                "bbox": [b[0].tolist(), b[1].tolist()]}

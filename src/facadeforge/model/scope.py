@@ -30,6 +30,16 @@ class Scope:
         self.rotation = np.asarray(self.rotation, dtype=float).reshape(3, 3)
         self.size = np.asarray(self.size, dtype=float).reshape(3)
 
+    @staticmethod
+    def trusted(origin: np.ndarray, rotation: np.ndarray, size: np.ndarray, unit: str = "m") -> Scope:
+        """Scope from arrays that are already float (3,), (3, 3), (3,): no conversion (hot path).
+
+        Scopes never change their arrays in place, so ``rotation`` may be shared.
+        """
+        new = object.__new__(Scope)
+        new.origin, new.rotation, new.size, new.unit = origin, rotation, size, unit
+        return new
+
     def copy(self) -> Scope:
         new = object.__new__(Scope)  # skip __post_init__'s conversions: this is a hot path
         new.origin, new.rotation, new.size, new.unit = (self.origin.copy(), self.rotation.copy(),

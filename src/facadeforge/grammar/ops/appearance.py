@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+from functools import lru_cache
 
 import numpy as np
 
@@ -14,6 +15,7 @@ _NAMED = {"white": (1, 1, 1), "black": (0, 0, 0), "red": (1, 0, 0), "green": (0,
           "blue": (0, 0, 1), "yellow": (1, 1, 0), "gray": (0.5, 0.5, 0.5), "grey": (0.5, 0.5, 0.5)}
 
 
+@lru_cache(maxsize=1024)
 def parse_color(text: str) -> tuple[float, float, float]:
     m = _HEX.match(text.strip())
     if m:

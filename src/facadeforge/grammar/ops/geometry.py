@@ -74,7 +74,7 @@ def align_scope_y(st, y_axis: np.ndarray) -> None:
     if np.linalg.norm(x) < EPS:
         x = st.scope.rotation[:, 2] - y * (st.scope.rotation[:, 2] @ y)
     x = x / np.linalg.norm(x)
-    st.scope.rotation = np.column_stack([x, y, cross3(x, y)])
+    st.own_scope().rotation = np.column_stack([x, y, cross3(x, y)])
 
 
 # ---- offset -----------------------------------------------------------------------------------
@@ -298,7 +298,7 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     factors = np.where(np.isnan(factors), fill, factors)
     new_size = np.where(ext > EPS, ext * factors, size)
     local = (mesh.vertices - lo) * factors
-    st.scope.size = new_size
+    st.own_scope().size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
 
 
@@ -343,7 +343,7 @@ def _primitive_op(kind):
         st = call.state
         mesh = PRIMITIVES[kind](*[call.num(k) for k in range(len(call.args))][:0])
         if call.args and kind in ("cube",) and len(call.args) == 3:
-            st.scope.size = np.array([call.num(0), call.num(1), call.num(2)])
+            st.own_scope().size = np.array([call.num(0), call.num(1), call.num(2)])
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
     return fn

@@ -138,24 +138,42 @@ def op_split(call):
     local = st.local_geometry()
     meshes = (split_along_axis(local, axis, np.array(cuts)) if local.n_faces
               else [Mesh() for _ in pieces])
+    rot, org, size = st.scope.rotation, st.scope.origin, st.scope.size
+    keep = [i for i, m in enumerate(meshes) if m.n_faces or not local.n_faces]
+    if not keep:
+        return []
+    # all pieces go to world coordinates in one product, their bounding boxes in one reduction
+    if local.n_faces:
+        verts = [meshes[i].vertices for i in keep]
+        counts = np.array([len(v) for v in verts])
+        allv = np.concatenate(verts)
+        world = allv @ rot.T + org
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        lo = np.minimum.reduceat(allv, first, axis=0)
+        hi = np.maximum.reduceat(allv, first, axis=0)
     out = []
     n = len(pieces)
-    for i, ((branch, start, size), mesh) in enumerate(zip(pieces, meshes)):
-        if local.n_faces and mesh.is_empty:
-            continue
+    for j, i in enumerate(keep):
+        branch, start, width = pieces[i]
+        mesh = meshes[i]
         ps = st.child(i)
-        origin_local = np.zeros(3)
-        origin_local[axis] = start
-        sc = st.scope.copy()
-        sc.origin = st.scope.to_world(origin_local[None])[0]
-        sc.size = st.scope.size.copy()
-        sc.size[axis] = size
-        ps.scope = sc
-        ps.geometry = mesh.with_vertices(st.scope.to_world(mesh.vertices)) if mesh.n_faces else mesh
-        if adjust and ps.geometry.n_faces:
-            ps.fit_scope()
-        ps.context = {**st.context, "split.index": i, "split.total": n}
-        ps.context.pop("face_kinds", None)
+        if local.n_faces:
+            ps.geometry = mesh.with_vertices(world[first[j]:first[j] + counts[j]])
+        else:
+            ps.geometry = mesh
+        if adjust and local.n_faces:
+            ps.scope = Scope.trusted(lo[j] @ rot.T + org, rot, hi[j] - lo[j])
+        else:
+            o = np.zeros(3)
+            o[axis] = start
+            sz = size.copy()
+            sz[axis] = width
+            ps.scope = Scope.trusted(o @ rot.T + org, rot, sz)
+        ctx = dict(st.context)
+        ctx.pop("face_kinds", None)
+        ctx["split.index"] = i
+        ctx["split.total"] = n
+        ps.context = ctx
         out.append((ps, branch.ops, {"axis": axis_name, "index": i}))
     return out
 

@@ -18,7 +18,7 @@ def op_t(call):
     """Translate the scope (and geometry) along the scope axes; ``'`` is relative to the size."""
     st = call.state
     d = st.scope.rotation @ _vec(call, 0, st.scope.size)
-    st.scope.origin = st.scope.origin + d
+    st.own_scope().origin = st.scope.origin + d
     if st.geometry.n_faces:
         st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
 
@@ -35,7 +35,7 @@ def op_s(call):
         factor = np.where(old > EPS, new / np.where(old > EPS, old, 1.0), 1.0)
         local = st.scope.to_local(st.geometry.vertices) * factor
         st.geometry = st.geometry.with_vertices(st.scope.to_world(local))
-    st.scope.size = new
+    st.own_scope().size = new
 
 
 def rotation_xyz(angles_deg) -> np.ndarray:
@@ -62,8 +62,8 @@ def op_r(call):
     local_rot = rotation_xyz(angles)
     world_rot = st.scope.rotation @ local_rot @ st.scope.rotation.T
     pivot = st.scope.center if pivot_mode == "scopeCenter" else st.scope.origin.copy()
-    st.scope.rotation = st.scope.rotation @ local_rot
-    st.scope.origin = (st.scope.origin - pivot) @ world_rot.T + pivot
+    st.own_scope().rotation = st.scope.rotation @ local_rot
+    st.own_scope().origin = (st.scope.origin - pivot) @ world_rot.T + pivot
     if st.geometry.n_faces:
         st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
 
@@ -72,7 +72,7 @@ def op_r(call):
 def op_rotate_scope(call):
     """Rotate only the scope about its centre; the geometry stays, the scope is refitted."""
     st = call.state
-    st.scope.rotation = st.scope.rotation @ rotation_xyz([call.num(k) for k in range(3)])
+    st.own_scope().rotation = st.scope.rotation @ rotation_xyz([call.num(k) for k in range(3)])
     if st.geometry.n_faces:
         st.fit_scope()
 
@@ -90,7 +90,7 @@ def op_center(call):
         if a in axes:
             delta[k] = ref_center_local[k] - my_center_local[k]
     d = st.scope.rotation @ delta
-    st.scope.origin = st.scope.origin + d
+    st.own_scope().origin = st.scope.origin + d
     if st.geometry.n_faces:
         st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
 
@@ -106,9 +106,9 @@ def op_align_scope_to_axes(call):
         if np.linalg.norm(x) < EPS:
             x = np.array([1.0, 0, 0])
         x /= np.linalg.norm(x)
-        st.scope.rotation = np.column_stack([x, [0, 1, 0], cross3(x, np.array([0.0, 1.0, 0.0]))])
+        st.own_scope().rotation = np.column_stack([x, [0, 1, 0], cross3(x, np.array([0.0, 1.0, 0.0]))])
     else:
-        st.scope.rotation = np.eye(3)
+        st.own_scope().rotation = np.eye(3)
     if st.geometry.n_faces:
         st.fit_scope()
 
@@ -146,8 +146,8 @@ def op_align_scope_to_geometry(call):
         rot = np.column_stack([x, n, cross3(x, n)])
     else:
         rot = np.column_stack([x, cross3(n, x), n])
-    st.scope.rotation = rot
-    st.scope.origin = poly[e].copy()
+    st.own_scope().rotation = rot
+    st.own_scope().origin = poly[e].copy()
     st.fit_scope()
 
 
@@ -183,7 +183,7 @@ def op_translate(call):
             raise CGARuntimeError("translate(abs, scope, …) is not meaningful; use rel")
         target = v if frame == "world" else call.derivation.object_scope.to_world(v[None])[0]
         d = target - st.scope.origin
-    st.scope.origin = st.scope.origin + d
+    st.own_scope().origin = st.scope.origin + d
     if st.geometry.n_faces:
         st.geometry = st.geometry.with_vertices(st.geometry.vertices + d)
 
@@ -203,7 +203,7 @@ def op_rotate(call):
     else:
         world_rot = st.scope.rotation @ r @ st.scope.rotation.T
     pivot = st.scope.origin.copy()
-    st.scope.rotation = world_rot @ st.scope.rotation
+    st.own_scope().rotation = world_rot @ st.scope.rotation
     if st.geometry.n_faces:
         st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
 
