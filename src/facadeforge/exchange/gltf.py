@@ -6,15 +6,15 @@ Layout of an exported file
   after ``model.name``; its ``extras`` hold ``{"facadeforge_model": true, "attributes": ...,
   "reports": ..., "warnings": ...}`` (pygltflib drops empty strings, lists and ``null`` values
   from the JSON, so such attribute values do not survive a round trip).
-* within a mesh, one triangle primitive per (material, label) group of parts, non-indexed with
-  flat normals (three vertices of its own per triangle) and ``TEXCOORD_0`` when any face of the
-  group has UVs (glTF's v axis points down: ``v_gltf = 1 - v``).
+* within a mesh, one indexed triangle primitive per (material, label) group of parts: one vertex
+  per polygon corner, no ``NORMAL`` (clients compute flat normals), ``TEXCOORD_0`` when any face
+  of the group has UVs (glTF's v axis points down: ``v_gltf = 1 - v``).
 * primitive ``extras``::
 
       {"label": "window",                 # canonical label of every triangle of the primitive
        "symbols": ["Window", "Glass"],    # distinct shape symbols of the group
-       "parts": [[0, 0, 12, 41],          # [symbol index, first triangle, triangle count,
-                 [1, 12, 2, 42]]}         #  shape id], one entry per Part, in order
+       "parts_accessor": 7}               # accessor (VEC4 uint32) of [symbol index, first
+                                          # triangle, triangle count, shape id], one per Part
 
   so the label and symbol of every face can be read without facadeforge.
 * PBR materials: ``baseColorFactor`` from ``Material.color``/``opacity`` (``alphaMode`` BLEND
@@ -119,6 +119,21 @@ class _GlbBuilder:
         self.gltf.accessors.append(acc)
         return len(self.gltf.accessors) - 1
 
+    def _index_accessor(self, tri: np.ndarray) -> int:
+        array = np.ascontiguousarray(tri, dtype=np.uint32).reshape(-1)
+        view = self._view(array.tobytes(), gl.ELEMENT_ARRAY_BUFFER)
+        self.gltf.accessors.append(gl.Accessor(bufferView=view, componentType=gl.UNSIGNED_INT,
+                                               count=len(array), type=gl.SCALAR))
+        return len(self.gltf.accessors) - 1
+
+    def _int_accessor(self, table: np.ndarray) -> int:
+        """An (N, 4) table of non-negative ints as a VEC4 UNSIGNED_INT accessor (no JSON bulk)."""
+        array = np.ascontiguousarray(table, dtype=np.uint32).reshape(-1, 4)
+        view = self._view(array.tobytes(), None)
+        self.gltf.accessors.append(gl.Accessor(bufferView=view, componentType=gl.UNSIGNED_INT,
+                                               count=len(array), type=gl.VEC4))
+        return len(self.gltf.accessors) - 1
+
     # materials -------------------------------------------------------------------------------
     def _texture(self, path: str | None) -> int | None:
         if not path:
@@ -181,8 +196,6 @@ class _GlbBuilder:
         tri, face_of = triangulate_corners(merged)
         corners, _ = face_corners(merged)
         uv_all, any_uv = corner_uvs(merged)
-        p = merged.vertices[corners[tri]].reshape(-1, 3)
-        u = uv_all[tri].reshape(-1, 2)
         face_counts = np.array([m.n_faces for m in meshes])
         part_of_face = np.repeat(np.arange(len(parts)), face_counts)
         tris_per_part = np.bincount(part_of_face[face_of], minlength=len(parts))
@@ -196,14 +209,18 @@ class _GlbBuilder:
                 symbols.append(part.symbol)
             records.append([symbols.index(part.symbol), int(first_tri[k]), int(tris_per_part[k]),
                             int(part.shape_id)])
-        positions = p
-        attrs = gl.Attributes(POSITION=self._accessor(positions, gl.VEC3, bounds=True),
-                              NORMAL=self._accessor(_flat_normals(positions), gl.VEC3))
+        # indexed face corners and no NORMAL: glTF clients compute flat normals themselves
+        # (glTF 2.0 §3.7.2.1), which halves the file against flat, unindexed triangles
+        positions = merged.vertices[corners]
+        attrs = gl.Attributes(POSITION=self._accessor(positions, gl.VEC3, bounds=True))
         if any_uv:
-            attrs.TEXCOORD_0 = self._accessor(np.column_stack([u[:, 0], 1.0 - u[:, 1]]), gl.VEC2)
-        return gl.Primitive(attributes=attrs, mode=gl.TRIANGLES,
+            attrs.TEXCOORD_0 = self._accessor(np.column_stack([uv_all[:, 0], 1.0 - uv_all[:, 1]]),
+                                              gl.VEC2)
+        indices = self._index_accessor(tri)
+        return gl.Primitive(attributes=attrs, mode=gl.TRIANGLES, indices=indices,
                             material=self.material(parts[0].material),
-                            extras={"label": label, "symbols": symbols, "parts": records})
+                            extras={"label": label, "symbols": symbols,
+                                    "parts_accessor": self._int_accessor(np.array(records))})
 
     def to_bytes(self) -> bytes:
         g = self.gltf
@@ -230,15 +247,6 @@ def _part_triangles(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, bool]:
     corners, _ = face_corners(mesh)
     uv, has = corner_uvs(mesh)
     return mesh.vertices[corners[tri]].reshape(-1, 3), uv[tri].reshape(-1, 2), has
-
-
-def _flat_normals(positions: np.ndarray) -> np.ndarray:
-    """Unit normal of each triangle repeated for its three corners (3T, 3)."""
-    p = positions.reshape(-1, 3, 3)
-    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.where(length > 0, n / np.where(length > 0, length, 1.0), [0.0, 1.0, 0.0])
-    return np.repeat(n, 3, axis=0)
 
 
 # -- import -----------------------------------------------------------------------------------
@@ -340,7 +348,10 @@ class _GlbReader:
         extras = prim.extras if isinstance(prim.extras, dict) else {}
         label = str(extras.get("label", ""))
         symbols = [str(s) for s in extras.get("symbols", [])]
-        records = extras.get("parts") or [[0, 0, len(tris), 0]]
+        if isinstance(extras.get("parts_accessor"), int):
+            records = self._accessor(extras["parts_accessor"]).reshape(-1, 4).astype(np.int64).tolist()
+        else:
+            records = extras.get("parts") or [[0, 0, len(tris), 0]]
         material = self._material(prim.material)
         parts = []
         for sym, first, count, *rest in records:

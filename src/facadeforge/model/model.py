@@ -26,8 +26,13 @@ class Material:
     roughness: float = 0.9
 
     def key(self) -> tuple:
-        return (self.name, tuple(round(c, 4) for c in self.color), round(self.opacity, 4),
-                self.texture, round(self.metallic, 3), round(self.roughness, 3))
+        """Identity for grouping faces by appearance (rounded so float noise does not split)."""
+        k = self.__dict__.get("_key")
+        if k is None:
+            k = (self.name, tuple(round(c, 4) for c in self.color), round(self.opacity, 4),
+                 self.texture, round(self.metallic, 3), round(self.roughness, 3))
+            object.__setattr__(self, "_key", k)  # frozen dataclass: cache outside the fields
+        return k
 
 
 @dataclass
