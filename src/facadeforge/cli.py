@@ -75,13 +75,19 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def suffix_of(path: str) -> str:
+    name = Path(path).name.lower()
+    return "city.json" if name.endswith(".city.json") else Path(name).suffix.lstrip(".")
+
+
 def cmd_derive(args) -> int:
     from . import engine, export
 
     t0 = time.perf_counter()
     models = engine.derive(args.rules, args.footprint, lot_size=args.lot, start=args.start,
                            attrs=dict(args.attr), assets=args.assets, seed=args.seed,
-                           strict=args.strict, rule=args.rule, workers=args.workers)
+                           strict=args.strict, rule=args.rule, workers=args.workers,
+                           keep_tree=suffix_of(args.output) in ("png", "svg"))
     export(models, args.output)
     seconds = time.perf_counter() - t0
     if args.stats:

@@ -130,8 +130,8 @@ def initial_state(fp: Footprint) -> ShapeState:
 
 
 def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, strict=False,
-                     start=None, limits: Limits | None = None) -> Model:
-    """Derive the rules on one footprint."""
+                     start=None, limits: Limits | None = None, keep_tree: bool = True) -> Model:
+    """Derive the rules on one footprint (``keep_tree=False`` drops the shape tree)."""
     t0 = time.perf_counter()
     merged = {**{k: v for k, v in fp.attributes.items() if not k.startswith("_")}, **(attrs or {})}
     known = {a.name for a in rules.ruleset.main.ast.attrs}
@@ -147,6 +147,8 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
     model.attributes["seconds"] = time.perf_counter() - t0
     model.attributes["shapes"] = d.shape_count + 1
     model.attributes["prints"] = list(d.prints)
+    if not keep_tree:
+        model.root = None
     return model
 
 
@@ -171,13 +173,14 @@ def _worker_init(spec):
 def _worker_run(fp: Footprint) -> Model:
     s = _WORKER["spec"]
     return derive_footprint(_WORKER["rules"], fp, attrs=s["attrs"], seed=s["seed"],
-                            strict=s["strict"], start=s["start"], limits=s["limits"])
+                            strict=s["strict"], start=s["start"], limits=s["limits"],
+                            keep_tree=s["keep_tree"])
 
 
 def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | None = None,
            attrs: dict | None = None, assets=None, seed: int = 0, strict: bool = False,
            rule: str | None = None, workers: int | None = None,
-           limits: Limits | None = None) -> list[Model]:
+           limits: Limits | None = None, keep_tree: bool = True) -> list[Model]:
     """Derive CGA rules on footprints.
 
     Parameters
@@ -188,6 +191,8 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
         A GeoJSON/OBJ file or footprints; or give ``lot_size`` (``"20x12"``).
     workers : int, optional
         Processes for many footprints (default: all cores when there are 4 or more footprints).
+    keep_tree : bool
+        Keep each model's shape tree (``Model.root``); exporting needs only the geometry.
 
     Returns
     -------
@@ -208,12 +213,12 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
     if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "attrs": attrs,
-                "seed": seed, "strict": strict, "limits": limits}
+                "seed": seed, "strict": strict, "limits": limits, "keep_tree": keep_tree}
         chunks = max(1, len(fps) // (n_workers * 4))
         with ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,)) as pool:
             return list(pool.map(_worker_run, fps, chunksize=chunks))
     return [derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
-                             limits=limits) for fp in fps]
+                             limits=limits, keep_tree=keep_tree) for fp in fps]
 
 
 def stats(models: list[Model], seconds: float) -> dict:

@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..geometry.mesh import Mesh
 
 if TYPE_CHECKING:
@@ -70,6 +72,46 @@ class Model:
     warnings: list[str] = field(default_factory=list)
     name: str = "building"
     attributes: dict[str, object] = field(default_factory=dict)
+
+    # -- compact pickling (models travel between worker processes) ----------------------------
+    def __getstate__(self) -> dict:
+        """Pack the parts into a handful of arrays: pickling thousands of small meshes is slow."""
+        state = dict(self.__dict__)
+        parts = state.pop("parts")
+        merged = Mesh.merge(p.mesh for p in parts)
+        mats: dict = {}
+        state["_packed"] = {
+            "vertices": merged.vertices, "corners": merged.corners, "starts": merged.starts,
+            "uvs": merged.corner_uvs,
+            "faces": np.array([p.mesh.n_faces for p in parts], np.int64),
+            "has_uv": np.array([p.mesh.corner_uvs is not None for p in parts], bool),
+            "material": [mats.setdefault(p.material, len(mats)) for p in parts],
+            "materials": list(mats),
+            "meta": [(p.label, p.symbol, p.shape_id) for p in parts],
+        }
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        packed = state.pop("_packed", None)
+        self.__dict__.update(state)
+        if packed is None:
+            return
+        merged = Mesh(packed["vertices"], corners=packed["corners"], starts=packed["starts"],
+                      corner_uvs=packed["uvs"])
+        face_end = np.cumsum(packed["faces"])
+        parts = []
+        for k, (label, symbol, shape_id) in enumerate(packed["meta"]):
+            f0, f1 = face_end[k] - packed["faces"][k], face_end[k]
+            c0, c1 = merged.starts[f0], merged.starts[f1]
+            corners = merged.corners[c0:c1]
+            used, local = np.unique(corners, return_inverse=True)
+            mesh = Mesh(merged.vertices[used], corners=local.reshape(-1),
+                        starts=merged.starts[f0:f1 + 1] - c0,
+                        corner_uvs=merged.corner_uvs[c0:c1] if (packed["has_uv"][k] and
+                                                                 merged.corner_uvs is not None) else None)
+            parts.append(Part(mesh, label, packed["materials"][packed["material"][k]], symbol,
+                              shape_id))
+        self.parts = parts
 
     # -- statistics used by ``--stats`` and the benchmark --------------------------------------
     def mesh(self) -> Mesh:
