@@ -30,6 +30,11 @@ CASES = {
     "stochastic_case": "attr h = 7\nLot --> case h > 5 : extrude(h) A else : B\nA --> 50% : X. else : Y.",
     "nested_inline": "Lot --> extrude(5) comp(f) { front : split(y) { 2 : color(\"#ff0000\") Red | ~1 : split(x) { ~1 : L | ~1 : R } } | all : NIL }",
     "convexify": "Lot --> convexify() comp(f) { all : P }",
+    "roof_hip": "Lot --> extrude(6) comp(f) { top : roofHip(30) comp(f) { bottom : NIL | horizontal : H | all : R } | all : NIL }",
+    "roof_gable": "Lot --> extrude(6) comp(f) { top : roofGable(35) comp(f) { bottom : NIL | vertical : G | all : R } | all : NIL }",
+    "comp_edges": "Lot --> comp(e) { front : F | all : E }",
+    "setback": "Lot --> setback(2) { front : Yard | remainder : extrude(5) House. }",
+    "envelope": "Lot --> envelope(normal, 12, 6, 45) E.",
 }
 
 
@@ -166,3 +171,77 @@ def test_stats_keys():
                       "warnings", "seconds"}
     assert s["report"]["v"] == [pytest.approx(240)]
     assert s["faces"] == 6 and s["triangles"] == 12
+
+
+def test_roof_volumes_are_closed_and_sized():
+    m = derive_text("Lot --> extrude(6) comp(f) { top : roofHip(45) Roof. | all : NIL }", lot="12x8")[0]
+    (roof,) = m.parts
+    assert roof.mesh.is_closed()
+    # hip roof over 12 x 8 at 45 degrees: ridge height 4, volume = 4*(12*8/2 - 8*8/6)... exact:
+    # V = h * (L*W/2 - W^2/6) with h = W/2 * tan(45)
+    assert roof.mesh.volume() == pytest.approx(4 * (12 * 8 / 2 - 8 * 8 / 6))
+    assert m.stats()["bbox"][1][1] == pytest.approx(10)
+
+
+def test_extrude_scope_follows_the_extrusion():
+    src = ("Lot --> extrude(6) comp(f) { front : extrude(0.5) report(\"sy\", scope.sy) "
+           "report(\"sz\", scope.sz) comp(f) { top : T. | all : NIL } | all : NIL }")
+    m = derive_text(src, lot="10x8")[0]
+    assert m.reports == {"sy": [0.5], "sz": [6.0]}
+    # the extruded front face of a facade element is its "top" in the new scope
+    (top,) = m.parts
+    assert top.mesh.face_normals()[0] == pytest.approx([0, 0, 1])
+
+
+def test_comp_side_includes_every_non_horizontal_face():
+    m = derive_text("Lot --> extrude(5) comp(f) { side : S | all : A }", lot="6x4")[0]
+    sym = sorted(p.symbol for p in m.parts)
+    assert sym == ["A", "A", "S", "S", "S", "S"]
+
+
+def test_setback_and_edges():
+    m = derive_text(CASES["setback"], lot="10x8")[0]
+    yard = [p for p in m.parts if p.symbol == "Yard"]
+    house = [p for p in m.parts if p.symbol == "House"]
+    assert sum(p.mesh.area() for p in yard) == pytest.approx(20)
+    assert house[0].mesh.volume() == pytest.approx(10 * 6 * 5)
+    e = derive_text("Lot --> comp(e) { all : E }", lot="10x8")[0]
+    assert len([s for s in e.root.walk() if s.symbol == "E"]) == 4
+
+
+def test_uv_projection_and_texture(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (8, 8), (200, 50, 50)).save(tmp_path / "brick.png")
+    src = ("Lot --> extrude(6) comp(f) { front : setupProjection(0, scope.xy, 2, 3) projectUV(0) "
+           "texture(\"brick.png\") F. | all : NIL }")
+    m = derive(load_rules(src, assets=tmp_path), lot_size="10x8")[0]
+    (f,) = m.parts
+    uv = f.mesh.corner_uvs
+    assert uv[:, 0].max() == pytest.approx(5) and uv[:, 1].max() == pytest.approx(2)
+    assert f.material.texture == str(tmp_path / "brick.png")
+
+
+def test_occlusion_between_masses():
+    src = ("Lot --> [ extrude(10) comp(f) { side : A | all : NIL } ] "
+           "[ t(4, 0, 0) s(6, 0, '1) extrude(4) comp(f) { side : B | all : NIL } ]\n"
+           "B --> report(\"inside\", inside()) report(\"overlaps\", overlaps()) report(\"touches\", touches())")
+    m = derive_text(src, lot="10x8")[0]
+    r = m.reports
+    # the low mass lies within the 10 m one: all its walls touch or lie inside it
+    assert all(r["touches"]) and all(r["inside"])
+    assert len(r["inside"]) == 4
+
+
+def test_label_layout_export(tmp_path):
+    from facadeforge import export
+    from PIL import Image
+
+    src = ("Lot --> extrude(6) comp(f) { front : Facade | all : NIL }\n"
+           "Facade --> split(x) { ~1 : Wall | 2 : Window | ~1 : Wall }")
+    models = derive_text(src, lot="10x8")
+    export(models, tmp_path / "labels.png")
+    export(models, tmp_path / "labels.svg")
+    img = np.asarray(Image.open(tmp_path / "labels.png"))
+    assert len(np.unique(img)) >= 2
+    assert "window" in (tmp_path / "labels.svg").read_text()

@@ -51,7 +51,7 @@ def op_extrude(call):
     if mode in ("world.y", "world.up", "world.up.flatTop"):
         def direction(n):
             return np.array([0.0, 1.0 if n[1] >= 0 else -1.0, 0.0])
-    elif mode in ("face.normal", "vertex.normal", "normal"):
+    elif mode in ("face.normal", "vertex.normal", "normal", "world.up.flatTop"):
         def direction(n):
             return n
     else:
