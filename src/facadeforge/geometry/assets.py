@@ -55,6 +55,7 @@ class AssetResolver:
         self.roots = [Path(r).resolve() for r in roots if r]
         self.resolve_map = {k: Path(v).resolve() for k, v in (resolve_map or {}).items()}
         self._mesh_cache: dict[Path, Asset] = {}
+        self._resolved: dict[str, Path | None] = {}
 
     # -- paths ---------------------------------------------------------------------------------
     def _allowed(self, p: Path) -> bool:
@@ -68,6 +69,13 @@ class AssetResolver:
         InputError
             When the path points outside every asset root.
         """
+        if name in self._resolved:
+            return self._resolved[name]
+        found = self._resolve(name)
+        self._resolved[name] = found
+        return found
+
+    def _resolve(self, name: str) -> Path | None:
         name = name.strip().replace("\\", "/")
         if not name:
             return None

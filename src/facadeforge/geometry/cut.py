@@ -99,13 +99,9 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | 
     uv = mesh.corner_uvs
     if len(p) > 4 and not _convex_faces(mesh, mesh.face_normals())[0]:
         return None
-    if len(p) == 4:
-        e = np.roll(p, -1, axis=0) - p
-        n = cross3(e[0], e[1]) + cross3(e[2], e[3])
-        turn = cross3(e, e[[1, 2, 3, 0]]) @ n
-        if np.any(turn < -EPS):
-            return None
     pts = p.tolist()
+    if len(pts) == 4 and not _convex_quad(pts):
+        return None
     uvs = uv.tolist() if uv is not None else None
     lo = float(cuts[0])
     pts, uvs = _clip_py(pts, uvs, axis, lo, keep_below=False)
@@ -124,6 +120,17 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | 
         else:
             out.append(Mesh())
     return out
+
+
+def _convex_quad(q) -> bool:
+    """Whether a planar quad (4 lists of xyz) turns the same way at every corner."""
+    e = [[q[(i + 1) % 4][k] - q[i][k] for k in range(3)] for i in range(4)]
+    turns = []
+    for i in range(4):
+        a, b = e[i], e[(i + 1) % 4]
+        turns.append((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
+    n = [turns[0][k] + turns[2][k] for k in range(3)]
+    return all(t[0] * n[0] + t[1] * n[1] + t[2] * n[2] >= -EPS for t in turns)
 
 
 def _clip_py(pts, uvs, axis, value, keep_below):

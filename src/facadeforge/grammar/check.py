@@ -19,7 +19,7 @@ _KEYWORDS = {
     "scopeCenter", "rel", "abs", "scope", "world", "object", "byAngle", "byHeight", "yUp", "zUp",
     "largest", "longest", "shortest", "uniform", "gaussian", "surface", "volume", "keepSizeAndPosition",
     "fitScope", "unitSpace", "uvSpace", "inter", "intra", "occlusion", "none", "true", "false",
-    "normal", "even", "remainder", "shape", "keepSizeAlignPosition", "alignSizeAndPosition",
+    "normal", "even", "shape", "keepSizeAlignPosition", "alignSizeAndPosition",
 }
 
 
