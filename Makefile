@@ -30,6 +30,7 @@ test: env lint
 
 bench: env
 	$(VENV)/bin/python benchmarks/engine.py
+	$(VENV)/bin/python benchmarks/report.py
 
 clean:
 	rm -rf $(VENV) $(TOOLS) .pytest_cache .ruff_cache

@@ -1,0 +1,54 @@
+"""Write the benchmark tables of README.md and benchmarks/README.md from benchmarks/results/*.json.
+
+Run after a benchmark: ``.venv/bin/python benchmarks/report.py``.  The tables sit between
+``<!-- bench:engine -->`` markers so the text around them stays hand-written.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def engine_table() -> str:
+    path = ROOT / "benchmarks" / "results" / "engine.json"
+    if not path.exists():
+        return "_no result yet: run `make bench`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    rows = [
+        ("buildings / s (40 footprints, whole CLI process)", f"{r['buildings_per_second']:.2f}"),
+        ("faces / building", f"{r['faces_per_building']:,}"),
+        ("faces / s", f"{r['faces_per_second']:,}"),
+        ("best wall time", f"{r['best_wall_seconds']:.1f} s over {r['runs']} runs"),
+        ("peak memory (largest process)", f"{r['peak_memory_mib_per_process']:.0f} MiB"),
+        ("warnings", str(r["warnings"])),
+    ]
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}), {m['memory_gib']} GiB, Python {m['python']}.\n\n")
+    return head + "| engine benchmark | value |\n|---|---|\n" + "\n".join(f"| {a} | {b} |" for a, b in rows)
+
+
+def replace(path: Path, marker: str, text: str) -> None:
+    src = path.read_text()
+    block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
+    pattern = re.compile(rf"<!-- bench:{marker} -->.*?<!-- /bench:{marker} -->", re.S)
+    if pattern.search(src):
+        src = pattern.sub(lambda _: block, src)
+    else:
+        src = src.replace(f"BENCH_TABLE:{marker}", block)
+    path.write_text(src)
+
+
+def main() -> None:
+    table = engine_table()
+    for p in (ROOT / "README.md", ROOT / "benchmarks" / "README.md"):
+        replace(p, "engine", table)
+    print(table)
+
+
+if __name__ == "__main__":
+    main()
