@@ -234,8 +234,9 @@ def test_occlusion_between_masses():
 
 
 def test_label_layout_export(tmp_path):
-    from facadeforge import export
     from PIL import Image
+
+    from facadeforge import export
 
     src = ("Lot --> extrude(6) comp(f) { front : Facade | all : NIL }\n"
            "Facade --> split(x) { ~1 : Wall | 2 : Window | ~1 : Wall }")
