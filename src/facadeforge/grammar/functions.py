@@ -367,3 +367,169 @@ def _unique(env, a):
             seen.add(v)
             out.append(v)
     return make_array(out) if out else _arr(a[0])[:0]
+
+
+# ---- CityEngine's standard function library (ce.lib), written anew ------------------------
+# CityEngine makes these available to every rule file; their behaviour follows the CGA
+# reference's descriptions and examples.
+
+@builtin("getPrefix", 2)
+def _get_prefix(env, a):
+    s, m = to_str(a[0]), to_str(a[1])
+    i = s.find(m) if m else -1
+    return s[:i] if i >= 0 else s
+
+
+@builtin("getSuffix", 2)
+def _get_suffix(env, a):
+    s, m = to_str(a[0]), to_str(a[1])
+    i = s.rfind(m) if m else -1
+    return s[i + len(m):] if i >= 0 else s
+
+
+@builtin("getRange", 3)
+def _get_range(env, a):
+    s, left, right = to_str(a[0]), to_str(a[1]), to_str(a[2])
+    i = s.find(left) if left else -1
+    j = s.rfind(right) if right else -1
+    start = i + len(left) if i >= 0 else 0
+    end = j if j >= 0 else len(s)
+    if i < 0 and j < 0:
+        return s
+    return s[start:end] if end >= start else ""
+
+
+@builtin("listTerminate", 1)
+def _list_terminate(env, a):
+    s = to_str(a[0])
+    return s + ";" if s and not s.endswith(";") else s
+
+
+@builtin("listCount", 2)
+def _list_count(env, a):
+    return float(_list_items(to_str(a[0])).count(to_str(a[1])))
+
+
+@builtin("listRemove", 2)
+def _list_remove(env, a):
+    items = _list_items(to_str(a[0]))
+    s = to_str(a[1])
+    if s in items:
+        items.remove(s)
+    return "".join(x + ";" for x in items)
+
+
+@builtin("listRemoveAll", 2)
+def _list_remove_all(env, a):
+    drop = set(_list_items(to_str(a[1]))) | {to_str(a[1])}
+    return "".join(x + ";" for x in _list_items(to_str(a[0])) if x not in drop)
+
+
+@builtin("listRetainAll", 2)
+def _list_retain_all(env, a):
+    keep = set(_list_items(to_str(a[1]))) | {to_str(a[1])}
+    return "".join(x + ";" for x in _list_items(to_str(a[0])) if x in keep)
+
+
+def _file_name(path: str) -> str:
+    return path.replace("\\", "/").rsplit("/", 1)[-1]
+
+
+@builtin("fileName", 1)
+def _fn_file_name(env, a):
+    return _file_name(to_str(a[0]))
+
+
+@builtin("fileExtension", 1)
+def _fn_file_extension(env, a):
+    name = to_str(a[0])
+    return name.rsplit(".", 1)[-1] if "." in name else ""
+
+
+@builtin("fileBasename", 1)
+def _fn_file_basename(env, a):
+    name = _file_name(to_str(a[0]))
+    return name.rsplit(".", 1)[0] if "." in name else name
+
+
+@builtin("fileDirectory", 1)
+def _fn_file_directory(env, a):
+    path = to_str(a[0]).replace("\\", "/")
+    return path.rsplit("/", 1)[0] + "/" if "/" in path else ""
+
+
+@builtin("clamp", 3)
+def _clamp(env, a):
+    x, lo, hi = to_float(a[0]), to_float(a[1]), to_float(a[2])
+    return lo if x < lo else (hi if x > hi else x)
+
+
+def _hex2(x: float) -> str:
+    return f"{int(round(min(max(x, 0.0), 1.0) * 255)):02x}"
+
+
+@builtin("colorRGBToHex", 3)
+def _rgb_to_hex(env, a):
+    return "#" + "".join(_hex2(to_float(v)) for v in a)
+
+
+@builtin("colorRGBOToHex", 4)
+def _rgbo_to_hex(env, a):
+    return "#" + "".join(_hex2(to_float(v)) for v in a)
+
+
+def _hex_channel(text: str, k: int) -> float:
+    h = to_str(text).lstrip("#")
+    try:
+        return min(max(int(h[2 * k:2 * k + 2], 16) / 255.0, 0.0), 1.0)
+    except ValueError:
+        return 0.0
+
+
+for _k, _n in enumerate("RGBO"):
+    FUNCTIONS[f"colorHexTo{_n}"] = (lambda env, a, _k=_k: _hex_channel(a[0], _k), 1, 1)
+
+
+def _hsv_to_rgb(h: float, s: float, v: float) -> tuple[float, float, float]:
+    import colorsys
+
+    return colorsys.hsv_to_rgb((h % 360.0) / 360.0, min(max(s, 0.0), 1.0), min(max(v, 0.0), 1.0))
+
+
+@builtin("colorHSVToHex", 3)
+def _hsv_to_hex(env, a):
+    return "#" + "".join(_hex2(c) for c in _hsv_to_rgb(*(to_float(x) for x in a)))
+
+
+@builtin("colorHSVOToHex", 4)
+def _hsvo_to_hex(env, a):
+    rgb = _hsv_to_rgb(*(to_float(x) for x in a[:3]))
+    return "#" + "".join(_hex2(c) for c in (*rgb, to_float(a[3])))
+
+
+def _hex_to_hsv(text) -> tuple[float, float, float]:
+    import colorsys
+
+    h, s, v = colorsys.rgb_to_hsv(*(_hex_channel(text, k) for k in range(3)))
+    return h * 360.0, s, v
+
+
+for _k, _n in enumerate("HSV"):
+    FUNCTIONS[f"colorHexTo{_n}"] = (lambda env, a, _k=_k: float(_hex_to_hsv(a[0])[_k]), 1, 1)
+
+
+@builtin("colorRamp", 2)
+def _color_ramp(env, a):
+    """``colorRamp(gradient, value)``: named ramps from blue over green to red (value in 0–1)."""
+    v = min(max(to_float(a[1]), 0.0), 1.0)
+    name = to_str(a[0]).lower()
+    stops = {"redtoblue": ["#ff0000", "#ffffff", "#0000ff"],
+             "bluetored": ["#0000ff", "#ffffff", "#ff0000"],
+             "greentored": ["#00ff00", "#ffff00", "#ff0000"]}.get(
+        name, ["#2c7bb6", "#abd9e9", "#ffffbf", "#fdae61", "#d7191c"])
+    pos = v * (len(stops) - 1)
+    i = min(int(pos), len(stops) - 2)
+    t = pos - i
+    c0 = [_hex_channel(stops[i], k) for k in range(3)]
+    c1 = [_hex_channel(stops[i + 1], k) for k in range(3)]
+    return "#" + "".join(_hex2(x + t * (y - x)) for x, y in zip(c0, c1))
