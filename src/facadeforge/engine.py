@@ -74,9 +74,16 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
         roots.append(a)
     if package is not None:
         roots.append(package.root)
+        import_roots = [package.root]
     elif base is not None:
-        roots.append(base)
-    import_roots = [package.root] if package is not None else ([base] if base else [])
+        # a CityEngine project keeps rules in <project>/rules and assets in <project>/assets;
+        # project-absolute paths (/<project>/assets/x.obj) resolve from the workspace above it
+        project = next((d.parent for d in [base, *base.parents] if d.name == "rules"), None)
+        import_roots = [base] + ([project, project.parent] if project is not None else [])
+        roots.extend([base] + ([project / "assets", project, project.parent]
+                               if project is not None else []))
+    else:
+        import_roots = []
 
     def read(importer: str, name: str):
         if package is not None and name.startswith("/") and name in package.resolve_map:

@@ -246,3 +246,42 @@ def test_label_layout_export(tmp_path):
     img = np.asarray(Image.open(tmp_path / "labels.png"))
     assert len(np.unique(img)) >= 2
     assert "window" in (tmp_path / "labels.svg").read_text()
+
+
+def test_dialect_details_seen_in_production_rules():
+    src = """@Handle(shape=Post*, axis=x, repeat=none)
+@Range(min=1, max=20)
+attr n = 3
+const half = n / 2
+upMode = case n > 2 : "zUp" else : "yUp"
+Lot --> report("a", case n > 2 : "big" else : "small") report("b", half()) report("c", upMode)
+        report("d", sel("all")) report("e", 5 % 3) color(40% : "#ffffff" else : "#000000")
+        set(scope.sx, 4) report("sx", scope.sx) set(trim.vertical, false) X
+"""
+    r = load_rules(src)
+    assert r.ruleset.parameter_ranges() == {"n": (1.0, 20.0)}
+    m = derive(r, lot_size="10x8")[0]
+    assert {k: v[0] for k, v in m.reports.items()} == {"a": "big", "b": 1.5, "c": "zUp",
+                                                       "d": "all", "e": 2.0, "sx": 4.0}
+    assert not m.warnings
+
+
+def test_import_overrides_with_expressions(tmp_path):
+    (tmp_path / "f.cga").write_text('attr w = 1\nFacade --> report("w", w)\n')
+    (tmp_path / "m.cga").write_text('attr width = 7\n@Hidden\nimport F : "f.cga" (w = width * 2)\n'
+                                    'Lot --> F.Facade\n')
+    m = derive(tmp_path / "m.cga", lot_size="4x4")[0]
+    assert m.reports == {"w": [14.0]}
+
+
+def test_uv_split_and_scatter():
+    src = ("Lot --> extrude(6) comp(f) { front : setupProjection(0, scope.xy, 2, 2) projectUV(0) "
+           "split(u, unitSpace, 0) { 1 : A | ~1 : B } | top : scatter(surface, 25, uniform) { P } "
+           "| all : NIL }")
+    m = derive_text(src, lot="10x8")[0]
+    areas = {p.symbol: p.mesh.area() for p in m.parts if p.symbol in "AB"}
+    assert areas == {"A": pytest.approx(6), "B": pytest.approx(54)}
+    pts = [s for s in m.root.walk() if s.symbol == "P"]
+    assert len(pts) == 25
+    y = {round(float(s.scope.origin[1]), 6) for s in pts}
+    assert y == {6.0}  # on the roof surface

@@ -182,7 +182,8 @@ class RuleDef(Node):
 class Import(Node):
     alias: str | None
     path: str
-    overrides: tuple = ()
+    overrides: tuple = ()  # ((attr name, expression or None), ...)
+    annotations: tuple = ()
 
 
 @dataclass(frozen=True)

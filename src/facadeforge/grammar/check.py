@@ -20,6 +20,9 @@ _KEYWORDS = {
     "largest", "longest", "shortest", "uniform", "gaussian", "surface", "volume", "keepSizeAndPosition",
     "fitScope", "unitSpace", "uvSpace", "inter", "intra", "occlusion", "none", "true", "false",
     "normal", "even", "shape", "keepSizeAlignPosition", "alignSizeAndPosition",
+    "hard", "soft", "flat", "auto", "conform", "sx", "sy", "sz", "tx", "ty", "tz", "rx", "ry",
+    "rz", "maxSlope", "azimuth", "zenith", "noAlign", "edge", "face", "vertex", "yes", "no",
+    "center", "uniformScale", "any", "lowest", "world.lowest", "pos", "scale", "rotation", "dirX", "dirZ", "zyx", "xzy", "yxz", "yzx", "zxy",
 }
 
 
@@ -42,14 +45,15 @@ class _Checker:
 
     def known_name(self, name, scope) -> bool:
         return (name in scope or name in BUILTIN_NAMES or name.startswith("material.")
-                or self.m.attr(name) is not None)
+                or self.m.attr(name) is not None or self.m.function(name, 0) is not None
+                or name in self.shape_fns)
 
     def expr(self, node, scope, selector_ok=False):
         t = type(node)
         if t is A.Name:
             if self.known_name(node.name, scope):
                 return
-            if selector_ok and (node.name in _KEYWORDS or "." in node.name):
+            if selector_ok:  # selector vocabularies are open-ended (x, inside, sy, maxSlope, …)
                 return
             if "." in node.name and self.m.resolve(node.name) is None:
                 self.fail(f"unknown import '{node.name.split('.')[0]}' in '{node.name}'", node,
@@ -59,6 +63,7 @@ class _Checker:
         elif t is A.Call:
             n = len(node.args)
             if not (self.m.function(node.name, n) is not None or node.name in FUNCTIONS
+                    or (n == 0 and self.m.attr(node.name) is not None)
                     or node.name in self.shape_fns or node.name in _OCCLUSION):
                 if self.m.resolve(node.name) is not None and self.m.function(node.name, n) is None \
                         and self._has_function_any_arity(node.name):
@@ -106,8 +111,9 @@ class _Checker:
                                 else f"{spec.min_args} to {spec.max_args}")
                         raise RuleError(f"{op.name}() takes {want} arguments, got {len(op.args)}",
                                         self.m.path, op.line, op.column)
+                    positions = spec.selector_positions(len(op.args))
                     for k, a in enumerate(op.args):
-                        self.expr(a, scope, selector_ok=k in spec.selectors)
+                        self.expr(a, scope, selector_ok=k in positions)
                     continue
                 if "." in op.name and self.m.resolve(op.name) is None:
                     self.fail(f"unknown import '{op.name.split('.')[0]}' in rule call '{op.name}'",
@@ -129,8 +135,9 @@ class _Checker:
                 if spec is None or not spec.body:
                     self.fail(f"unknown operation '{op.name}' with a {{ … }} body", op,
                               [k for k, s in OPERATIONS.items() if s.body])
+                positions = spec.selector_positions(len(op.args))
                 for k, a in enumerate(op.args):
-                    self.expr(a, scope, selector_ok=k in spec.selectors)
+                    self.expr(a, scope, selector_ok=k in positions)
                 self.branches(op.name, op.branches, scope)
             elif t is A.Push:
                 self.ops(op.ops, scope)

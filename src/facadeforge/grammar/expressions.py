@@ -8,6 +8,7 @@ import operator
 import numpy as np
 
 from . import ast as A
+from .ops import SHAPE_FUNCTIONS as SELECTOR_FUNCTIONS
 from .values import (
     CGARuntimeError,
     Floating,
@@ -108,7 +109,18 @@ class Evaluator:
         return self.env.lookup(node.name, node)
 
     def _call(self, node):
+        if node.name in SELECTOR_FUNCTIONS:
+            # shape queries take selector keywords (``geometry.area(top)``, ``imageInfo(f, sx)``)
+            return self.env.call(node.name, [self._selector(a) for a in node.args], node)
         return self.env.call(node.name, [self(a) for a in node.args], node)
+
+    def _selector(self, node):
+        if type(node) is A.Name:
+            try:
+                return self.env.lookup(node.name, node)
+            except CGARuntimeError:
+                return node.name
+        return self(node)
 
     def _index(self, node):
         target = self(node.target)

@@ -101,6 +101,12 @@ def _str(env, a):
     return to_str(a[0])
 
 
+@builtin("sel", 1)
+def _sel(env, a):
+    """A selector given as a string (``inside(sel(mode))``)."""
+    return to_str(a[0])
+
+
 @builtin("bool", 1)
 def _bool(env, a):
     return to_bool(a[0])

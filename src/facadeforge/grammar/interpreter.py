@@ -73,6 +73,10 @@ class Env:
         found = self.module.attr(name)
         if found is not None:
             return self.derivation.attr_value(found[0], found[1], self.state)
+        if self.module.function(name, 0) is not None:  # CGA calls 0-ary functions without ()
+            return self.call(name, [], node)
+        if name in _SHAPE_FUNCTIONS:  # geometry.uMin and friends read like attributes
+            return _SHAPE_FUNCTIONS[name](self, [])
         if name.startswith("material."):
             return _material_value(self.state, name)
         raise CGARuntimeError(f"unknown attribute or variable '{name}'")
@@ -86,6 +90,10 @@ class Env:
             env = Env(self.derivation, mod, {p.name: v for p, v in zip(fdef.params, args)},
                       self.state, self.rule, self.call_depth + 1)
             return env.evaluator(fdef.body)
+        if not args:
+            found_attr = self.module.attr(name)  # ``const c = …`` called as ``c()``
+            if found_attr is not None:
+                return self.derivation.attr_value(found_attr[0], found_attr[1], self.state)
         shape_fn = _SHAPE_FUNCTIONS.get(name)
         if shape_fn is not None:
             return shape_fn(self, args)
@@ -216,6 +224,9 @@ class Derivation:
         qualified = f"{module.name}.{adef.name}" if module.name else adef.name
         if not adef.const and qualified in self.overrides:
             value = _coerce_override(self.overrides[qualified], adef)
+        elif not adef.const and adef.name in module.import_overrides:
+            importer, expr = module.import_overrides[adef.name]
+            value = Env(self, importer, {}, self.initial.copy()).evaluator(expr)
         elif not adef.const and module is not self.ruleset.main and adef.name in self.ruleset.main.attrs:
             # CityEngine propagates an importer's attribute to same-named attributes of imports
             main_def = self.ruleset.main.attrs[adef.name]
@@ -466,10 +477,12 @@ class _RunContext:
             want = spec.min_args if spec.min_args == spec.max_args else f"{spec.min_args} to {spec.max_args}"
             raise CGARuntimeError(f"{spec.name}() takes {want} arguments, got {n}")
         args = []
+        selectors = spec.selector_positions(n)
         for k, a in enumerate(op.args):
             if isinstance(a, A.Name) and (k in spec.names or (
-                    k in spec.selectors and a.name not in env.locals
-                    and env.module.attr(a.name) is None)):
+                    k in selectors and a.name not in env.locals
+                    and env.module.attr(a.name) is None
+                    and env.module.function(a.name, 0) is None)):
                 args.append(a.name)
             else:
                 args.append(env.evaluator(a))

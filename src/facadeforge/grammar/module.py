@@ -55,6 +55,8 @@ class Module:
         self.rules: dict[str, dict[int, A.RuleDef]] = {}
         for r in rule_file.rules:
             self.rules.setdefault(r.name, {})[len(r.params)] = r
+        # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
+        self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
         self.start_rules = [r.name for r in rule_file.rules
                             if any(a.name == "StartRule" for a in r.annotations)]
 
@@ -188,6 +190,9 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
                 pending.append((child, depth + 1))
             if imp.alias:
                 mod.imports[imp.alias] = child
+                for name, expr in imp.overrides:
+                    if expr is not None:
+                        child.import_overrides[name] = (mod, expr)
             else:  # anonymous import: its definitions join the importer's namespace
                 for k, v in child.attrs.items():
                     mod.attrs.setdefault(k, v)

@@ -163,6 +163,11 @@ class _ToAst(Transformer):
         repeat = len(c) > 3 and c[3] is not None
         return A.BodyOp(str(c[0]), c[1] or (), c[2], repeat, **_pos(meta))
 
+    def scatter_op(self, meta, c):
+        # ``scatter(...){ ops }``: one implicit branch for every scattered point
+        branch = A.Branch(A.Name("all", **_pos(meta)), ":", c[1], **_pos(meta))
+        return A.BodyOp("scatter", c[0] or (), (branch,), False, **_pos(meta))
+
     def body(self, meta, c):
         return tuple(c)
 
@@ -188,11 +193,10 @@ class _ToAst(Transformer):
 
     # -- declarations --
     def annotation(self, meta, c):
-        args = tuple(a for a in c[1:] if a is not None)
-        return A.Annotation(str(c[0])[1:], args, **_pos(meta))
-
-    def named_arg(self, meta, c):
-        return c[1]
+        text = str(c[0])
+        name, _, raw = text[1:].partition("(")
+        args = _annotation_args(raw[:-1]) if raw else ()
+        return A.Annotation(name.strip(), args, **_pos(meta))
 
     def param(self, meta, c):
         if len(c) == 2:
@@ -237,14 +241,51 @@ class _ToAst(Transformer):
         return ("version", _unquote(str(c[0])))
 
     def import_stmt(self, meta, c):
-        overrides = tuple(str(x) for x in (c[2] or ())) if len(c) > 2 and c[2] else ()
+        overrides = tuple(c[2]) if len(c) > 2 and c[2] else ()
         return A.Import(str(c[0]), _unquote(str(c[1])), overrides, **_pos(meta))
+
+    def import_override(self, meta, c):
+        return (str(c[0]), c[1] if len(c) > 1 else None)
 
     def import_anon(self, meta, c):
         return A.Import(None, _unquote(str(c[0])), (), **_pos(meta))
 
     def import_overrides(self, meta, c):
         return tuple(x for x in c if x is not None)
+
+
+def _split_top(text: str) -> list[str]:
+    """Split annotation arguments at top-level commas (not inside quotes or parentheses)."""
+    parts, depth, quote, cur = [], 0, False, []
+    for i, ch in enumerate(text):
+        if ch == '"' and (i == 0 or text[i - 1] != "\\"):
+            quote = not quote
+        elif not quote and ch == "(":
+            depth += 1
+        elif not quote and ch == ")":
+            depth -= 1
+        elif not quote and depth == 0 and ch == ",":
+            parts.append("".join(cur))
+            cur = []
+            continue
+        cur.append(ch)
+    if "".join(cur).strip():
+        parts.append("".join(cur))
+    return parts
+
+
+def _annotation_args(raw: str) -> tuple:
+    """Annotation arguments: expressions where they parse (``@Range(min=1, max=10)``, ``@Enum("a",
+    "b")``), the raw text otherwise (``@Handle(shape=Post*, axis=x)``)."""
+    out = []
+    for part in _split_top(raw):
+        value = part.split("=", 1)[1] if re.match(r"\s*[A-Za-z_]\w*\s*=[^=]", part) else part
+        try:
+            tree = _parser().parse(f"const __v = {value.strip()}\n")
+            out.append(_ToAst().transform(tree).children[0].value)
+        except (LarkError, VisitError, ValueError):
+            out.append(A.Str(value.strip()))
+    return tuple(out)
 
 
 def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:

@@ -23,6 +23,10 @@ class OpSpec:
     body: bool = False
     consumes: bool = False  # the shape is replaced (split, comp): later ops in a sequence see nothing
     names: frozenset = field(default_factory=frozenset)  # positions taking a bare name (set)
+    selector_min_args: int = 0  # selectors only when called with at least this many arguments
+
+    def selector_positions(self, n_args: int) -> frozenset:
+        return self.selectors if n_args >= self.selector_min_args else self.names
 
 
 OPERATIONS: dict[str, OpSpec] = {}
@@ -39,11 +43,11 @@ def shape_function(name: str):
 
 
 def operation(name: str, min_args: int = 0, max_args: int | None = None, selectors=(),
-              body: bool = False, consumes: bool = False, names=()):
+              body: bool = False, consumes: bool = False, names=(), selector_min_args: int = 0):
     def deco(fn):
         OPERATIONS[name] = OpSpec(name, fn, min_args, min_args if max_args is None else max_args,
                                   frozenset(selectors) | frozenset(names), body, consumes or body,
-                                  frozenset(names))
+                                  frozenset(names), selector_min_args)
         return fn
     return deco
 

@@ -38,7 +38,7 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     return out, kinds
 
 
-@operation("extrude", 1, 2, selectors=(0,))
+@operation("extrude", 1, 2, selectors=(0,), selector_min_args=2)
 def op_extrude(call):
     """Extrude each face along its normal (or ``world.y``); the scope keeps its orientation."""
     st = call.state
@@ -495,3 +495,138 @@ def _asset_ratio(env, args):
 
 
 __all__ = ["Scope", "convex_parts", "extrude_mesh", "face_scope", "to_bool"]
+
+
+def _uv_bounds(env):
+    uv = env.state.geometry.corner_uvs
+    if uv is None or not len(uv):
+        return np.zeros(2), np.zeros(2)
+    return uv.min(axis=0), uv.max(axis=0)
+
+
+for _name, _fn in {"geometry.uMin": lambda lo, hi: lo[0], "geometry.uMax": lambda lo, hi: hi[0],
+                   "geometry.vMin": lambda lo, hi: lo[1], "geometry.vMax": lambda lo, hi: hi[1],
+                   "geometry.du": lambda lo, hi: hi[0] - lo[0],
+                   "geometry.dv": lambda lo, hi: hi[1] - lo[1]}.items():
+    shape_function(_name)(lambda env, args, _fn=_fn: float(_fn(*_uv_bounds(env))))
+
+
+@shape_function("imageInfo")
+def _image_info(env, args):
+    """``imageInfo(path, sx|sy)``: image width or height in pixels (0 when unreadable)."""
+    res = env.derivation.assets
+    key = to_str(args[1]) if len(args) > 1 else "sx"
+    try:
+        p = res.resolve(to_str(args[0])) if res is not None else None
+    except InputError:
+        p = None
+    if p is None:
+        return 0.0
+    from PIL import Image
+
+    try:
+        with Image.open(p) as im:
+            w, h = im.size
+    except OSError:
+        return 0.0
+    return float({"sx": w, "sy": h}.get(key, 0))
+
+
+@operation("scatter", 2, 6, selectors=(0, 2, 3), body=True)
+def op_scatter(call):
+    """``scatter(surface|volume|scope, n, uniform|gaussian, …){ ops }``: n point shapes.
+
+    Points are drawn from the shape's random stream, area-weighted over the faces (``surface``),
+    or uniformly in the scope box (``scope``, ``volume``).  Surface points get the face normal as
+    scope y.  Gaussian distributions are centred on the scope centre with the given deviation.
+    """
+    st = call.state
+    domain = call.sel(0)
+    n = int(round(call.num(1)))
+    dist = call.sel(2, "uniform")
+    if n <= 0:
+        raise CGARuntimeError("scatter: the number of points must be positive")
+    n = min(n, 100_000)
+    mesh = st.geometry
+    out = []
+    rnd = st.random_float
+    if domain == "surface" and mesh.n_faces:
+        pos, _, _, face_of = mesh.triangulate()
+        tri = pos.reshape(-1, 3, 3)
+        area = np.linalg.norm(cross3(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) / 2
+        cdf = np.cumsum(area) / max(area.sum(), EPS)
+        normals = mesh.face_normals()
+        for _ in range(n):
+            t = int(np.searchsorted(cdf, rnd()))
+            t = min(t, len(tri) - 1)
+            a, b = rnd(), rnd()
+            if a + b > 1:
+                a, b = 1 - a, 1 - b
+            p = tri[t, 0] + a * (tri[t, 1] - tri[t, 0]) + b * (tri[t, 2] - tri[t, 0])
+            nrm = normals[face_of[t]]
+            x = st.scope.rotation[:, 0] - nrm * (st.scope.rotation[:, 0] @ nrm)
+            if np.linalg.norm(x) < EPS:
+                x = st.scope.rotation[:, 2]
+            out.append(Scope.from_axes(p, x, nrm))
+    else:
+        for _ in range(n):
+            if dist == "gaussian":
+                u = np.array([0.5 + 0.16 * _gauss(rnd) for _ in range(3)]).clip(0, 1)
+            else:
+                u = np.array([rnd(), rnd(), rnd()])
+            p = st.scope.to_world((u * st.scope.size)[None])[0]
+            out.append(Scope(p, st.scope.rotation.copy(), np.zeros(3)))
+    branch = call.branches[0]
+    result = []
+    for k, sc in enumerate(out):
+        ps = st.child(k)
+        ps.scope = sc
+        ps.geometry = Mesh()
+        result.append((ps, branch.ops, {"index": k}))
+    return result
+
+
+def _gauss(rnd) -> float:
+    import math
+
+    u1, u2 = max(rnd(), 1e-12), rnd()
+    return math.sqrt(-2 * math.log(u1)) * math.cos(2 * math.pi * u2)
+
+
+@shape_function("convert")
+def _convert(env, args):
+    """``convert(x|y|z, fromSys, toSys, pos|dir, x, y, z)`` between scope, object and world
+    coordinates (pivot is the object frame here)."""
+    comp = "xyz".find(to_str(args[0]))
+    src, dst, kind = to_str(args[1]), to_str(args[2]), to_str(args[3])
+    v = np.array([to_float(a) for a in args[4:7]])
+    st = env.state
+    frames = {"scope": (st.scope.origin, st.scope.rotation),
+              "world": (np.zeros(3), np.eye(3)),
+              "object": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation),
+              "pivot": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation)}
+    if comp < 0 or src not in frames or dst not in frames:
+        raise CGARuntimeError("convert(x|y|z, scope|pivot|object|world, …, pos|dir, x, y, z)")
+    (o1, r1), (o2, r2) = frames[src], frames[dst]
+    if kind == "pos":
+        w = r1 @ v + o1
+        out = r2.T @ (w - o2)
+    else:
+        out = r2.T @ (r1 @ v)
+    return float(out[comp])
+
+
+def _unsupported(name: str):
+    def fn(call):
+        raise CGARuntimeError(f"{name}() is not supported yet; the shape is left unchanged")
+    return fn
+
+
+# CityEngine operations this runtime does not implement yet: rules using them still load and
+# derive, with a warning where they are reached (see docs/cga-dialect.md)
+for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
+              "footprint", "taper", "union", "subtract", "intersect", "splitArea", "resetMaterial",
+              "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180"):
+    operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
+for _name in ("innerRectangle", "splitArea", "shapeL", "shapeU", "shapeO", "roofRidge"):
+    operation(_name, 0, 16, selectors=tuple(range(16)), body=_name != "roofRidge")(_unsupported(_name))

@@ -18,7 +18,12 @@ def op_set(call):
     if name.startswith("material."):
         set_material(st, name[len("material."):], value)
         return
-    if name.startswith("comp.") or name.startswith("split.") or name.startswith("scope."):
+    if name.startswith("trim.") or name.startswith("pivot."):
+        return  # trim planes and pivots are not modelled (docs/cga-dialect.md)
+    if name.startswith("scope."):
+        _set_scope(st, name[len("scope."):], to_float(value))
+        return
+    if name.startswith("comp.") or name.startswith("split."):
         raise CGARuntimeError(f"'{name}' cannot be set")
     found = call.env.module.attr(name)
     if found is None:
@@ -82,3 +87,32 @@ def op_differentiate(call):
         h = splitmix64(h ^ ch)
     st.seed = splitmix64(call.derivation.seed ^ h ^ (n * 0x9E3779B97F4A7C15))
     st.draws = 0
+
+
+def _set_scope(st, key: str, value: float) -> None:
+    """``set(scope.tx|ty|tz|sx|sy|sz, v)``: translation in the scope's own axes relative to its
+    current origin is not what CityEngine means; it sets the component of the scope's position
+    along that scope axis (measured from the pivot, here the world origin projected on the axis),
+    or the size along it, scaling the geometry as ``s()`` does."""
+    import numpy as np
+
+    axis = "xyz".find(key[-1:])
+    if axis < 0 or key[:1] not in ("t", "s"):
+        raise CGARuntimeError(f"scope.{key} cannot be set (use scope.tx…tz or scope.sx…sz)")
+    sc = st.own_scope()
+    if key[0] == "t":
+        d = value - float(sc.origin @ sc.rotation[:, axis])
+        shift = sc.rotation[:, axis] * d
+        sc.origin = sc.origin + shift
+        if st.geometry.n_faces:
+            st.geometry = st.geometry.with_vertices(st.geometry.vertices + shift)
+        return
+    old = float(sc.size[axis])
+    new = sc.size.copy()
+    new[axis] = max(value, 0.0)
+    if st.geometry.n_faces and old > 1e-12:
+        f = np.ones(3)
+        f[axis] = new[axis] / old
+        local = sc.to_local(st.geometry.vertices) * f
+        st.geometry = st.geometry.with_vertices(sc.to_world(local))
+    sc.size = new

@@ -117,11 +117,11 @@ def _size_items(branches, env) -> list:
     return items
 
 
-@operation("split", 1, 2, selectors=(0, 1), body=True)
+@operation("split", 1, 3, selectors=(0, 1), body=True)
 def op_split(call):
     axis_name = call.sel(0)
     if axis_name in ("u", "v"):
-        raise CGARuntimeError("split in texture space (u, v) is not supported yet")
+        return _split_uv(call, "uv".index(axis_name))
     axis = _AXES.get(axis_name)
     if axis is None:
         raise CGARuntimeError(f"split axis must be x, y or z, not '{axis_name}'")
@@ -175,6 +175,83 @@ def op_split(call):
         ctx["split.total"] = n
         ps.context = ctx
         out.append((ps, branch.ops, {"axis": axis_name, "index": i}))
+    return out
+
+
+def _split_uv(call, k: int):
+    """``split(u|v, uvSpace|unitSpace, uvSet){…}``: cut faces at texture coordinates.
+
+    Borders are the min/max of the selected coordinate over the geometry; ``unitSpace`` sizes are
+    metres on the surface, converted with the metres-per-uv-unit of the first face (exact for
+    planar projections, approximate for distorted parameterisations).
+    """
+    st = call.state
+    space = call.sel(1, "uvSpace")
+    mesh = st.geometry
+    if mesh.corner_uvs is None or not mesh.n_faces:
+        raise CGARuntimeError("split(u|v): the shape has no texture coordinates (projectUV first)")
+    uv = mesh.corner_uvs
+    lo, hi = float(uv[:, k].min()), float(uv[:, k].max())
+    scale = 1.0
+    if space == "unitSpace":
+        scale = _metres_per_uv(mesh, k)
+    total = (hi - lo) * scale
+    items = _size_items(call.branches, call.env)
+    if call.repeat:
+        items = [RepeatItem(items)]
+    pieces = resolve_split(items, total)
+    out = []
+    n = len(pieces)
+    for i, (branch, start, width) in enumerate(pieces):
+        a, b = lo + start / scale, lo + (start + width) / scale
+        polys, uvs = [], []
+        for f in range(mesh.n_faces):
+            c0, c1 = mesh.starts[f], mesh.starts[f + 1]
+            pts = np.column_stack([uv[c0:c1], mesh.vertices[mesh.corners[c0:c1]]]).tolist()
+            for value, keep_below in ((b, True), (a, False)):
+                pts = _clip_generic(pts, k, value, keep_below)
+                if len(pts) < 3:
+                    break
+            if len(pts) >= 3:
+                arr = np.array(pts)
+                polys.append(arr[:, 2:5])
+                uvs.append(arr[:, 0:2])
+        if not polys:
+            continue
+        ps = st.child(i)
+        ps.geometry = Mesh.from_polygons(polys, uvs)
+        ps.fit_scope()
+        ctx = dict(st.context)
+        ctx.pop("face_kinds", None)
+        ctx["split.index"], ctx["split.total"] = i, n
+        ps.context = ctx
+        out.append((ps, branch.ops, {"axis": "uv"[k], "index": i}))
+    return out
+
+
+def _metres_per_uv(mesh: Mesh, k: int) -> float:
+    c0, c1 = mesh.starts[0], mesh.starts[1]
+    uv = mesh.corner_uvs[c0:c1]
+    p = mesh.vertices[mesh.corners[c0:c1]]
+    a = np.column_stack([uv, np.ones(len(uv))])
+    coef, *_ = np.linalg.lstsq(a, p, rcond=None)  # p ≈ u * du + v * dv + p0
+    m = float(np.linalg.norm(coef[k]))
+    return m if m > EPS else 1.0
+
+
+def _clip_generic(pts: list, axis: int, value: float, keep_below: bool) -> list:
+    """Sutherland–Hodgman on points of any dimension, keeping ``p[axis] <= value`` (or ``>=``)."""
+    sign = 1.0 if keep_below else -1.0
+    d = [(q[axis] - value) * sign for q in pts]
+    out = []
+    k = len(pts)
+    for j in range(k):
+        jn = (j + 1) % k
+        if d[j] <= EPS:
+            out.append(pts[j])
+        if (d[j] < -EPS and d[jn] > EPS) or (d[j] > EPS and d[jn] < -EPS):
+            t = d[j] / (d[j] - d[jn])
+            out.append([x + t * (y - x) for x, y in zip(pts[j], pts[jn])])
     return out
 
 
