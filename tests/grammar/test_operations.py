@@ -285,3 +285,15 @@ def test_uv_split_and_scatter():
     assert len(pts) == 25
     y = {round(float(s.scope.origin[1]), 6) for s in pts}
     assert y == {6.0}  # on the roof surface
+
+
+@pytest.mark.parametrize("src,shape_area,rest_area", [
+    ("Lot --> shapeL(3, 2) { shape : S | remainder : R }", 40, 40),
+    ("Lot --> shapeU(1, 1, 1) { shape : S | remainder : R }", 24, 56),
+    ("Lot --> shapeO(1, 2, 3, 4) { shape : S | remainder : R }", 64, 16),
+    ("Lot --> setback(1) { all : S | remainder : R }", 32, 48),
+])
+def test_shape_letters_and_ring_setbacks(src, shape_area, rest_area):
+    m = derive_text(src, lot="10x8")[0]
+    area = {k: sum(p.mesh.area() for p in m.parts if p.symbol == k) for k in "SR"}
+    assert area == {"S": pytest.approx(shape_area), "R": pytest.approx(rest_area)}

@@ -628,5 +628,5 @@ for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPi
               "footprint", "taper", "union", "subtract", "intersect", "splitArea", "resetMaterial",
               "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180"):
     operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
-for _name in ("innerRectangle", "splitArea", "shapeL", "shapeU", "shapeO", "roofRidge"):
+for _name in ("innerRectangle", "splitArea", "roofRidge"):
     operation(_name, 0, 16, selectors=tuple(range(16)), body=_name != "roofRidge")(_unsupported(_name))

@@ -493,6 +493,86 @@ def _comp_vertices(call, st):
 
 # ---- setback ------------------------------------------------------------------------------
 
+def _simple_pieces(g) -> list[np.ndarray]:
+    """CCW rings covering a shapely polygon: itself, or triangles when it has holes."""
+    ext = np.asarray(g.exterior.coords)[:-1]
+    if not g.interiors:
+        return [ext if g.exterior.is_ccw else ext[::-1]]
+    import mapbox_earcut as earcut
+
+    rings = [ext] + [np.asarray(r.coords)[:-1] for r in g.interiors]
+    flat = np.concatenate(rings)
+    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
+    tri = np.asarray(earcut.triangulate_float64(flat, ends), np.int64).reshape(-1, 3)
+    out = []
+    for t in tri:
+        q = flat[t]
+        x, y = q[:, 0], q[:, 1]
+        out.append(q if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0 else q[::-1])
+    return out
+
+
+class _PlanarEdges:
+    """The single planar face of a shape, in its own 2D frame, with edge directions classified
+    like ``comp(e)`` selectors (front/back/left/right/side/all) relative to the shape's scope."""
+
+    def __init__(self, st, opname: str):
+        import shapely
+
+        mesh = st.geometry
+        if mesh.n_faces != 1:
+            raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
+        poly = mesh.vertices[mesh.face(0)]
+        self.normal = mesh.face_normals()[0]
+        self.sc = face_scope(poly, self.normal)
+        self.xy = self.sc.to_local(poly)[:, :2]
+        self.shape = shapely.Polygon(self.xy).buffer(0)
+        k = self.k = len(self.xy)
+        e = np.roll(self.xy, -1, axis=0) - self.xy
+        outward3 = cross3(np.column_stack([e, np.zeros(k)]) @ self.sc.rotation.T, self.normal)
+        d_idx = _direction_index(outward3 @ st.scope.rotation)
+        t = {name: d_idx == i for i, name in enumerate(_DIRS)}
+        t["side"] = (d_idx < 2) | (d_idx >= 4)
+        t["all"] = np.ones(k, bool)
+        for name in _DIRS:
+            t["street." + name] = t[name]
+            t["object." + name] = t[name]
+        t["street.side"] = t["side"] & ~t["front"] & ~t["back"]
+        self.table = t
+
+    def band(self, edges, width: float):
+        """Strip of ``width`` inside the polygon along the given edges."""
+        import shapely
+
+        band = shapely.Polygon()
+        for i in edges:
+            a, b = self.xy[i], self.xy[(i + 1) % self.k]
+            t = (b - a) / max(np.linalg.norm(b - a), EPS)
+            inward = np.array([-t[1], t[0]])
+            band = band.union(shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward * width,
+                                               a - t * 1e3 + inward * width]))
+        return band
+
+    def shapes(self, st, pieces) -> list:
+        """``[(branch, shapely geometry)]`` → successor states on this face's plane."""
+        result = []
+        for i, (branch, geom) in enumerate(pieces):
+            faces = []
+            for g in getattr(geom, "geoms", [geom]):
+                if g.geom_type != "Polygon" or g.area <= EPS:
+                    continue
+                for ring in _simple_pieces(g):
+                    faces.append(self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
+            if not faces:
+                continue
+            ps = st.child(i)
+            ps.geometry = Mesh.from_polygons(faces)
+            ps.scope = face_scope(faces[0], self.normal)
+            ps.fit_scope()
+            result.append((ps, branch.ops, {"index": i}))
+        return result
+
+
 @operation("setback", 1, 1, body=True)
 def op_setback(call):
     """``setback(d){ selector : A | remainder : B }`` on a planar shape.
@@ -500,70 +580,57 @@ def op_setback(call):
     Edges are selected like ``comp(e)`` (front/back/left/right/side/all/index); the band of width
     ``d`` along the selected edges becomes one shape per branch, the rest is ``remainder``.
     """
-    import shapely
-
     st = call.state
     d = call.num(0)
-    mesh = st.geometry
-    if mesh.n_faces != 1:
-        raise CGARuntimeError("setback needs a single planar face (use comp(f) first)")
-    poly = mesh.vertices[mesh.face(0)]
-    normal = mesh.face_normals()[0]
-    sc = face_scope(poly, normal)
-    xy = sc.to_local(poly)[:, :2]
-    shape = shapely.Polygon(xy).buffer(0)
-    k = len(xy)
-    e = np.roll(xy, -1, axis=0) - xy
-    outward3 = cross3(np.column_stack([e, np.zeros(k)]) @ sc.rotation.T, normal)
-    d_idx = _direction_index(outward3 @ st.scope.rotation)
-    table = {name: d_idx == i for i, name in enumerate(_DIRS)}
-    table["side"] = (d_idx < 2) | (d_idx >= 4)
-    table["all"] = np.ones(k, bool)
-    table["street.front"] = table["front"]
-    table["street.back"] = table["back"]
-    table["street.side"] = table["side"] & ~table["front"] & ~table["back"]
-    remaining = shape
-    out = []
-    remainder_branch = None
-    taken = np.zeros(k, bool)
+    pe = _PlanarEdges(st, "setback")
+    remaining, out, remainder_branch = pe.shape, [], None
+    taken = np.zeros(pe.k, bool)
     for branch in call.branches:
         key = _selector_key(call, branch)
         if key == "remainder":
             remainder_branch = branch
             continue
-        idx = np.flatnonzero(_match(key, table, k) & ~taken)
+        idx = np.flatnonzero(_match(key, pe.table, pe.k) & ~taken)
         taken[idx] = True
-        band = shapely.Polygon()
-        for i in idx:
-            a, b = xy[i], xy[(i + 1) % k]
-            t = (b - a) / max(np.linalg.norm(b - a), EPS)
-            inward = np.array([-t[1], t[0]])
-            strip = shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward * d,
-                                     a - t * 1e3 + inward * d])
-            band = band.union(strip)
+        band = pe.band(idx, d)
         piece = remaining.intersection(band)
         remaining = remaining.difference(band)
         if piece.area > EPS:
             out.append((branch, piece))
     if remainder_branch is not None and remaining.area > EPS:
         out.append((remainder_branch, remaining))
-    result = []
-    for i, (branch, geom) in enumerate(out):
-        polys = [g for g in getattr(geom, "geoms", [geom]) if g.geom_type == "Polygon" and g.area > EPS]
-        faces = []
-        for g in polys:
-            ring = np.asarray(g.exterior.coords)[:-1]
-            if not g.exterior.is_ccw:
-                ring = ring[::-1]
-            faces.append(sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
-        if not faces:
-            continue
-        ps = st.child(i)
-        ps.geometry = Mesh.from_polygons(faces)
-        ps.scope = face_scope(faces[0], normal)
-        ps.fit_scope()
-        result.append((ps, branch.ops, {"index": i}))
-    return result
+    return pe.shapes(st, out)
+
+
+def _shape_letter(sides: tuple[str, ...]):
+    def op(call):
+        """``shapeL/U/O(widths…){ shape : A | remainder : B }``: bands along the named sides."""
+        st = call.state
+        pe = _PlanarEdges(st, call.name)
+        import shapely
+
+        shape = shapely.Polygon()
+        for k, side in enumerate(sides):
+            w = call.num(k)
+            if w > 0:
+                shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), w))
+        shape = pe.shape.intersection(shape)
+        remainder = pe.shape.difference(shape)
+        out = []
+        for branch in call.branches:
+            key = _selector_key(call, branch)
+            geom = shape if key == "shape" else remainder if key == "remainder" else None
+            if geom is None:
+                raise CGARuntimeError(f"{call.name} selectors are shape and remainder, not '{key}'")
+            if geom.area > EPS:
+                out.append((branch, geom))
+        return pe.shapes(st, out)
+    return op
+
+
+for _name, _sides in (("shapeL", ("front", "left")), ("shapeU", ("front", "right", "left")),
+                      ("shapeO", ("front", "right", "back", "left"))):
+    operation(_name, len(_sides), body=True)(_shape_letter(_sides))
 
 
 __all__ = ["classify_faces", "face_scope", "resolve_split", "to_float"]
