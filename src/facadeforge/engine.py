@@ -13,7 +13,7 @@ import numpy as np
 from .errors import InputError, RuleError
 from .geometry.assets import AssetResolver
 from .geometry.footprints import Footprint, load_footprints, lot
-from .geometry.mesh import Mesh
+from .geometry.mesh import Mesh, polygon_normal
 from .grammar.interpreter import Derivation, Limits
 from .grammar.module import RuleSet, link
 from .grammar.state import ShapeState
@@ -119,9 +119,13 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
 
 def initial_state(fp: Footprint) -> ShapeState:
     """Initial shape: scope x along the first edge, y along the polygon normal (up)."""
-    poly = fp.polygon
+    poly = np.asarray(fp.polygon, float)
+    n = polygon_normal(poly)
+    if not n.any():
+        raise InputError(f"footprint '{fp.name}' has no area")
+    if n[1] < 0:  # initial shapes face up, whatever the winding they were given in
+        poly, n = poly[::-1], -n
     mesh = Mesh.from_polygons([poly])
-    n = mesh.face_normals()[0]
     x = None
     for k in range(len(poly)):
         e = poly[(k + 1) % len(poly)] - poly[k]
