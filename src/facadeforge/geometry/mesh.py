@@ -280,8 +280,8 @@ class Mesh:
             b = s[quad]
             p = self.vertices[self.corners[b[:, None] + np.arange(4)]]
             n = cross3(p[:, 2] - p[:, 0], p[:, 3] - p[:, 1])
-            e = np.roll(p, -1, axis=1) - p
-            turn = np.einsum("fkj,fj->fk", np.cross(e, np.roll(e, -1, axis=1)), n)
+            e = p[:, [1, 2, 3, 0]] - p
+            turn = np.einsum("fkj,fj->fk", cross3(e, e[:, [1, 2, 3, 0]]), n)
             convex = np.all(turn >= -EPS, axis=1)
             bc = b[convex]
             out.append(np.stack([bc, bc + 1, bc + 2], axis=1))
