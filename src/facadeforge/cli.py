@@ -90,6 +90,9 @@ def cmd_derive(args) -> int:
                            keep_tree=suffix_of(args.output) in ("png", "svg"))
     export(models, args.output)
     seconds = time.perf_counter() - t0
+    for m in models:  # CGA print() goes to stderr, so --stats keeps stdout pure JSON
+        for line in m.attributes.get("prints", []):
+            print(f"print: {line}", file=sys.stderr)
     if args.stats:
         print(json.dumps(engine.stats(models, seconds)))
     else:

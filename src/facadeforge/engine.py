@@ -160,6 +160,7 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
     model.attributes["prints"] = list(d.prints)
     if not keep_tree:
         model.root = None
+    model.derived_stats = model.stats()  # computed here, in the worker, not in the main process
     return model
 
 
@@ -241,7 +242,7 @@ def stats(models: list[Model], seconds: float) -> dict:
     warnings: list[str] = []
     shapes = 0
     for m in models:
-        s = m.stats()
+        s = getattr(m, "derived_stats", None) or m.stats()
         faces += s["faces"]
         tris += s["triangles"]
         verts += s["vertices"]
