@@ -151,6 +151,8 @@ def op_split(call):
         first = np.concatenate([[0], np.cumsum(counts)[:-1]])
         lo = np.minimum.reduceat(allv, first, axis=0)
         hi = np.maximum.reduceat(allv, first, axis=0)
+        origins = lo @ rot.T + org
+        sizes = hi - lo
     out = []
     n = len(pieces)
     for j, i in enumerate(keep):
@@ -162,7 +164,7 @@ def op_split(call):
         else:
             ps.geometry = mesh
         if adjust and local.n_faces:
-            ps.scope = Scope.trusted(lo[j] @ rot.T + org, rot, hi[j] - lo[j])
+            ps.scope = Scope.trusted(origins[j], rot, sizes[j])
         else:
             o = np.zeros(3)
             o[axis] = start
