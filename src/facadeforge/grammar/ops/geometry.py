@@ -6,6 +6,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, polygon_normal, triangulate_polygon
+from ...geometry.polygon import simple_pieces
 from ...geometry.primitives import PRIMITIVES
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
@@ -160,30 +161,13 @@ def op_offset(call):
             for g in getattr(ring_geom, "geoms", [ring_geom]):
                 if g.geom_type != "Polygon" or g.area <= EPS:
                     continue
-                for tri in _triangulate_with_holes(g):
+                for tri in simple_pieces(g):
                     polys.append(lift(tri))
                     kinds.append("border")
     st.geometry = Mesh.from_polygons(polys)
     st.context["face_kinds"] = kinds
     if st.geometry.n_faces:
         st.fit_scope()
-
-
-def _triangulate_with_holes(g) -> list[np.ndarray]:
-    import mapbox_earcut as earcut
-
-    rings = [np.asarray(g.exterior.coords)[:-1]] + [np.asarray(r.coords)[:-1] for r in g.interiors]
-    flat = np.concatenate(rings)
-    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    tri = np.asarray(earcut.triangulate_float64(flat, ends), np.int64).reshape(-1, 3)
-    out = []
-    for t in tri:
-        q = flat[t]
-        x, y = q[:, 0], q[:, 1]
-        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
-            q = q[::-1]
-        out.append(q)
-    return out
 
 
 # ---- convexify --------------------------------------------------------------------------------

@@ -9,6 +9,7 @@ import numpy as np
 
 from ...geometry.cut import split_along_axis
 from ...geometry.mesh import EPS, Mesh, cross3
+from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from .. import ast as A
 from ..values import CGARuntimeError, Floating, Relative, to_float
@@ -495,25 +496,6 @@ def _comp_vertices(call, st):
 
 # ---- setback ------------------------------------------------------------------------------
 
-def _simple_pieces(g) -> list[np.ndarray]:
-    """CCW rings covering a shapely polygon: itself, or triangles when it has holes."""
-    ext = np.asarray(g.exterior.coords)[:-1]
-    if not g.interiors:
-        return [ext if g.exterior.is_ccw else ext[::-1]]
-    import mapbox_earcut as earcut
-
-    rings = [ext] + [np.asarray(r.coords)[:-1] for r in g.interiors]
-    flat = np.concatenate(rings)
-    ends = np.cumsum([len(r) for r in rings]).astype(np.uint32)
-    tri = np.asarray(earcut.triangulate_float64(flat, ends), np.int64).reshape(-1, 3)
-    out = []
-    for t in tri:
-        q = flat[t]
-        x, y = q[:, 0], q[:, 1]
-        out.append(q if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0 else q[::-1])
-    return out
-
-
 class _PlanarEdges:
     """The single planar face of a shape, in its own 2D frame, with edge directions classified
     like ``comp(e)`` selectors (front/back/left/right/side/all) relative to the shape's scope."""
@@ -563,7 +545,7 @@ class _PlanarEdges:
             for g in getattr(geom, "geoms", [geom]):
                 if g.geom_type != "Polygon" or g.area <= EPS:
                     continue
-                for ring in _simple_pieces(g):
+                for ring in simple_pieces(g):
                     faces.append(self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
             if not faces:
                 continue
