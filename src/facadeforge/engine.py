@@ -152,7 +152,7 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
             raise RuleError(f"--attr {k}: the rules have no attribute '{k}'"
                             + _suggest(k, known))
     d = Derivation(rules.ruleset, initial_state(fp), fp.name, overrides, seed, strict,
-                   rules.assets, limits, start)
+                   rules.assets, limits, start, instancing=not keep_tree)
     model = d.run()
     model.attributes.update({k: v for k, v in fp.attributes.items()})
     model.attributes["seconds"] = time.perf_counter() - t0

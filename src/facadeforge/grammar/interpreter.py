@@ -21,6 +21,7 @@ from ..model.shape import Shape
 from . import ast as A
 from .expressions import Evaluator
 from .functions import FUNCTIONS
+from .instancing import Purity, Recording, instance_key
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
@@ -186,11 +187,15 @@ class Derivation:
     strict : bool
         Turn CGA warnings into ``DerivationError``.
     assets : AssetResolver or None
+    instancing : bool
+        Derive repeated pure subtrees once (``instancing.py``); the shape tree then holds only
+        their first instance, so use it when the tree is not needed.
     """
 
     def __init__(self, ruleset: RuleSet, state: ShapeState, name: str = "building",
                  attrs: dict | None = None, seed: int = 0, strict: bool = False, assets=None,
-                 limits: Limits | None = None, start_rule: str | None = None, street_edges=None):
+                 limits: Limits | None = None, start_rule: str | None = None, street_edges=None,
+                 instancing: bool = False):
         self.ruleset = ruleset
         self.initial = state
         self.name = name
@@ -213,6 +218,13 @@ class Derivation:
         self.shape_count = 0
         self._deadline = 0.0
         self.occluders: list = []  # (node id, ancestors, (2,3) bounds) for occlusion queries
+        self._instances: dict = {}
+        self._purity = None
+        if instancing:
+            purity = getattr(ruleset, "_purity", None)
+            if purity is None:
+                purity = ruleset._purity = Purity(ruleset)
+            self._purity = None if purity.uses_occlusion else purity
 
     # -- attributes --------------------------------------------------------------------------
     def attr_value(self, module: Module, adef: A.AttrDef, state: ShapeState):
@@ -290,6 +302,16 @@ class Derivation:
         hint = label_for_name(name.split(".")[-1])
         if hint is not None:
             state.label = hint.value
+        if self._purity is not None:
+            info = self._purity.rule(mod, rdef.name)
+            if info is not None and info.pure:
+                key, uv_map = instance_key(mod, rdef.name, args, state, info)
+                if key is not None:
+                    self._instanced(key, uv_map, node, state, name, args, module, depth)
+                    return
+        self._run_rule(queue, node, state, name, args, mod, rdef, depth)
+
+    def _run_rule(self, queue, node, state, name, args, mod, rdef, depth):
         local_vars = {}
         for p, v in zip(rdef.params, args):
             local_vars[p.name] = v
@@ -299,6 +321,51 @@ class Derivation:
         consumed = ctx.run(rdef.body, state, env, None)
         if not consumed:
             self._output(node, state, name)
+
+    # -- instancing (see instancing.py) -------------------------------------------------------
+    def _instanced(self, key, uv_map, node, state, name, args, module, depth) -> None:
+        rec = self._instances.get(key)
+        scope0 = state.scope
+        if rec is None:
+            saved = (self.parts, self.reports, self.prints, self._purity)
+            count0 = self.shape_count
+            self.parts, self.reports, self.prints = [], {}, []
+            sub: deque = deque()
+            mod, rdef = module.rule(name, len(args))
+            self._run_rule(sub, node, state, name, args, mod, rdef, depth)
+            while sub:
+                item = sub.popleft()
+                self._apply(sub, *item)
+            rot, org = scope0.rotation, scope0.origin
+            parts = [((p.mesh.with_vertices((p.mesh.vertices - org) @ rot)), p.label, p.material,
+                      p.symbol) for p in self.parts]
+            rec = Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
+                            self.shape_count - count0, uv_map)
+            self.parts, self.reports, self.prints, self._purity = saved
+            self._instances[key] = rec
+            self._replay(rec, scope0, uv_map, node, count=False)
+            return
+        self._replay(rec, scope0, uv_map, node, count=True)
+
+    def _replay(self, rec, scope, uv_map, node, count: bool) -> None:
+        rot, org = scope.rotation, scope.origin
+        for local, label, material, symbol in rec.parts:
+            mesh = local.with_vertices(local.vertices @ rot.T + org)
+            if uv_map is not None and local.corner_uvs is not None and rec.uv_map is not None:
+                pts = np.column_stack([local.vertices[local.corners], np.ones(len(local.corners))])
+                inherited = np.abs(pts @ rec.uv_map - local.corner_uvs).max(axis=1) < 1e-7
+                if inherited.any():
+                    uv = local.corner_uvs.copy()
+                    uv[inherited] = (pts @ uv_map)[inherited]
+                    mesh = mesh.with_uvs(uv)
+            self.parts.append(Part(mesh, label, material, symbol, node.id))
+        for k, values in rec.reports:
+            self.reports.setdefault(k, []).extend(values)
+        self.prints.extend(rec.prints)
+        if count:
+            self.shape_count += rec.shapes
+            if self.shape_count > self.limits.max_shapes:
+                self.count_shape(node.symbol)
 
     def _output(self, node: Shape, state: ShapeState, symbol: str) -> None:
         node.scope = state.scope

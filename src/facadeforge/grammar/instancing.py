@@ -1,0 +1,256 @@
+"""Instancing: derive a repeated, position-independent subtree once and replay it.
+
+Facades repeat: every tile of a floor, every floor of a facade, runs the same rules on a shape of
+the same size and orientation.  When a rule's whole subtree is *pure* — it reads neither the
+shape's absolute position, nor random numbers, nor occlusion, nor split/comp indices it is not
+keyed on — its output relative to the shape's scope depends only on what the cache key holds:
+the rule and its arguments, the scope's size and rotation, the geometry in the scope frame,
+material, attribute overrides and the context values the subtree reads.  The first such shape is
+derived normally (depth-first, into a recorder); the others replay the recorded parts, reports
+and prints moved into their own scope.
+
+Texture coordinates inherited from a facade-wide projection differ from tile to tile but are an
+affine function of position; they are left out of the key and re-derived on replay from the
+input's affine map (corners whose UVs came from the input are recognised by that map).
+
+Enabled only when the caller drops shape trees (the CLI), and never for rule sets that use
+occlusion queries (replayed shapes would not leave occluders behind).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import ast as A
+from .module import Module, RuleSet
+
+IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
+                "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
+                "pivot.oz"}
+IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
+                "contextCompare", "contextCount"}
+OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
+IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
+CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
+
+
+@dataclass
+class RuleInfo:
+    pure: bool = True
+    reads: set = field(default_factory=set)  # context names read (split.index, …)
+    projects: bool = False  # calls projectUV (depends on inherited projections)
+    centers: bool = False  # calls center (depends on the pivot scope)
+    calls: set = field(default_factory=set)  # (module id, rule or function name)
+
+
+class Purity:
+    """Which rules have position-independent, deterministic subtrees (fixpoint over calls)."""
+
+    def __init__(self, ruleset: RuleSet):
+        self.modules = {id(m): m for m in ruleset.main.all_modules()}
+        self.info: dict[tuple, RuleInfo] = {}
+        self.uses_occlusion = False
+        for m in self.modules.values():
+            for name, overloads in m.rules.items():
+                info = RuleInfo()
+                for rdef in overloads.values():
+                    self._ops(m, rdef.body, info)
+                self.info[(id(m), name)] = info
+            for name, overloads in m.functions.items():
+                info = RuleInfo()
+                for fdef in overloads.values():
+                    self._expr(m, fdef.body, info)
+                self.info[(id(m), "fn:" + name)] = info
+        changed = True
+        while changed:  # propagate impurity and reads along calls
+            changed = False
+            for info in self.info.values():
+                for callee in list(info.calls):
+                    other = self.info.get(callee)
+                    if other is None:
+                        continue
+                    before = (info.pure, len(info.reads), info.projects, info.centers)
+                    info.pure &= other.pure
+                    info.reads |= other.reads
+                    info.projects |= other.projects
+                    info.centers |= other.centers
+                    if (info.pure, len(info.reads), info.projects, info.centers) != before:
+                        changed = True
+
+    def rule(self, module: Module, name: str) -> RuleInfo | None:
+        found = module.resolve(name) if "." in name else (module, name)
+        if found is None:
+            return None
+        return self.info.get((id(found[0]), found[1]))
+
+    # -- local analysis -------------------------------------------------------------------------
+    def _callee(self, m: Module, name: str, prefix: str = ""):
+        found = m.resolve(name) if "." in name else (m, name)
+        return None if found is None else (id(found[0]), prefix + found[1])
+
+    def _ops(self, m, ops, info):
+        for op in ops:
+            t = type(op)
+            if t is A.Successor or t is A.Leaf:
+                name = op.name
+                args = getattr(op, "args", ())
+                from .ops import OPERATIONS
+
+                spec = OPERATIONS.get(name) if getattr(op, "has_parens", False) else None
+                if spec is not None and not m.has_rule_name(name):
+                    if name in IMPURE_OPS:
+                        info.pure = False
+                    if name == "setupProjection" and len(args) > 1 and isinstance(args[1], A.Name) \
+                            and args[1].name.startswith("world."):
+                        info.pure = False
+                    if name == "projectUV":
+                        info.projects = True
+                    if name == "center":
+                        info.centers = True
+                    for a in args:
+                        self._expr(m, a, info)
+                    continue
+                if t is A.Successor:
+                    callee = self._callee(m, name)
+                    if callee is not None:
+                        info.calls.add(callee)
+                for a in args:
+                    self._expr(m, a, info)
+            elif t is A.BodyOp:
+                if op.name in IMPURE_OPS:
+                    info.pure = False
+                for a in op.args:
+                    self._expr(m, a, info)
+                self._branches(m, op.branches, info)
+            elif t is A.Push:
+                self._ops(m, op.ops, info)
+            elif t is A.CaseOps:
+                for c, b in op.branches:
+                    self._expr(m, c, info)
+                    self._ops(m, b, info)
+                self._ops(m, op.otherwise, info)
+            elif t is A.StochasticOps:
+                info.pure = False
+
+    def _branches(self, m, branches, info):
+        for b in branches:
+            if isinstance(b, A.RepeatGroup):
+                self._branches(m, b.branches, info)
+            else:
+                self._expr(m, b.selector, info)
+                self._ops(m, b.ops, info)
+
+    def _expr(self, m, node, info):
+        stack = [node]
+        while stack:
+            n = stack.pop()
+            t = type(n)
+            if t is A.Name:
+                if n.name in IMPURE_NAMES:
+                    info.pure = False
+                elif n.name in CONTEXT_NAMES:
+                    info.reads.add(n.name)
+                elif m.function(n.name, 0) is not None:
+                    callee = self._callee(m, n.name, "fn:")
+                    if callee is not None:
+                        info.calls.add(callee)
+            elif t is A.Call:
+                if n.name in IMPURE_CALLS:
+                    info.pure = False
+                if n.name in OCCLUSION_CALLS:
+                    info.pure = False
+                    self.uses_occlusion = True
+                if m.function(n.name, len(n.args)) is not None:
+                    callee = self._callee(m, n.name, "fn:")
+                    if callee is not None:
+                        info.calls.add(callee)
+                stack.extend(n.args)
+            elif t is A.StochasticExpr:
+                info.pure = False
+            elif t in (A.Binary,):
+                stack.extend((n.left, n.right))
+            elif t is A.Unary:
+                stack.append(n.operand)
+            elif t is A.Index:
+                stack.append(n.target)
+                stack.extend(n.indices)
+            elif t is A.Array:
+                for row in n.rows:
+                    stack.extend(row)
+            elif t is A.CaseExpr:
+                for c, v in n.branches:
+                    stack.extend((c, v))
+                stack.append(n.otherwise)
+
+
+def _hashable(v):
+    if isinstance(v, np.ndarray):
+        return ("arr", v.shape, tuple(v.reshape(-1).tolist()))
+    if isinstance(v, float):
+        return round(v, 9)
+    try:
+        hash(v)
+        return v
+    except TypeError:
+        return repr(v)
+
+
+def instance_key(mod, name, args, state, info: RuleInfo):
+    """Cache key of a shape about to run ``name``, and the input's UV map; ``None`` when the
+    shape cannot be instanced (UVs that are not an affine function of position)."""
+    sc = state.scope
+    g = state.geometry
+    rot, org = sc.rotation, sc.origin
+    uv_map = None
+    if g.n_faces:
+        local = (g.vertices[g.corners] - org) @ rot
+        geom_key = (np.round(local, 6).tobytes(), g.starts.tobytes(), g.corner_uvs is not None)
+        if g.corner_uvs is not None:
+            uv_map = affine_uv_map(local, g.corner_uvs)
+            if uv_map is None:
+                return None, None
+    else:
+        geom_key = ()
+    ctx = state.context
+    ctx_key = tuple((k, _hashable(ctx.get(k))) for k in sorted(info.reads))
+    extra = (ctx.get("label"), tuple(ctx.get("face_kinds") or ()),
+             id(ctx["face_materials"][0]) if "face_materials" in ctx else None)
+    proj_key = ()
+    if info.projects:
+        proj_key = tuple(sorted(
+            (k, np.round((o - org) @ rot, 6).tobytes(), np.round(u @ rot, 9).tobytes(),
+             np.round(v @ rot, 9).tobytes(), w, h, off)
+            for k, (o, u, v, w, h, off) in state.projections.items()))
+    pivot_key = ()
+    if info.centers and state.pivot is not None:
+        p = state.pivot
+        pivot_key = (np.round((p.origin - org) @ rot, 6).tobytes(), np.round(p.size, 6).tobytes(),
+                     np.round(rot.T @ p.rotation, 9).tobytes())
+    key = (id(mod), name, tuple(_hashable(a) for a in args), np.round(sc.size, 6).tobytes(),
+           np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
+                                                              for k, v in state.material.items())),
+           tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
+           state.label, proj_key, pivot_key)
+    return key, uv_map
+
+
+def affine_uv_map(local: np.ndarray, uv: np.ndarray) -> np.ndarray | None:
+    """(4, 2) map with ``[x, y, z, 1] @ map ≈ uv`` when the UVs are affine in position."""
+    a = np.column_stack([local, np.ones(len(local))])
+    coef, *_ = np.linalg.lstsq(a, uv, rcond=None)
+    if np.abs(a @ coef - uv).max() > 1e-7:
+        return None
+    return coef
+
+
+@dataclass
+class Recording:
+    """What a subtree produced, relative to its root's scope frame."""
+
+    parts: list  # (local Mesh, label, material, symbol)
+    reports: list  # (name, value) in order
+    prints: list
+    shapes: int
+    uv_map: np.ndarray | None
