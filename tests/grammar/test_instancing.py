@@ -25,15 +25,19 @@ Wall --> color("#ccbb99")
 
 
 def signature(models):
-    """Parts sorted by a coarse key, with their exact corner positions and UVs."""
+    """Faces (not parts: instancing merges alike parts) sorted by a coarse key, with their exact
+    corner positions and UVs."""
     rows = []
     for m in models:
         for p in m.parts:
             mesh = p.mesh
-            v = mesh.vertices[mesh.corners]
-            uv = mesh.corner_uvs if mesh.corner_uvs is not None else np.zeros((len(v), 2))
-            coarse = (np.round(v, 3) + 0.0).tobytes()
-            rows.append(((p.symbol, p.label, p.material.key(), coarse, mesh.starts.tobytes()), v, uv))
+            uvs = mesh.corner_uvs
+            for f in range(mesh.n_faces):
+                c0, c1 = mesh.starts[f], mesh.starts[f + 1]
+                v = mesh.vertices[mesh.corners[c0:c1]]
+                uv = uvs[c0:c1] if uvs is not None else np.zeros((len(v), 2))
+                coarse = (np.round(v, 3) + 0.0).tobytes()
+                rows.append(((p.symbol, p.label, p.material.key(), coarse), v, uv))
     rows.sort(key=lambda r: r[0])
     return rows
 

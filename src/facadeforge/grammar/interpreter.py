@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DerivationError, RuleError
+from ..geometry.mesh import Mesh
 from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
 from ..model.shape import Shape
@@ -337,8 +338,16 @@ class Derivation:
                 item = sub.popleft()
                 self._apply(sub, *item)
             rot, org = scope0.rotation, scope0.origin
-            parts = [((p.mesh.with_vertices((p.mesh.vertices - org) @ rot)), p.label, p.material,
-                      p.symbol) for p in self.parts]
+            # parts alike in label, material and symbol become one mesh: replays (and exports)
+            # then handle a few meshes instead of one per leaf shape
+            groups: dict = {}
+            for p in self.parts:
+                groups.setdefault((p.label, p.material.key(), p.symbol), []).append(p)
+            parts = []
+            for (label, _, symbol), ps in groups.items():
+                merged = Mesh.merge(p.mesh for p in ps)
+                parts.append((merged.with_vertices((merged.vertices - org) @ rot), label,
+                              ps[0].material, symbol))
             rec = Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
                             self.shape_count - count0, uv_map)
             self.parts, self.reports, self.prints, self._purity = saved

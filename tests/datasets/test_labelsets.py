@@ -1,0 +1,161 @@
+"""Label sets: dataset ids, colours and canonical labels to class-index maps (hand-computed)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from facadeforge.datasets import (
+    CANONICAL_INDEX,
+    IGNORE,
+    LABEL_SETS,
+    LabelSet,
+    convert,
+    get_label_set,
+)
+from facadeforge.errors import InputError
+from facadeforge.model.labels import Labels
+
+CMP12, CMP6, ECP7 = LABEL_SETS["cmp12"], LABEL_SETS["cmp6"], LABEL_SETS["ecp7"]
+
+
+def test_builtin_sets_and_lookup():
+    assert list(LABEL_SETS) == ["cmp12", "cmp6", "ecp7"]
+    assert get_label_set("CMP6") is CMP6
+    assert get_label_set(ECP7) is ECP7
+    assert CMP12.classes == ("background", "wall", "window", "door", "cornice", "sill",
+                             "balcony", "blind", "deco", "molding", "pillar", "shop")
+    assert CMP12.dataset_names[1] == "facade"
+    assert CMP6.classes == ("background", "wall", "window", "door", "balcony", "shop")
+    assert ECP7.classes == ("window", "wall", "balcony", "door", "roof", "sky", "shop")
+    assert (CMP12.ignore_index, CMP6.ignore_index, ECP7.ignore_index) == (None, None, 0)
+    for s in LABEL_SETS.values():
+        assert s.colors.shape == (s.num_classes, 3) and s.colors.dtype == np.uint8
+
+
+def test_unknown_label_set_lists_names():
+    with pytest.raises(InputError, match="cmp12, cmp6, ecp7"):
+        get_label_set("cmp7")
+
+
+def test_from_dataset_cmp12_and_cmp6():
+    ids = np.array([[1, 2, 3, 4, 5, 6], [7, 8, 9, 10, 11, 12]])
+    assert CMP12.from_dataset(ids).tolist() == [[0, 1, 2, 3, 4, 5], [6, 7, 8, 9, 10, 11]]
+    # background | wall (facade cornice sill deco molding pillar) | window (window blind) |
+    # door | balcony | shop
+    assert CMP6.from_dataset(ids).tolist() == [[0, 1, 2, 3, 1, 1], [4, 2, 1, 1, 1, 5]]
+    out = CMP6.from_dataset(np.array([[0, 13], [-1, 255]], np.int32))
+    assert out.dtype == np.uint8 and out.tolist() == [[IGNORE, IGNORE], [IGNORE, IGNORE]]
+
+
+def test_from_dataset_ecp7_ignores_zero():
+    ids = np.array([[0, 1, 2, 3], [4, 5, 6, 7]], np.uint8)
+    assert ECP7.from_dataset(ids).tolist() == [[255, 0, 1, 2], [3, 4, 5, 6]]
+
+
+def test_from_dataset_strict_and_dtype_errors():
+    ECP7.from_dataset(np.array([0, 7]), strict=True)  # the ignore id is known
+    with pytest.raises(InputError, match=r"\[9\]"):
+        ECP7.from_dataset(np.array([0, 9]), strict=True)
+    with pytest.raises(InputError, match="integers"):
+        ECP7.from_dataset(np.array([0.5]))
+
+
+def test_convert_cmp12_to_cmp6_equals_merge():
+    ids = np.arange(1, 13).reshape(3, 4)
+    assert np.array_equal(convert(CMP12.from_dataset(ids), "cmp12", "cmp6"),
+                          CMP6.from_dataset(ids))
+    # ignored pixels stay ignored; ecp7 roof/sky → cmp6 background
+    m = np.array([[IGNORE, 4, 5, 0]], np.uint8)
+    assert convert(m, ECP7, CMP6).tolist() == [[IGNORE, 0, 0, 2]]
+
+
+def test_from_canonical_names():
+    names = np.array([["sky", "cornice", "blind"], ["other", "roof", "shop"]])
+    assert CMP6.from_canonical(names).tolist() == [[0, 1, 2], [1, 0, 5]]
+    assert CMP12.from_canonical(names).tolist() == [[0, 4, 7], [1, 0, 11]]
+    # ecp7 has no background: background → sky; vegetation, ground, other → wall
+    names = np.array(["background", "vegetation", "ground", "other", "roof", "blind"])
+    assert ECP7.from_canonical(names).tolist() == [5, 1, 1, 1, 4, 0]
+    # Labels members and dataset words are accepted
+    assert CMP6.from_canonical([Labels.DOOR, "facade"]).tolist() == [3, 1]
+    with pytest.raises(InputError, match="not a canonical label"):
+        CMP6.from_canonical(["xyzzy"])
+
+
+def test_from_canonical_indices():
+    canon = np.array([[CANONICAL_INDEX["window"], CANONICAL_INDEX["pillar"]],
+                      [CANONICAL_INDEX["sky"], IGNORE]], np.uint8)
+    assert CMP6.from_canonical(canon).tolist() == [[2, 1], [0, IGNORE]]
+    assert ECP7.from_canonical(canon).tolist() == [[0, 1], [5, IGNORE]]
+    with pytest.raises(InputError, match="out of range"):
+        CMP6.from_canonical(np.array([len(Labels)]))
+
+
+def test_every_canonical_label_maps_in_every_set():
+    all_names = np.array([label.value for label in Labels])
+    all_indices = np.arange(len(Labels))
+    for s in LABEL_SETS.values():
+        assert set(s.canonical_map) == {label.value for label in Labels}
+        by_name = s.from_canonical(all_names)
+        assert np.array_equal(by_name, s.from_canonical(all_indices))
+        assert (by_name < s.num_classes).all()
+        # a class's own canonical label maps onto it
+        assert [s.index(c) for c in s.classes] == list(range(s.num_classes))
+
+
+def test_canonical_index_matches_raster_numbering():
+    from facadeforge.exchange.raster import LABEL_INDEX
+
+    assert dict(CANONICAL_INDEX) == LABEL_INDEX
+
+
+def test_canonical_round_trip():
+    for s in LABEL_SETS.values():
+        m = np.append(np.arange(s.num_classes), IGNORE).astype(np.uint8).reshape(1, -1)
+        assert np.array_equal(s.from_canonical(s.to_canonical(m)), m)
+
+
+def test_to_color_and_back():
+    m = np.array([[0, 1], [6, IGNORE]], np.uint8)
+    rgb = ECP7.to_color(m)
+    assert rgb.shape == (2, 2, 3) and rgb.dtype == np.uint8
+    assert rgb.tolist() == [[[255, 0, 0], [255, 255, 0]], [[0, 255, 0], [0, 0, 0]]]
+    assert np.array_equal(ECP7.from_color(rgb), m)
+    cmp = CMP12.to_color(np.array([[0, 11]]))
+    assert cmp.tolist() == [[[0, 0, 170], [170, 0, 0]]]
+    with pytest.raises(InputError, match="out of range"):
+        CMP6.to_color(np.array([[6]]))
+
+
+def test_from_color_unknown_colours():
+    rgb = np.array([[[1, 2, 3], [255, 0, 0]]], np.uint8)
+    assert ECP7.from_color(rgb).tolist() == [[IGNORE, 0]]
+    with pytest.raises(InputError, match="not class colours"):
+        ECP7.from_color(rgb, strict=True)
+    ECP7.from_color(np.zeros((1, 1, 3), np.uint8), strict=True)  # the ignore colour is known
+
+
+def test_label_set_is_immutable_and_validated():
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        CMP6.name = "x"
+    assert not CMP6.colors.flags.writeable
+    with pytest.raises(TypeError):
+        CMP6.id_map[1] = 3
+    with pytest.raises(InputError, match="more than once"):
+        LabelSet("dup", ("wall", "facade"), np.zeros((2, 3)), {0: 0, 1: 1})
+    with pytest.raises(InputError, match="not a canonical label"):
+        LabelSet("bad", ("wall", "qwerty"), np.zeros((2, 3)), {0: 0, 1: 1})
+    with pytest.raises(InputError, match="colors"):
+        LabelSet("bad", ("wall", "window"), np.zeros((3, 3)), {0: 0, 1: 1})
+    with pytest.raises(InputError, match="ignore id"):
+        LabelSet("bad", ("wall",), np.zeros((1, 3)), {0: 0}, ignore_index=0)
+
+
+def test_custom_set_defaults():
+    s = LabelSet("two", ("wall", "window"), np.array([[1, 2, 3], [4, 5, 6]]), {10: 0, 20: 1})
+    assert s.from_dataset(np.array([10, 20, 30])).tolist() == [0, 1, IGNORE]
+    # no background, no sky: everything non-building falls back to wall (or class 0)
+    assert s.from_canonical(["sky", "door", "blind", "background"]).tolist() == [0, 0, 1, 0]
