@@ -177,6 +177,11 @@ _WORKER: dict = {}
 
 
 def _worker_init(spec):
+    # one BLAS thread per worker: the workers already use every core, and oversubscribed BLAS
+    # threads made two workers slower than one
+    from threadpoolctl import threadpool_limits
+
+    _WORKER["blas"] = threadpool_limits(1)
     _WORKER["rules"] = load_rules(spec["rules"], rule=spec["rule"], assets=spec["assets"],
                                   start=spec["start"])
     _WORKER["spec"] = spec
