@@ -140,6 +140,27 @@ def initial_state(fp: Footprint) -> ShapeState:
     return ShapeState(scope, mesh)
 
 
+def facade_state(width: float, height: float) -> ShapeState:
+    """A facade rectangle as initial shape: in the xy plane facing +z, scope x right, y up, z
+    out (the frame ``comp(f)`` gives a wall), so facade grammars split it in x and y directly."""
+    if not (width > 0 and height > 0):
+        raise InputError(f"facade size {width} x {height} must be positive")
+    poly = np.array([[0, 0, 0], [width, 0, 0], [width, height, 0], [0, height, 0]], float)
+    scope = Scope(np.zeros(3), np.eye(3), np.array([width, height, 0.0]))
+    return ShapeState(scope, Mesh.from_polygons([poly]))
+
+
+def derive_facade(rules, width: float, height: float, *, start: str | None = None, attrs=None,
+                  seed: int = 0, strict: bool = False, assets=None, name: str = "facade",
+                  limits: Limits | None = None) -> Model:
+    """Derive facade rules on a ``width`` × ``height`` rectangle (metres); returns the model with
+    its shape tree (a 2D facade layout: leaves carry labels, scopes are rectangles in x/y)."""
+    loaded = rules if isinstance(rules, Rules) else load_rules(rules, assets=assets, start=start)
+    d = Derivation(loaded.ruleset, facade_state(width, height), name, attrs or {}, seed, strict,
+                   loaded.assets, limits, start)
+    return d.run()
+
+
 def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, strict=False,
                      start=None, limits: Limits | None = None, keep_tree: bool = True) -> Model:
     """Derive the rules on one footprint (``keep_tree=False`` drops the shape tree)."""
