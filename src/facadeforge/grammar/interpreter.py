@@ -195,7 +195,7 @@ class Derivation:
 
     def __init__(self, ruleset: RuleSet, state: ShapeState, name: str = "building",
                  attrs: dict | None = None, seed: int = 0, strict: bool = False, assets=None,
-                 limits: Limits | None = None, start_rule: str | None = None, street_edges=None,
+                 limits: Limits | None = None, start_rule: str | None = None,
                  instancing: bool = False):
         self.ruleset = ruleset
         self.initial = state
@@ -208,7 +208,6 @@ class Derivation:
         self.start_rule = start_rule or ruleset.start_rule
         self.initial_origin = state.scope.origin.copy()
         self.object_scope = state.scope.copy()
-        self.street_edges = street_edges
         self.warnings: list[str] = []
         self.reports: dict[str, list] = {}
         self.prints: list[str] = []
@@ -486,7 +485,7 @@ class _RunContext:
             t = type(op)
             try:
                 if t is A.Successor:
-                    spec = OPERATIONS.get(op.name) if (op.has_parens or op.name in _NOARG_OPS) else None
+                    spec = OPERATIONS.get(op.name) if op.has_parens else None
                     if spec is not None and not env.module.has_rule_name(op.name):
                         self.call_op(spec, op, state, env, ())
                         if spec.consumes:
@@ -566,10 +565,6 @@ class _RunContext:
         call.rule = self.rule  # type: ignore[attr-defined]
         call.run = self  # type: ignore[attr-defined]
         return spec.fn(call)
-
-
-# operations that may be written without parentheses
-_NOARG_OPS = {"NIL"}
 
 
 def _coerce_override(value, adef: A.AttrDef):

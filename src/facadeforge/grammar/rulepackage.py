@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -66,7 +67,10 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
             raise InputError(f"'{path}' is not a readable rule package (7z): {e}") from None
         resolve_map = _read_resolvemap(root)
         main = _find_main(root, rule, path)
-        return RulePackage(root, main, resolve_map)
+        package = RulePackage(root, main, resolve_map)
+        # the unpacked folder lives as long as the package object (rules, assets refer to it)
+        weakref.finalize(package, shutil.rmtree, root, True)
+        return package
     except BaseException:
         shutil.rmtree(root, ignore_errors=True)
         raise

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..geometry.mesh import Mesh
 from ..model.scope import Scope
 
@@ -94,13 +92,7 @@ class ShapeState:
         g = self.geometry
         return g.with_vertices(self._scope.to_local(g.vertices)) if g.n_faces else g
 
-    def set_local_geometry(self, mesh: Mesh) -> None:
-        self.geometry = mesh.with_vertices(self._scope.to_world(mesh.vertices)) if mesh.n_faces else mesh
-
     def fit_scope(self) -> None:
         """Scope to the bounding box of the geometry, orientation kept (CGA's default adjust)."""
         if self.geometry.n_faces:
             self.own_scope().fit_to(self.geometry.vertices[self.geometry.corners])
-
-    def world_size(self) -> np.ndarray:
-        return self._scope.size
