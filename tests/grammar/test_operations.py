@@ -297,3 +297,16 @@ def test_shape_letters_and_ring_setbacks(src, shape_area, rest_area):
     m = derive_text(src, lot="10x8")[0]
     area = {k: sum(p.mesh.area() for p in m.parts if p.symbol == k) for k in "SR"}
     assert area == {"S": pytest.approx(shape_area), "R": pytest.approx(rest_area)}
+
+
+def test_arrays_and_tables(tmp_path):
+    (tmp_path / "heights.csv").write_text("name,height\na,10\nb,12.5\n")
+    src = """attr xs = [1, 2, 3]
+Lot --> report("n", size(xs)) report("sum", sum(xs * 2)) report("i", index(xs, 2))
+        report("t", readFloatTable("heights.csv")[2, 1]) report("s", readStringTable("heights.csv")[1, 0])
+        report("sorted", sort([3, 1, 2])[0]) report("str", splitString("a;b", ";")[1])
+"""
+    m = derive(load_rules(src, assets=tmp_path), lot_size="4x4")[0]
+    assert {k: v[0] for k, v in m.reports.items()} == {"n": 3.0, "sum": 12.0, "i": 1.0, "t": 12.5,
+                                                       "s": "a", "sorted": 1.0, "str": "b"}
+    assert not m.warnings

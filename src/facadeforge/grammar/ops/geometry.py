@@ -614,3 +614,52 @@ for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPi
     operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
 for _name in ("innerRectangle", "splitArea", "roofRidge"):
     operation(_name, 0, 16, selectors=tuple(range(16)), body=_name != "roofRidge")(_unsupported(_name))
+
+
+def _read_table(env, args):
+    """Rows of a CSV file under the asset root (``readFloatTable``/``readStringTable``)."""
+    import csv
+
+    res = env.derivation.assets
+    name = to_str(args[0])
+    try:
+        p = res.resolve(name) if res is not None else None
+    except InputError as e:
+        raise CGARuntimeError(str(e)) from None
+    if p is None:
+        raise CGARuntimeError(f"table '{name}' not found under the asset root")
+    with open(p, newline="", encoding="utf-8", errors="replace") as fh:
+        rows = [r for r in csv.reader(fh) if r]
+    width = max((len(r) for r in rows), default=0)
+    return [r + [""] * (width - len(r)) for r in rows]
+
+
+@shape_function("readFloatTable")
+def _read_float_table(env, args):
+    rows = _read_table(env, args)
+
+    def num(x):
+        try:
+            return float(x)
+        except ValueError:
+            return float("nan")
+    return np.array([[num(x) for x in r] for r in rows], float).reshape(len(rows), -1)
+
+
+@shape_function("readStringTable")
+def _read_string_table(env, args):
+    rows = _read_table(env, args)
+    return np.array(rows, dtype=object).reshape(len(rows), -1)
+
+
+@shape_function("readTextFile")
+def _read_text_file(env, args):
+    res = env.derivation.assets
+    name = to_str(args[0])
+    try:
+        p = res.resolve(name) if res is not None else None
+    except InputError as e:
+        raise CGARuntimeError(str(e)) from None
+    if p is None:
+        raise CGARuntimeError(f"text file '{name}' not found under the asset root")
+    return p.read_text(encoding="utf-8", errors="replace")
