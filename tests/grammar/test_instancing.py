@@ -20,7 +20,7 @@ Tile --> split(x) { ~1 : Wall | 1.2 : split(y) { ~1 : Wall | 1.6 : Window | ~0.5
 Window --> report("w", split.index) offset(-0.1) comp(f) { inside : t(0, 0, -0.1) Glass | border : extrude(0.05) Frame }
 Shop --> report("shop", scope.sx) extrude(-0.2) comp(f) { back : Glass | all : Frame }
 Roof --> roofHip(30) comp(f) { bottom : NIL | all : Tiles }
-Wall --> color("#ccbb99")
+Wall --> color("#ccbb99") translateUV(0, 0.25, 0) WallUV
 """
 
 

@@ -34,6 +34,10 @@ IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDist
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
+# operations whose result depends on the UV values a shape inherits (not only on its position)
+UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}
+UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
+            "geometry.dv"}
 
 
 @dataclass
@@ -42,6 +46,7 @@ class RuleInfo:
     reads: set = field(default_factory=set)  # context names read (split.index, …)
     projects: bool = False  # calls projectUV (depends on inherited projections)
     centers: bool = False  # calls center (depends on the pivot scope)
+    uses_uv: bool = False  # reads or rewrites texture coordinates (tileUV, split(u|v), …)
     calls: set = field(default_factory=set)  # (module id, rule or function name)
 
 
@@ -71,12 +76,14 @@ class Purity:
                     other = self.info.get(callee)
                     if other is None:
                         continue
-                    before = (info.pure, len(info.reads), info.projects, info.centers)
+                    before = (info.pure, len(info.reads), info.projects, info.centers, info.uses_uv)
                     info.pure &= other.pure
                     info.reads |= other.reads
                     info.projects |= other.projects
                     info.centers |= other.centers
-                    if (info.pure, len(info.reads), info.projects, info.centers) != before:
+                    info.uses_uv |= other.uses_uv
+                    if (info.pure, len(info.reads), info.projects, info.centers,
+                            info.uses_uv) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -109,6 +116,8 @@ class Purity:
                         info.projects = True
                     if name == "center":
                         info.centers = True
+                    if name in UV_OPS:
+                        info.uses_uv = True
                     for a in args:
                         self._expr(m, a, info)
                     continue
@@ -121,6 +130,9 @@ class Purity:
             elif t is A.BodyOp:
                 if op.name in IMPURE_OPS:
                     info.pure = False
+                if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
+                        and op.args[0].name in ("u", "v"):
+                    info.uses_uv = True
                 for a in op.args:
                     self._expr(m, a, info)
                 self._branches(m, op.branches, info)
@@ -152,11 +164,15 @@ class Purity:
                     info.pure = False
                 elif n.name in CONTEXT_NAMES:
                     info.reads.add(n.name)
+                elif n.name in UV_NAMES:
+                    info.uses_uv = True
                 elif m.function(n.name, 0) is not None:
                     callee = self._callee(m, n.name, "fn:")
                     if callee is not None:
                         info.calls.add(callee)
             elif t is A.Call:
+                if n.name in UV_NAMES:
+                    info.uses_uv = True
                 if n.name in IMPURE_CALLS:
                     info.pure = False
                 if n.name in OCCLUSION_CALLS:
@@ -208,6 +224,8 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         local = (g.vertices[g.corners] - org) @ rot
         geom_key = (np.round(local, 6).tobytes(), g.starts.tobytes(), g.corner_uvs is not None)
         if g.corner_uvs is not None:
+            if info.uses_uv:  # the subtree works on the inherited UV values themselves
+                return None, None
             uv_map = affine_uv_map(local, g.corner_uvs)
             if uv_map is None:
                 return None, None
