@@ -114,6 +114,9 @@ class Purity:
                         info.pure = False
                     if name == "projectUV":
                         info.projects = True
+                    if name == "set" and args and isinstance(args[0], A.Name) \
+                            and args[0].name.startswith("scope.t"):
+                        info.pure = False  # sets an absolute position
                     if name == "center":
                         info.centers = True
                     if name in UV_OPS:
