@@ -153,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("facadeforge: interrupted", file=sys.stderr)
         return 130
+    except Exception as e:  # a bug: still one line, with what to report
+        print(f"facadeforge: internal error: {type(e).__name__}: {e} (please report this with "
+              "the command and its input files)", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -544,6 +544,11 @@ class _RunContext:
                     return self.run(chosen, state, env, origin) or consumed
             except CGARuntimeError as e:
                 self.d.warn(str(e), op, self.rule)
+            except (DerivationError, RecursionError, MemoryError, KeyboardInterrupt):
+                raise
+            except Exception as e:  # a geometry kernel failing on odd input: keep deriving
+                self.d.warn(f"{getattr(op, 'name', type(op).__name__)} failed on this shape "
+                            f"({type(e).__name__}: {e}); the shape is left as it was", op, self.rule)
         return consumed
 
     def call_op(self, spec, op, state, env, branches):
