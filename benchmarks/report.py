@@ -32,6 +32,26 @@ def engine_table() -> str:
     return head + "| engine benchmark | value |\n|---|---|\n" + "\n".join(f"| {a} | {b} |" for a, b in rows)
 
 
+def methods_table() -> str:
+    """Every ``results/bench_*.json``: one row per method and dataset."""
+    rows = []
+    for path in sorted((ROOT / "benchmarks" / "results").glob("bench_*.json")):
+        r = json.loads(path.read_text())
+
+        def f(key, r=r):
+            v = r.get(key)
+            return "–" if v is None else f"{v:.3f}"
+        rows.append(f"| {r['method']} | {r['dataset']} ({r['split']}, {r['label_set']}) | "
+                    f"{r['n_images']} | {f('pixel_accuracy')} | {f('class_avg_accuracy')} | "
+                    f"{f('miou')} | {f('window_f1')} | {r['seconds_per_image']:.3f} | "
+                    f"{r['date'][:10]} `{r['commit']}` |")
+    if not rows:
+        return "_no result yet_"
+    head = ("| method | dataset | images | pixel acc | class-avg acc | mIoU | window F1 | s / image "
+            "| measured |\n|---|---|---|---|---|---|---|---|---|\n")
+    return head + "\n".join(rows)
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -45,9 +65,12 @@ def replace(path: Path, marker: str, text: str) -> None:
 
 def main() -> None:
     table = engine_table()
+    methods = methods_table()
     for p in (ROOT / "README.md", ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
+        replace(p, "methods", methods)
     print(table)
+    print(methods)
 
 
 if __name__ == "__main__":

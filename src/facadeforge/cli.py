@@ -1,4 +1,4 @@
-"""Command line: ``facadeforge derive | render | demo``.  Thin: each command calls the public API.
+"""Command line: ``facadeforge derive | render | bench | demo``.  Thin: each command calls the public API.
 
 Errors print one line (``facadeforge: error: …``) and exit with status 2; no tracebacks.
 """
@@ -69,6 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, help="PNG file")
     r.add_argument("--size", type=_size, default=(1200, 900), help="WIDTHxHEIGHT (default 1200x900)")
 
+    from .evaluation.bench import add_parser as add_bench
+
+    add_bench(sub)
+
     m = sub.add_parser("demo", help="derive the example building, export and render it",
                        epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
     m.add_argument("-o", "--output", default="demo-out", help="output folder (default demo-out)")
@@ -135,7 +139,13 @@ def cmd_demo(args) -> int:
     return 0
 
 
-COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo}
+def cmd_bench(args) -> int:
+    from .evaluation.bench import cmd_bench as run
+
+    return run(args)
+
+
+COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -29,6 +29,9 @@ UNPREDICTED_COLOR = (0, 0, 0)  # prediction panel, where the method gave no clas
 _BACKGROUND = (255, 255, 255)
 _TEXT = (20, 20, 20)
 _PAD = 6
+_LEGEND_STEP = 130
+_UMASK = os.umask(0)
+os.umask(_UMASK)  # read once: the mode of written files follows the umask
 
 
 @dataclass(frozen=True)
@@ -135,7 +138,8 @@ def write_sheet(rows: Sequence[SheetRow], label_set: LabelSet, path: str | Path,
     heads = ("photo", "truth", "prediction", "error (red wrong, grey ignored)")
     col_width = max([p.width for _, ps in blocks for p in ps] + [200])
     width = _PAD + 4 * (col_width + _PAD)
-    legend_rows = 1 + (label_set.num_classes - 1) // 6
+    per_row = max(1, (width - _PAD) // _LEGEND_STEP)
+    legend_rows = 1 + (label_set.num_classes - 1) // per_row
     height = (_PAD + (line if title else 0) + line
               + len(blocks) * (line + panel_height + _PAD) + legend_rows * line + _PAD)
     sheet = Image.new("RGB", (width, height), _BACKGROUND)
@@ -154,8 +158,8 @@ def write_sheet(rows: Sequence[SheetRow], label_set: LabelSet, path: str | Path,
             sheet.paste(panel, (_PAD + i * (col_width + _PAD), y))
         y += panel_height + _PAD
     for i, name in enumerate(label_set.classes):
-        x = _PAD + (i % 6) * 150
-        yy = y + (i // 6) * line
+        x = _PAD + (i % per_row) * _LEGEND_STEP
+        yy = y + (i // per_row) * line
         draw.rectangle((x, yy + 2, x + 12, yy + 14), fill=tuple(int(c) for c in
                                                               label_set.colors[i]),
                        outline=_TEXT)
@@ -165,6 +169,7 @@ def write_sheet(rows: Sequence[SheetRow], label_set: LabelSet, path: str | Path,
     os.close(fd)
     try:
         sheet.save(tmp, format="PNG")
+        os.chmod(tmp, 0o666 & ~_UMASK)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -1,0 +1,698 @@
+"""Benchmark harness: ``facadeforge bench`` scores a registered method on a facade dataset.
+
+:func:`run_bench` loads a dataset folder with the loader registered in
+:data:`facadeforge.datasets.LOADERS`, picks the facades of a split, fits the method on the
+development ``train`` split when it learns from data, runs it on every facade and scores it in the
+dataset's own pixel frame.  It writes three files:
+
+- ``RESULT.json`` — every number (keys below), the machine, date, commit and data path;
+- ``RESULT.md`` — headline numbers, a per-class table and the row-normalised confusion matrix;
+- ``RESULT_sheet.png`` — photo | truth | prediction | error of the 3 best and 3 worst facades by
+  per-image mIoU.
+
+Splits
+    ``train``, ``val`` and ``all`` follow the fixed development rule of
+    :mod:`facadeforge.datasets.splits` (every 5th sorted id is ``val``), applied to the ids the
+    folder holds, so held-out folders of the same layout get their own split.  RueMonge: when
+    ``DIR/val/img`` exists, ``--split val`` scores all of ``DIR/val`` and fits on all of
+    ``DIR/train``; otherwise it scores the development ``val`` part of ``DIR/train`` and fits on
+    its ``train`` part.  A split folder given directly (``--data DIR/val --split val``) is scored
+    whole; other split names (``test``) score the whole ``DIR/<split>`` folder.  The method is
+    always fitted on the ``train`` split, also when that split (or ``all``) is the one scored.
+Scoring
+    A prediction with a homography is warped into the photo's frame by inverse mapping, nearest
+    neighbour at pixel centres; photo pixels the prediction does not cover — and pixels the
+    method labels :data:`~facadeforge.datasets.IGNORE` — are *unpredicted*: they count as wrong
+    wherever the truth is labelled (a method cannot raise its score by abstaining).  Truth pixels
+    labelled :data:`~facadeforge.datasets.IGNORE` are not scored.  Scores pool pixels over the
+    data set (see :mod:`facadeforge.evaluation.metrics`).  ``confusion`` counts predicted
+    classes only; ``unpredicted`` counts the rest of each truth row, and ``confusion_percent``
+    rows are percent of the row's scored pixels, so a row adds up to 100 minus its unpredicted
+    share.
+Windows
+    Truth: the sample's object boxes labelled ``window`` (CMP XML rectangles; connected components
+    of the label map elsewhere).  Prediction: ``Prediction.windows`` mapped through the homography
+    (bounding box of the four mapped corners), or, when the method gives none, the connected
+    components of the predicted window class (``windows_from`` counts both).  Matches need
+    IoU >= 0.5.
+Counts
+    ``floor_count_*`` / ``column_count_*`` appear when both the method (``Prediction.floors``)
+    and the truth (``sample.meta["floors"]``, ``["columns"]``) give them on some facade.
+Cost
+    ``seconds_per_image`` and ``peak_memory_mb`` (MiB traced by ``tracemalloc``) cover the
+    method's ``predict`` call, photo reading included; fitting is reported as ``fit_seconds``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import datasets
+from ..datasets import IGNORE, SPLIT_NAMES, FacadeSample, LabelSet, dev_split, get_label_set
+from ..datasets.folder import objects_from_labels
+from ..errors import InputError
+from .methods import METHODS, Method, Prediction, get_method
+from .metrics import (
+    DetectionAccumulator,
+    SegmentationScores,
+    StructureCountAccumulator,
+    confusion_matrix,
+    measure,
+)
+from .sheet import SheetRow, write_sheet
+
+__all__ = ["EXAMPLES", "RESULT_KEYS", "add_parser", "box_to_image", "cmd_bench", "markdown_summary",
+           "output_paths", "run_bench", "select_samples", "warp_to_image"]
+
+#: Keys every RESULT.json has (``floor_count_*`` / ``column_count_*`` only when available).
+RESULT_KEYS: tuple[str, ...] = (
+    "method", "dataset", "split", "label_set", "classes", "n_images", "pixel_accuracy",
+    "class_avg_accuracy", "miou", "per_class", "confusion", "confusion_percent", "unpredicted",
+    "unpredicted_fraction", "window_precision", "window_recall", "window_f1", "window_tp",
+    "window_fp", "window_fn", "windows_from", "seconds_per_image", "peak_memory_mb",
+    "fit_images", "fit_seconds", "wall_seconds", "per_image", "best", "worst", "split_rule",
+    "machine", "date", "commit", "data", "files",
+)
+
+EXAMPLES = """examples:
+  facadeforge bench --method rowcol-prior --dataset cmp --data ../shared/data/cmp -o bench.json
+  facadeforge bench --method prior --dataset ruemonge --data ../shared/data/ruemonge --split val --labels ecp7 -o prior_rm.json
+  facadeforge bench --method rowcol-prior --dataset cmp --data held-out/cmp --split all --limit 20 -o out/result.json
+writes RESULT.json, RESULT.md (summary, per-class table, confusion) and RESULT_sheet.png
+(photo | truth | prediction | error of the 3 best and 3 worst facades)."""
+
+_BEST = 3
+_UMASK = os.umask(0)
+os.umask(_UMASK)  # read once: the mode of written files follows the umask
+
+
+# ---------------------------------------------------------------------------------- samples
+def select_samples(dataset: str, data: str | Path, split: str = "val",
+                   labels: str | LabelSet | None = None
+                   ) -> tuple[list[FacadeSample], list[FacadeSample], str]:
+    """The facades to score and the facades to fit on (module docstring, *Splits*).
+
+    Parameters
+    ----------
+    dataset : str
+        Layout name in :data:`facadeforge.datasets.LOADERS` (looked up at call time, so layouts
+        registered later plug in).
+    data : str or Path
+        Dataset folder.
+    split : str
+        ``train``, ``val``, ``all``, or (RueMonge) the name of a split folder.
+    labels : str or LabelSet, optional
+        Label set to score in; default the layout's own (``cmp6``, ``ecp7``, the palette).
+
+    Returns
+    -------
+    scored : list of FacadeSample
+    fit : list of FacadeSample
+        Training facades (may be empty).
+    rule : str
+        One sentence saying how both were chosen.
+
+    Raises
+    ------
+    InputError
+        Unknown layout, label set or split; loader errors.
+    """
+    loaders = datasets.LOADERS
+    if dataset not in loaders:
+        raise InputError(f"unknown dataset {dataset!r}; use one of {', '.join(loaders)}")
+    options: dict[str, Any] = {}
+    if labels is not None:
+        options["label_set"] = get_label_set(labels)
+    load = loaders[dataset]
+    data = Path(data).expanduser()
+    if dataset == "ruemonge":
+        return _ruemonge_samples(load, data, split, options)
+    if split not in SPLIT_NAMES:
+        raise InputError(f"unknown split {split!r} for dataset {dataset!r}; use one of "
+                         f"{', '.join(SPLIT_NAMES)}")
+    everything = load(data, **options)
+    scored = dev_split(everything, split)
+    fit = dev_split(everything, "train")
+    rule = (f"development split {split!r} (every 5th sorted id is val) of the {len(everything)} "
+            f"facades in {data}; fitted on its train part ({len(fit)})")
+    return scored, fit, rule
+
+
+def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
+    def folder(name: str) -> bool:
+        return (data / name / "img").is_dir()
+
+    if (data / "img").is_dir() and data.name == split:
+        scored = load(data, split=split, **options)
+        return scored, [], f"all {len(scored)} photos of the split folder {data}; no training set"
+    dedicated = split not in SPLIT_NAMES or (split == "val" and folder("val"))
+    if dedicated or (split in ("train", "all") and folder("val")):
+        if split == "all":
+            scored = load(data, split="train", **options) + load(data, split="val", **options)
+        else:
+            scored = load(data, split=split, **options)
+        fit = load(data, split="train", **options) if folder("train") else []
+        return scored, fit, (f"all {len(scored)} photos of {data}/{split if split != 'all' else '{train,val}'}; "
+                             f"fitted on all {len(fit)} photos of {data}/train")
+    base = load(data, split="train", **options)
+    scored = dev_split(base, split)
+    fit = dev_split(base, "train")
+    return scored, fit, (f"development split {split!r} (every 5th sorted id is val) of the "
+                         f"{len(base)} photos in {data}/train (no {data}/val folder); fitted on "
+                         f"its train part ({len(fit)})")
+
+
+# ---------------------------------------------------------------------------------- geometry
+def _check_homography(h: Any, where: str) -> np.ndarray:
+    m = np.asarray(h, np.float64)
+    if m.shape != (3, 3) or not np.isfinite(m).all():
+        raise InputError(f"{where}: homography must be a finite 3x3 matrix, got shape {m.shape}")
+    if abs(np.linalg.det(m)) < 1e-12 * max(1.0, float(np.abs(m).max()) ** 3):
+        raise InputError(f"{where}: homography is singular; it must map the prediction frame "
+                         "onto the photo one-to-one")
+    return m
+
+
+def warp_to_image(labels: np.ndarray, homography: np.ndarray, shape: tuple[int, int]
+                  ) -> np.ndarray:
+    """Resample a label map predicted in another frame into the photo's pixel frame.
+
+    Parameters
+    ----------
+    labels : (h, w) uint8
+        Prediction in its own frame.
+    homography : (3, 3) float
+        Prediction-frame pixel coordinates → photo pixel coordinates (pixel-edge convention:
+        pixel ``(r, c)`` has its centre at ``(c + 0.5, r + 0.5)``).
+    shape : (H, W)
+        The photo's size.
+
+    Returns
+    -------
+    (H, W) uint8
+        For each photo pixel, the prediction at the inverse-mapped pixel centre (nearest
+        neighbour); :data:`IGNORE` where that falls outside the prediction or behind the camera.
+    """
+    labels = np.asarray(labels)
+    inv = np.linalg.inv(_check_homography(homography, "warp_to_image"))
+    big_h, big_w = int(shape[0]), int(shape[1])
+    ph, pw = labels.shape
+    out = np.full((big_h, big_w), IGNORE, np.uint8)
+    if big_h == 0 or big_w == 0 or ph == 0 or pw == 0:
+        return out
+    xs = np.arange(big_w, dtype=np.float64) + 0.5
+    centre = inv @ np.array([big_w / 2, big_h / 2, 1.0])
+    sign = 1.0 if centre[2] >= 0 else -1.0  # the side of the plane the photo sees
+    step = max(1, (1 << 22) // max(big_w, 1))  # rows per block: bounded temporary memory
+    for r0 in range(0, big_h, step):
+        ys = np.arange(r0, min(big_h, r0 + step), dtype=np.float64)[:, None] + 0.5
+        z = (inv[2, 0] * xs + inv[2, 1] * ys + inv[2, 2]) * sign
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = (inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2]) * sign / z
+            v = (inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2]) * sign / z
+        ok = (z > 1e-12) & (u >= 0) & (u < pw) & (v >= 0) & (v < ph)
+        block = out[r0:r0 + ys.shape[0]]
+        block[ok] = labels[v[ok].astype(np.intp), u[ok].astype(np.intp)]
+    return out
+
+
+def box_to_image(boxes: np.ndarray, homography: np.ndarray, shape: tuple[int, int]
+                 ) -> np.ndarray:
+    """Map boxes from a prediction frame into the photo: bounding box of the mapped corners.
+
+    Parameters
+    ----------
+    boxes : (N, 4) float
+        ``x0, y0, x1, y1`` in prediction-frame pixels.
+    homography : (3, 3) float
+        Prediction frame → photo (as in :func:`warp_to_image`).
+    shape : (H, W)
+        The photo's size; boxes are clipped to it.
+
+    Returns
+    -------
+    (N, 4) float64
+    """
+    b = np.asarray(boxes, np.float64).reshape(-1, 4)
+    if b.shape[0] == 0:
+        return b
+    m = _check_homography(homography, "box_to_image")
+    corners = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [0, 3]], b[:, [2, 3]]], axis=1)
+    pts = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2) @ m.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xy = pts[..., :2] / pts[..., 2:3]
+    xy = np.nan_to_num(xy, nan=0.0, posinf=1e12, neginf=-1e12)
+    out = np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
+    h, w = shape
+    out[:, [0, 2]] = np.clip(out[:, [0, 2]], 0, w)
+    out[:, [1, 3]] = np.clip(out[:, [1, 3]], 0, h)
+    return out
+
+
+# ---------------------------------------------------------------------------------- scoring
+def _as_prediction(result: Any, where: str) -> Prediction:
+    if isinstance(result, Prediction):
+        return result
+    if isinstance(result, np.ndarray):
+        return Prediction(labels=result)
+    raise InputError(f"{where}: returned {type(result).__name__}; a method must return a "
+                     "Prediction (facadeforge.evaluation.methods)")
+
+
+def _prediction_in_image(pred: Prediction, method: Method, label_set: LabelSet,
+                         shape: tuple[int, int], where: str
+                         ) -> tuple[np.ndarray, np.ndarray | None]:
+    """(H, W) uint8 class indices (IGNORE = unpredicted) and windows, both in the photo frame."""
+    labels = np.asarray(pred.labels)
+    if labels.ndim != 2 or labels.dtype.kind not in "iu":
+        raise InputError(f"{where}: Prediction.labels must be an (h, w) integer array, got "
+                         f"shape {labels.shape} dtype {labels.dtype}")
+    if method.label_space == "canonical":
+        labels = label_set.from_canonical(labels)
+    else:
+        bad = (labels < 0) | ((labels >= label_set.num_classes) & (labels != IGNORE))
+        if bad.any():
+            raise InputError(
+                f"{where}: class indices {np.unique(labels[bad])[:8].tolist()} are outside "
+                f"0..{label_set.num_classes - 1} of label set {label_set.name!r} (255 = no "
+                "prediction); predict in the label set passed to the method, or register it "
+                "with label_space='canonical'")
+        labels = labels.astype(np.uint8, copy=False)
+    windows = None if pred.windows is None else np.asarray(pred.windows, np.float64)
+    if windows is not None and windows.size and (windows.ndim != 2 or windows.shape[1] != 4):
+        raise InputError(f"{where}: Prediction.windows must be (N, 4) boxes x0, y0, x1, y1, "
+                         f"got shape {windows.shape}")
+    if pred.homography is None:
+        if labels.shape != tuple(shape):
+            raise InputError(
+                f"{where}: prediction is {labels.shape[1]}x{labels.shape[0]} px but the photo is "
+                f"{shape[1]}x{shape[0]}; predict at the photo's size or return the homography "
+                "of the prediction frame")
+        return labels, None if windows is None else windows.reshape(-1, 4)
+    h = pred.homography
+    warped = warp_to_image(labels, h, shape)
+    return warped, None if windows is None else box_to_image(windows, h, shape)
+
+
+def _scores(full: np.ndarray, k: int) -> dict[str, Any]:
+    """Scores of a (K+1, K+1) matrix whose last column counts unpredicted pixels."""
+    s = SegmentationScores.from_confusion(full)
+    acc, iou = s.class_accuracies[:k], s.iou[:k]
+    return {"pixel_accuracy": s.pixel_accuracy, "class_avg_accuracy": _nanmean(acc),
+            "miou": _nanmean(iou), "accuracy": acc, "iou": iou, "support": s.support[:k]}
+
+
+def _nanmean(a: np.ndarray) -> float:
+    ok = ~np.isnan(a)
+    return float(a[ok].mean()) if ok.any() else math.nan
+
+
+def _num(x: Any, digits: int = 6) -> float | None:
+    x = float(x)
+    return None if math.isnan(x) else round(x, digits)
+
+
+class _Progress:
+    """A one-line progress bar on stderr (a line per 10 % when stderr is not a terminal)."""
+
+    def __init__(self, total: int, label: str, enabled: bool = True, width: int = 24):
+        self.total, self.label, self.enabled, self.width = total, label, enabled, width
+        self.stream = sys.stderr
+        self.tty = enabled and hasattr(self.stream, "isatty") and self.stream.isatty()
+        self.t0 = time.perf_counter()
+        self._last_step = -1
+
+    def update(self, done: int) -> None:
+        if not self.enabled or self.total == 0:
+            return
+        elapsed = time.perf_counter() - self.t0
+        rate = elapsed / done if done else 0.0
+        eta = rate * (self.total - done)
+        text = (f"{self.label} {done}/{self.total} "
+                f"[{'#' * (self.width * done // self.total):<{self.width}}] "
+                f"{rate:.2f} s/img, {elapsed:.0f} s, ETA {eta:.0f} s")
+        if self.tty:
+            self.stream.write("\r" + text)
+            if done == self.total:
+                self.stream.write("\n")
+            self.stream.flush()
+        else:
+            step = 10 * done // self.total
+            if step != self._last_step:
+                self._last_step = step
+                print(text, file=self.stream, flush=True)
+
+
+# ---------------------------------------------------------------------------------- provenance
+def _machine() -> dict[str, Any]:
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        mem = round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30, 1)
+    except (ValueError, OSError, AttributeError):
+        mem = None
+    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": mem,
+            "python": platform.python_version(), "platform": platform.platform()}
+
+
+def _commit() -> str | None:
+    try:
+        res = subprocess.run(["git", "rev-parse", "--short", "HEAD"],
+                             cwd=Path(__file__).resolve().parent, capture_output=True, text=True,
+                             timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return res.stdout.strip() or None if res.returncode == 0 else None
+
+
+def _write_atomic(path: Path, data: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(data)
+        os.chmod(tmp, 0o666 & ~_UMASK)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def output_paths(out: str | Path) -> dict[str, Path]:
+    """``json``, ``markdown`` and ``sheet`` paths of a run writing ``out`` (RESULT.json)."""
+    out = Path(out)
+    return {"json": out, "markdown": out.with_suffix(".md"),
+            "sheet": out.with_name(out.stem + "_sheet.png")}
+
+
+# ---------------------------------------------------------------------------------- harness
+def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
+              labels: str | None = None, limit: int | None = None, *, out: str | Path,
+              progress: bool = True) -> dict[str, Any]:
+    """Score a registered method on a dataset folder and write RESULT.json, .md and sheet.
+
+    Parameters
+    ----------
+    method : str
+        Name in :data:`~facadeforge.evaluation.methods.METHODS`.
+    dataset : str
+        Layout in :data:`facadeforge.datasets.LOADERS` (``cmp``, ``ruemonge``, ``folder``, …).
+    data : str or Path
+        Dataset folder.
+    split : str
+        ``val`` (default), ``train``, ``all``, or a RueMonge split folder name (module docstring).
+    labels : {"cmp6", "cmp12", "ecp7"}, optional
+        Label set to score in; default the layout's own.
+    limit : int, optional
+        Score only the first ``limit`` facades of the split (sorted by id).
+    out : str or Path
+        RESULT.json path; ``RESULT.md`` and ``RESULT_sheet.png`` are written beside it.
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    dict
+        The content of RESULT.json (:data:`RESULT_KEYS`; NaN written as ``null``).
+
+    Raises
+    ------
+    InputError
+        Unknown method, dataset, split or label set; an empty selection; a bad prediction.
+    """
+    t_start = time.perf_counter()
+    m = get_method(method)
+    if limit is not None and (isinstance(limit, bool) or int(limit) < 1):
+        raise InputError(f"limit {limit!r} must be a positive number of facades")
+    scored, fit_set, rule = select_samples(dataset, data, split, labels)
+    if limit is not None:
+        scored = scored[:int(limit)]
+    if not scored:
+        raise InputError(f"split {split!r} of {data} holds no facades; pick another split "
+                         "(train, val, all) or check the folder")
+    label_set = scored[0].label_set
+    k = label_set.num_classes
+    paths = output_paths(out)
+
+    fit_seconds = 0.0
+    if m.fit is not None:
+        t0 = time.perf_counter()
+        m.fit(list(fit_set), label_set)  # an empty list resets a previous fit
+        fit_seconds = time.perf_counter() - t0
+
+    window_class = "window" in label_set.classes
+    full = np.zeros((k + 1, k + 1), np.int64)
+    detections = DetectionAccumulator(0.5)
+    counts = StructureCountAccumulator()
+    windows_from = {"method": 0, "label_components": 0}
+    per_image: list[dict[str, Any]] = []
+    ranks: list[tuple[float, str]] = []  # unrounded per-image mIoU, for best and worst
+    kept: list[tuple[float, str, int, np.ndarray]] = []  # their label maps, for the sheet
+    bar = _Progress(len(scored), f"bench {method} on {dataset}/{split}", progress)
+    for i, sample in enumerate(scored):
+        where = f"method {method!r} on {sample.id}"
+        result, seconds, peak = measure(m.predict, sample, label_set)
+        pred = _as_prediction(result, where)
+        truth = sample.labels()
+        shape = truth.shape
+        if ((truth >= k) & (truth != IGNORE)).any():
+            raise InputError(f"truth of {sample.id} has class indices outside 0..{k - 1}; "
+                             f"check the label set {label_set.name!r}")
+        labels_img, boxes = _prediction_in_image(pred, m, label_set, shape, where)
+        extended = np.where(labels_img == IGNORE, k, labels_img)
+        own = confusion_matrix(truth, extended, k + 1, ignore_index=IGNORE)
+        full += own
+        one = _scores(own, k)
+
+        truth_boxes = np.array([(o.x0, o.y0, o.x1, o.y1) for o in sample.objects()
+                                if o.label == "window"], np.float64).reshape(-1, 4)
+        if boxes is None:
+            windows_from["label_components"] += 1
+            comps = objects_from_labels(labels_img, label_set, classes=("window",)) \
+                if window_class else []
+            boxes = np.array([(o.x0, o.y0, o.x1, o.y1) for o in comps],
+                             np.float64).reshape(-1, 4)
+            scores = None
+        else:
+            windows_from["method"] += 1
+            scores = pred.window_scores
+        det = detections.add(truth_boxes, boxes, scores)
+        counts.add(sample.meta.get("floors"), pred.floors,
+                   sample.meta.get("columns"), pred.columns)
+
+        per_image.append({
+            "id": sample.id, "miou": _num(one["miou"]),
+            "pixel_accuracy": _num(one["pixel_accuracy"]),
+            "unpredicted_fraction": _num(own[:, k].sum() / max(own.sum(), 1)),
+            "window_tp": det.tp, "window_fp": det.fp, "window_fn": det.fn,
+            "seconds": round(seconds, 4), "peak_memory_mb": round(peak / 2**20, 2),
+        })
+        if not math.isnan(one["miou"]):
+            ranks.append((one["miou"], sample.id))
+            kept.append((one["miou"], sample.id, i, labels_img))
+            kept = _trim(kept)
+        bar.update(i + 1)
+
+    seg = _scores(full, k)
+    confusion = full[:k, :k]
+    row_total = full[:k].sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        percent = np.where(row_total > 0, 100.0 * confusion / np.maximum(row_total, 1), np.nan)
+    ranked = sorted(ranks, key=_rank)
+    best = [i for _, i in ranked[:_BEST]]
+    worst = [i for _, i in ranked[_BEST:][::-1][:_BEST]]
+    det = detections.scores
+    secs = [r["seconds"] for r in per_image]
+    result: dict[str, Any] = {
+        "method": method, "method_description": m.description, "dataset": dataset,
+        "split": split, "label_set": label_set.name, "classes": list(label_set.classes),
+        "n_images": len(scored), "limit": limit,
+        "pixel_accuracy": _num(seg["pixel_accuracy"]),
+        "class_avg_accuracy": _num(seg["class_avg_accuracy"]),
+        "miou": _num(seg["miou"]),
+        "per_class": {name: {"accuracy": _num(seg["accuracy"][c]), "iou": _num(seg["iou"][c]),
+                             "support": int(seg["support"][c])}
+                      for c, name in enumerate(label_set.classes)},
+        "confusion": confusion.tolist(),
+        "confusion_percent": [[_num(v, 3) for v in row] for row in percent],
+        "unpredicted": full[:k, k].tolist(),
+        "unpredicted_fraction": _num(full[:k, k].sum() / max(full.sum(), 1)),
+        "window_precision": _num(det.precision), "window_recall": _num(det.recall),
+        "window_f1": _num(det.f1), "window_tp": det.tp, "window_fp": det.fp,
+        "window_fn": det.fn, "windows_from": windows_from,
+    }
+    for key, value in counts.to_dict().items():
+        quantity = key.split("_count_")[0]
+        if getattr(counts, quantity + "s").n_images:
+            result[key] = value
+    result.update({
+        "seconds_per_image": round(float(np.mean(secs)), 5),
+        "peak_memory_mb": round(max(r["peak_memory_mb"] for r in per_image), 2),
+        "fit_images": len(fit_set) if m.fit is not None else 0,
+        "fit_seconds": round(fit_seconds, 3),
+        "wall_seconds": None,
+        "per_image": per_image, "best": best, "worst": worst, "split_rule": rule,
+        "machine": _machine(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "commit": _commit(), "data": str(Path(data).expanduser().resolve()),
+        "files": {name: str(p) for name, p in paths.items()},
+    })
+
+    by_id = {s.id: s for s in scored}
+    pred_of = {sid: lab for _, sid, _, lab in kept}
+    rows = []
+    miou_of = {sid: v for v, sid in ranks}
+    for tag, ids in (("best", best), ("worst", worst)):
+        for n, sid in enumerate(ids, 1):
+            sample = by_id[sid]
+            miou = miou_of[sid]
+            rows.append(SheetRow(title=f"{tag} {n}: {sid}   mIoU {miou:.3f}",
+                                 photo=sample.image(), truth=sample.labels(),
+                                 prediction=pred_of[sid]))
+    write_sheet(rows, label_set, paths["sheet"],
+                title=f"{method} on {dataset} ({split}, {label_set.name}): mIoU "
+                      f"{_fmt(result['miou'])}, pixel accuracy {_fmt(result['pixel_accuracy'])}")
+    result["wall_seconds"] = round(time.perf_counter() - t_start, 3)
+    _write_atomic(paths["markdown"], markdown_summary(result))
+    _write_atomic(paths["json"], json.dumps(result, indent=2) + "\n")
+    return result
+
+
+def _trim(kept: list[tuple[float, str, int, np.ndarray]]
+          ) -> list[tuple[float, str, int, np.ndarray]]:
+    """Keep the label maps of the facades that can still be among the best or worst."""
+    if len(kept) <= 2 * _BEST:
+        return kept
+    ordered = sorted(kept, key=_rank)
+    return ordered[:_BEST] + ordered[-_BEST:]
+
+
+def _rank(item: tuple) -> tuple[float, str]:
+    """Total order of facades, best first: higher mIoU, then id (the worst are the last)."""
+    return -item[0], item[1]
+
+
+# ---------------------------------------------------------------------------------- markdown
+def _fmt(x: float | None, digits: int = 3) -> str:
+    return "–" if x is None else f"{x:.{digits}f}"
+
+
+def markdown_summary(result: dict[str, Any]) -> str:
+    """RESULT.md text of a RESULT.json dictionary."""
+    r = result
+    lines = [
+        f"# {r['method']} on {r['dataset']} ({r['split']}, {r['label_set']})",
+        "",
+        f"{r['n_images']} facades from `{r['data']}`; {r['split_rule']}.",
+        f"Measured {r['date'][:10]} at commit `{r['commit']}` on {r['machine']['cores']} cores "
+        f"({r['machine']['cpu']}), Python {r['machine']['python']}.",
+        "",
+        "| score | value |",
+        "|---|---|",
+        f"| pixel accuracy | {_fmt(r['pixel_accuracy'])} |",
+        f"| class-average accuracy | {_fmt(r['class_avg_accuracy'])} |",
+        f"| mIoU | {_fmt(r['miou'])} |",
+        f"| window precision / recall / F1 (IoU ≥ 0.5) | {_fmt(r['window_precision'])} / "
+        f"{_fmt(r['window_recall'])} / {_fmt(r['window_f1'])} "
+        f"(tp {r['window_tp']}, fp {r['window_fp']}, fn {r['window_fn']}) |",
+    ]
+    for what in ("floor", "column"):
+        if f"{what}_count_mae" in r:
+            lines.append(f"| {what} count MAE / exact | {_fmt(r[f'{what}_count_mae'], 2)} / "
+                         f"{_fmt(r[f'{what}_count_exact'], 2)} |")
+    lines += [
+        f"| unpredicted pixels | {_fmt(100 * (r['unpredicted_fraction'] or 0), 2)} % |",
+        f"| seconds / image | {r['seconds_per_image']:.4f} |",
+        f"| peak memory (method) | {r['peak_memory_mb']:.1f} MiB |",
+        "",
+        "## Per class",
+        "",
+        "| class | IoU | accuracy | truth pixels |",
+        "|---|---|---|---|",
+    ]
+    total = sum(v["support"] for v in r["per_class"].values()) or 1
+    for name, v in r["per_class"].items():
+        lines.append(f"| {name} | {_fmt(v['iou'])} | {_fmt(v['accuracy'])} | "
+                     f"{100 * v['support'] / total:.1f} % |")
+    classes = r["classes"]
+    unpred = any(r["unpredicted"])
+    lines += ["", "## Confusion (% of each truth row; rows truth, columns prediction)", "",
+              "| truth \\ predicted | " + " | ".join(classes)
+              + (" | unpredicted |" if unpred else " |"),
+              "|---" * (len(classes) + 1 + unpred) + "|"]
+    for name, row, miss in zip(classes, r["confusion_percent"], r["unpredicted"]):
+        cells = [_fmt(v, 1) for v in row]
+        if unpred:
+            support = r["per_class"][name]["support"]
+            cells.append(_fmt(100 * miss / support, 1) if support else "–")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    lines += ["", f"Best: {', '.join(r['best']) or '–'}.  Worst: {', '.join(r['worst']) or '–'}.",
+              f"Sheet: `{Path(r['files']['sheet']).name}`.", ""]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------- CLI glue
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--limit '{text}' must be a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"--limit {value} must be at least 1")
+    return value
+
+
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add the ``bench`` subcommand to an ``argparse`` subparsers object; returns its parser."""
+    p = subparsers.add_parser(
+        "bench", help="score a facade-labelling method on a dataset (RESULT.json, .md, sheet)",
+        description="Score a registered method on a facade dataset in the dataset's own pixel "
+                    "frame; write RESULT.json, RESULT.md and RESULT_sheet.png.",
+        epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--method", required=True, metavar="NAME",
+                   help=f"registered method ({', '.join(sorted(METHODS))})")
+    p.add_argument("--dataset", required=True, metavar="cmp|ruemonge|synthetic|folder",
+                   help="dataset layout")
+    p.add_argument("--data", required=True, metavar="DIR", help="dataset folder")
+    p.add_argument("--split", default="val", metavar="S",
+                   help="train, val (default) or all: the fixed development split; RueMonge: "
+                        "val/ when DIR/val exists, or any split folder name")
+    p.add_argument("--labels", default=None, metavar="cmp6|cmp12|ecp7",
+                   help="label set to score in (default: cmp6 for cmp, ecp7 for ruemonge, the "
+                        "palette for folder)")
+    p.add_argument("--limit", type=_positive_int, default=None, metavar="N",
+                   help="score only the first N facades of the split")
+    p.add_argument("-o", "--output", required=True, metavar="RESULT.json",
+                   help="result file; RESULT.md and RESULT_sheet.png are written beside it")
+    return p
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Run :func:`run_bench` from parsed arguments and print a one-line summary."""
+    r = run_bench(args.method, args.dataset, Path(args.data), split=args.split,
+                  labels=args.labels, limit=args.limit, out=Path(args.output))
+    files = r["files"]
+    print(f"{r['method']} on {r['dataset']}/{r['split']} ({r['n_images']} facades, "
+          f"{r['label_set']}): pixel acc {_fmt(r['pixel_accuracy'])}, class-avg acc "
+          f"{_fmt(r['class_avg_accuracy'])}, mIoU {_fmt(r['miou'])}, window F1 "
+          f"{_fmt(r['window_f1'])}, {r['seconds_per_image']:.3f} s/facade → {files['json']} "
+          f"(+ {Path(files['markdown']).name}, {Path(files['sheet']).name})")
+    return 0
