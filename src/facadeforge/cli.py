@@ -1,4 +1,4 @@
-"""Command line: ``facadeforge derive | render | bench | demo``.  Thin: each command calls the public API.
+"""Command line: ``facadeforge derive | render | synth | bench | demo``.  Thin: each command calls the public API.
 
 Errors print one line (``facadeforge: error: …``) and exit with status 2; no tracebacks.
 """
@@ -69,8 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, help="PNG file")
     r.add_argument("--size", type=_size, default=(1200, 900), help="WIDTHxHEIGHT (default 1200x900)")
 
+    from .datasets.synthetic import add_parser as add_synth
     from .evaluation.bench import add_parser as add_bench
 
+    add_synth(sub)
     add_bench(sub)
 
     m = sub.add_parser("demo", help="derive the example building, export and render it",
@@ -145,7 +147,14 @@ def cmd_bench(args) -> int:
     return run(args)
 
 
-COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench}
+def cmd_synth(args) -> int:
+    from .datasets.synthetic import cmd_synth as run
+
+    return run(args)
+
+
+COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
+            "synth": cmd_synth}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -335,7 +335,7 @@ def test_objects_from_labels_min_size_and_ignore():
 
 
 def test_loader_registry():
-    assert set(LOADERS) == {"cmp", "ruemonge", "folder"}
+    assert set(LOADERS) == {"cmp", "ruemonge", "folder", "synthetic"}
     with pytest.raises(InputError, match="unknown dataset layout"):
         load_dataset("nope", ".")
 

@@ -52,10 +52,11 @@ from .splits import (
     dev_split,
     ruemonge_split,
 )
+from .synthetic import load_synthetic
 
 __all__ = [
     "CANONICAL_FALLBACK", "CANONICAL_INDEX", "CMP_VAL_IDS", "DEFAULT_LABEL_SETS", "DEV_SPLITS",
-    "IGNORE", "IMAGE_SUFFIXES", "LABEL_SETS", "LOADERS", "RUEMONGE_VAL_IDS", "SPLITS_DOC",
+    "IGNORE", "IMAGE_SUFFIXES", "load_synthetic", "LABEL_SETS", "LOADERS", "RUEMONGE_VAL_IDS", "SPLITS_DOC",
     "SPLIT_NAMES", "FacadeSample", "LabelSet", "ObjectBox", "cmp_split", "convert", "dev_split",
     "get_label_set", "load_cmp", "load_dataset", "load_folder", "load_palette", "load_ruemonge",
     "objects_from_labels", "palette_label_set", "read_cmp_xml", "read_image", "read_label_image",
@@ -67,11 +68,12 @@ LOADERS: Mapping[str, Callable[..., list[FacadeSample]]] = MappingProxyType({
     "cmp": load_cmp,
     "ruemonge": load_ruemonge,
     "folder": load_folder,
+    "synthetic": load_synthetic,
 })
 
 #: Label set each layout is scored in by default.
 DEFAULT_LABEL_SETS: Mapping[str, str | None] = MappingProxyType({
-    "cmp": "cmp6", "ruemonge": "ecp7", "folder": None})
+    "cmp": "cmp6", "ruemonge": "ecp7", "folder": None, "synthetic": "cmp6"})
 
 
 def load_dataset(name: str, root: str | Path, **options: Any) -> list[FacadeSample]:

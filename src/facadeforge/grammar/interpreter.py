@@ -321,6 +321,11 @@ class Derivation:
         consumed = ctx.run(rdef.body, state, env, None)
         if not consumed:
             self._output(node, state, name)
+        elif ctx.deleted and not node.children:
+            # NIL removes the shape from the tree (CityEngine): nothing of it may be painted
+            parent = getattr(node, "parent", None)
+            if parent is not None:
+                parent.children.remove(node)
 
     # -- instancing (see instancing.py) -------------------------------------------------------
     def _instanced(self, key, uv_map, node, state, name, args, module, depth) -> None:
@@ -459,17 +464,19 @@ class Derivation:
 class _RunContext:
     """Runs the operation sequence of one rule application."""
 
-    __slots__ = ("d", "queue", "node", "depth", "rule", "emitted")
+    __slots__ = ("d", "queue", "node", "depth", "rule", "emitted", "deleted")
 
     def __init__(self, derivation, queue, node, depth, rule):
         self.d, self.queue, self.node, self.depth, self.rule = derivation, queue, node, depth, rule
         self.emitted = 0
+        self.deleted = False
 
     def emit(self, state: ShapeState, name: str, args: tuple, module: Module, origin, leaf=False):
         child_state = state.child(self.emitted)
         self.emitted += 1
         self.d.count_shape(name)
         child = Shape(name, child_state.scope)
+        child.parent = self.node
         if origin:
             child.operator, child.params = origin
         self.node.children.append(child)
@@ -525,6 +532,7 @@ class _RunContext:
                         consumed = True
                     state.draws = sub_state.draws
                 elif t is A.Nil:
+                    self.deleted = True
                     return True
                 elif t is A.CaseOps:
                     chosen = op.otherwise

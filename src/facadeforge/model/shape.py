@@ -49,6 +49,7 @@ class Shape:
     operator: str = ""
     params: dict = field(default_factory=dict)
     id: int = field(default_factory=lambda: next(_ids))
+    parent: Shape | None = field(default=None, repr=False, compare=False)
 
     def add(self, child: Shape) -> Shape:
         self.children.append(child)
