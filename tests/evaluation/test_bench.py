@@ -315,8 +315,11 @@ def _ruemonge(root: Path, split: str, stems) -> None:
 def test_ruemonge_split_rule(tmp_path: Path):
     root = tmp_path / "rm"
     _ruemonge(root, "train", [f"IMG_{i}" for i in range(10)])
+    # none of these ids is a development val id: held-out photos, scored whole
     scored, fit, rule = select_samples("ruemonge", root, "val")
-    assert [s.id for s in scored] == ["IMG_0", "IMG_5"] and len(fit) == 8
+    assert len(scored) == 10 and fit == [] and "held-out" in rule
+    scored, fit, rule = select_samples("ruemonge", root, "train")
+    assert [s.id for s in scored] == [f"IMG_{i}" for i in (1, 2, 3, 4, 6, 7, 8, 9)]
     assert "no " in rule and "val folder" in rule
     scored, fit, _ = select_samples("ruemonge", root / "train", "train")
     assert len(scored) == 10 and fit == []                     # a split folder, scored whole
@@ -355,3 +358,21 @@ def test_real_cmp_limit_3(tmp_path: Path):
     assert [p["id"] for p in r["per_image"]] == ["cmp_b0001", "cmp_b0006", "cmp_b0012"]
     assert 0.3 < r["pixel_accuracy"] < 1.0 and r["window_fn"] > 0
     assert (tmp_path / "cmp_sheet.png").is_file() and (tmp_path / "cmp.md").is_file()
+
+
+def test_held_out_cmp_folder_is_scored_whole(tmp_path):
+    """A CMP-layout folder without the development ids is held-out data: --split val scores all."""
+    from facadeforge.evaluation.bench import select_samples
+
+    folder = tmp_path / "held"
+    folder.mkdir()
+    from PIL import Image
+
+    for k in range(7):
+        name = f"cmp_x{k:04d}"
+        Image.new("RGB", (20, 16), (120, 110, 100)).save(folder / f"{name}.jpg")
+        lab = Image.new("P", (20, 16), 2)
+        lab.putpalette([0, 0, 0] * 256)
+        lab.save(folder / f"{name}.png")
+    scored, fit, rule = select_samples("cmp", folder, "val")
+    assert len(scored) == 7 and fit == [] and "held-out" in rule

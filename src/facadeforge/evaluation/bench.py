@@ -61,7 +61,16 @@ from typing import Any
 import numpy as np
 
 from .. import datasets
-from ..datasets import IGNORE, SPLIT_NAMES, FacadeSample, LabelSet, dev_split, get_label_set
+from ..datasets import (
+    CMP_VAL_IDS,
+    IGNORE,
+    RUEMONGE_VAL_IDS,
+    SPLIT_NAMES,
+    FacadeSample,
+    LabelSet,
+    dev_split,
+    get_label_set,
+)
 from ..datasets.folder import objects_from_labels
 from ..errors import InputError
 from .methods import METHODS, Method, Prediction, get_method
@@ -144,11 +153,20 @@ def select_samples(dataset: str, data: str | Path, split: str = "val",
         raise InputError(f"unknown split {split!r} for dataset {dataset!r}; use one of "
                          f"{', '.join(SPLIT_NAMES)}")
     everything = load(data, **options)
+    if split == "val" and dataset == "cmp" and not _has_dev_ids(everything, CMP_VAL_IDS):
+        return everything, [], (f"all {len(everything)} facades of {data}: a held-out folder (none "
+                                "of the development val ids), scored whole; no training set")
     scored = dev_split(everything, split)
     fit = dev_split(everything, "train")
     rule = (f"development split {split!r} (every 5th sorted id is val) of the {len(everything)} "
             f"facades in {data}; fitted on its train part ({len(fit)})")
     return scored, fit, rule
+
+
+def _has_dev_ids(samples, dev_ids) -> bool:
+    """Whether a folder holds (some of) the shared development data rather than held-out data."""
+    ids = {s.id for s in samples}
+    return bool(ids & set(dev_ids))
 
 
 def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
@@ -168,6 +186,9 @@ def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
         return scored, fit, (f"all {len(scored)} photos of {data}/{split if split != 'all' else '{train,val}'}; "
                              f"fitted on all {len(fit)} photos of {data}/train")
     base = load(data, split="train", **options)
+    if split == "val" and not _has_dev_ids(base, RUEMONGE_VAL_IDS):
+        return base, [], (f"all {len(base)} photos of {data}/train: held-out photos (none of the "
+                          "development val ids), scored whole; no training set")
     scored = dev_split(base, split)
     fit = dev_split(base, "train")
     return scored, fit, (f"development split {split!r} (every 5th sorted id is val) of the "
