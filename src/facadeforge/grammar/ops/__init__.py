@@ -97,6 +97,6 @@ class OpCall:
 
 def load_all() -> dict[str, OpSpec]:
     """Import every op module so that their decorators register them."""
-    from . import appearance, geometry, meta, occlusion, roofs, subdivision, transform  # noqa: F401
+    from . import appearance, extra, geometry, meta, occlusion, roofs, subdivision, transform  # noqa: F401
 
     return OPERATIONS

@@ -609,11 +609,9 @@ def _unsupported(name: str):
 # CityEngine operations this runtime does not implement yet: rules using them still load and
 # derive, with a warning where they are reached (see docs/cga-dialect.md)
 for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
-              "footprint", "taper", "union", "subtract", "intersect", "splitArea", "resetMaterial",
+              "footprint", "taper", "union", "subtract", "intersect", "resetMaterial",
               "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180"):
     operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
-for _name in ("innerRectangle", "splitArea", "roofRidge"):
-    operation(_name, 0, 16, selectors=tuple(range(16)), body=_name != "roofRidge")(_unsupported(_name))
 
 
 def _read_table(env, args):
