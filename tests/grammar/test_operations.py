@@ -310,3 +310,14 @@ Lot --> report("n", size(xs)) report("sum", sum(xs * 2)) report("i", index(xs, 2
     assert {k: v[0] for k, v in m.reports.items()} == {"n": 3.0, "sum": 12.0, "i": 1.0, "t": 12.5,
                                                        "s": "a", "sorted": 1.0, "str": "b"}
     assert not m.warnings
+
+
+def test_image_ratio_sorting(tmp_path):
+    from PIL import Image
+
+    Image.new("RGB", (40, 10), (1, 2, 3)).save(tmp_path / "wide.png")
+    Image.new("RGB", (10, 40), (1, 2, 3)).save(tmp_path / "tall.png")
+    src = ('Lot --> extrude(8) comp(f) { front : '
+           'report("best", listFirst(imagesSortRatio("tall.png;wide.png;", xy))) | all : NIL }')
+    m = derive(load_rules(src, assets=tmp_path), lot_size="32x4")[0]
+    assert m.reports == {"best": ["wide.png"]}  # a 32 x 8 facade is wide

@@ -661,3 +661,59 @@ def _read_text_file(env, args):
     if p is None:
         raise CGARuntimeError(f"text file '{name}' not found under the asset root")
     return p.read_text(encoding="utf-8", errors="replace")
+
+
+def _scope_ratio(env, axes: str) -> float:
+    idx = {"x": 0, "y": 1, "z": 2}
+    a, b = idx.get(axes[:1], 0), idx.get(axes[1:2], 1)
+    size = env.state.scope.size
+    return float(size[a] / size[b]) if size[b] > EPS else float("inf")
+
+
+def _sort_by_ratio(env, items: list[str], axes: str, dims) -> str:
+    """Files sorted by how well their aspect ratio matches the scope's on ``axes`` (best first)."""
+    target = _scope_ratio(env, axes)
+    scored = []
+    for k, name in enumerate(items):
+        w, h = dims(name)
+        if w <= 0 or h <= 0 or not np.isfinite(target) or target <= 0:
+            err = float("inf")
+        else:
+            err = abs(np.log((w / h) / target))
+        scored.append((err, k, name))
+    return "".join(name + ";" for _, _, name in sorted(scored))
+
+
+def _list(text) -> list[str]:
+    return [x for x in to_str(text).split(";") if x]
+
+
+@shape_function("imagesSortRatio")
+def _images_sort_ratio(env, args):
+    def dims(name):
+        sx = _image_info(env, [name, "sx"])
+        sy = _image_info(env, [name, "sy"])
+        return sx, sy
+    return _sort_by_ratio(env, _list(args[0]), to_str(args[1]) if len(args) > 1 else "xy", dims)
+
+
+@shape_function("assetsSortRatio")
+def _assets_sort_ratio(env, args):
+    axes = to_str(args[1]) if len(args) > 1 else "xy"
+
+    def dims(name):
+        return (_asset_info(env, [name, "s" + axes[:1]]), _asset_info(env, [name, "s" + axes[1:2]]))
+    return _sort_by_ratio(env, _list(args[0]), axes, dims)
+
+
+@shape_function("assetsSortSize")
+def _assets_sort_size(env, args):
+    """Assets sorted by how close their size is to the scope's on the given axes."""
+    axes = to_str(args[1]) if len(args) > 1 else "xyz"
+    idx = {"x": 0, "y": 1, "z": 2}
+    size = env.state.scope.size
+    scored = []
+    for k, name in enumerate(_list(args[0])):
+        err = sum(abs(_asset_info(env, [name, "s" + a]) - size[idx[a]]) for a in axes if a in idx)
+        scored.append((err, k, name))
+    return "".join(name + ";" for _, _, name in sorted(scored))
