@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -20,6 +18,8 @@ import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
+
+from facadeforge.evaluation.bench import machine_info
 
 ROOT = Path(__file__).resolve().parents[1]
 GRAMMAR = ROOT / "benchmarks" / "grammars" / "detailed.cga"
@@ -42,20 +42,6 @@ def footprints(n: int = 40) -> dict:
         feats.append({"type": "Feature", "properties": {"name": f"b{i:02d}"},
                       "geometry": {"type": "Polygon", "coordinates": [ring]}})
     return {"type": "FeatureCollection", "features": feats}
-
-
-def machine() -> dict:
-    cpu = platform.processor() or ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
-    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1),
-            "python": platform.python_version(), "platform": platform.platform()}
 
 
 def commit() -> str:
@@ -100,7 +86,7 @@ def main() -> int:
         "triangles": stats["triangles"], "faces_per_second": round(stats["faces"] / best),
         "peak_memory_mib_per_process": round(peak_kib / 1024, 1),
         "warnings": len(stats["warnings"]),
-        "machine": machine(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
         "commit": commit(),
     }
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)

@@ -378,7 +378,8 @@ class _Progress:
 
 
 # ---------------------------------------------------------------------------------- provenance
-def _machine() -> dict[str, Any]:
+def machine_info() -> dict[str, Any]:
+    """CPU, cores, memory and Python of this machine, for benchmark provenance."""
     cpu = platform.processor() or ""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -572,7 +573,7 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
         "fit_seconds": round(fit_seconds, 3),
         "wall_seconds": None,
         "per_image": per_image, "best": best, "worst": worst, "split_rule": rule,
-        "machine": _machine(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
+        "machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
         "commit": _commit(), "data": str(Path(data).expanduser().resolve()),
         "files": {name: str(p) for name, p in paths.items()},
     })

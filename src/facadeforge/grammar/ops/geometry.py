@@ -614,19 +614,24 @@ for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPi
     operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
 
 
-def _read_table(env, args):
-    """Rows of a CSV file under the asset root (``readFloatTable``/``readStringTable``)."""
-    import csv
-
+def _asset_file(env, name: str, what: str):
+    """A readable file under the asset roots for a rule's file function, or a CGA warning."""
     res = env.derivation.assets
-    name = to_str(args[0])
     try:
         p = res.resolve(name) if res is not None else None
     except InputError as e:
         raise CGARuntimeError(str(e)) from None
     if p is None:
-        raise CGARuntimeError(f"table '{name}' not found under the asset root")
-    with open(p, newline="", encoding="utf-8", errors="replace") as fh:
+        raise CGARuntimeError(f"{what} '{name}' not found under the asset root")
+    return p
+
+
+def _read_table(env, args):
+    """Rows of a CSV file under the asset root (``readFloatTable``/``readStringTable``)."""
+    import csv
+
+    with open(_asset_file(env, to_str(args[0]), "table"), newline="", encoding="utf-8",
+              errors="replace") as fh:
         rows = [r for r in csv.reader(fh) if r]
     width = max((len(r) for r in rows), default=0)
     return [r + [""] * (width - len(r)) for r in rows]
@@ -652,15 +657,7 @@ def _read_string_table(env, args):
 
 @shape_function("readTextFile")
 def _read_text_file(env, args):
-    res = env.derivation.assets
-    name = to_str(args[0])
-    try:
-        p = res.resolve(name) if res is not None else None
-    except InputError as e:
-        raise CGARuntimeError(str(e)) from None
-    if p is None:
-        raise CGARuntimeError(f"text file '{name}' not found under the asset root")
-    return p.read_text(encoding="utf-8", errors="replace")
+    return _asset_file(env, to_str(args[0]), "text file").read_text(encoding="utf-8", errors="replace")
 
 
 def _scope_ratio(env, axes: str) -> float:
