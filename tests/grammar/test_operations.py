@@ -321,3 +321,13 @@ def test_image_ratio_sorting(tmp_path):
            'report("best", listFirst(imagesSortRatio("tall.png;wide.png;", xy))) | all : NIL }')
     m = derive(load_rules(src, assets=tmp_path), lot_size="32x4")[0]
     assert m.reports == {"best": ["wide.png"]}  # a 32 x 8 facade is wide
+
+
+def test_comp_function():
+    src = """Lot --> extrude(4) report("side", sum(comp(f) { side : geometry.area() | top = 1 }))
+        report("n", size(comp(e) { all : scope.sx })) report("top", comp(f) { top : "t" }[5])
+        comp(f) { top : setback(comp(fe) { front : 2 | all : 0 }[0]) { all : S. | remainder : R. } }
+"""
+    m = derive_text(src, lot="10x8")[0]
+    assert m.reports["side"] == [pytest.approx(2 * (10 + 8) * 4 + 1)]
+    assert m.reports["n"] == [12.0] and m.reports["top"] == ["t"]

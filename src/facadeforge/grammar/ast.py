@@ -42,6 +42,14 @@ class Call(Node):
 
 
 @dataclass(frozen=True)
+class CompFunction(Node):
+    """``comp(f){ selector : value | … }``: an array with one value per component."""
+
+    kind: Node
+    branches: tuple  # Branch whose ``ops`` slot holds the value expression
+
+
+@dataclass(frozen=True)
 class Index(Node):
     target: Node
     indices: tuple

@@ -95,6 +95,10 @@ class _Checker:
             for _, v in node.branches:
                 self.expr(v, scope)
             self.expr(node.otherwise, scope)
+        elif t is A.CompFunction:
+            for b in node.branches:
+                self.expr(b.selector, scope, selector_ok=True)
+                self.expr(b.ops, scope)
 
     def _has_function_any_arity(self, name):
         found = self.m.resolve(name) if "." in name else (self.m, name)

@@ -174,6 +174,9 @@ class Evaluator:
                 return self(value)
         return self(node.otherwise)
 
+    def _comp_function(self, node):
+        return self.env.comp_function(node)
+
     def _stochastic(self, node):
         r = self.env.random_float() * 100.0
         acc = 0.0
@@ -189,4 +192,5 @@ _DISPATCH = {
     A.Name: Evaluator._name, A.Call: Evaluator._call, A.Index: Evaluator._index,
     A.Array: Evaluator._array, A.Unary: Evaluator._unary, A.Binary: Evaluator._binary,
     A.CaseExpr: Evaluator._case, A.StochasticExpr: Evaluator._stochastic,
+    A.CompFunction: Evaluator._comp_function,
 }

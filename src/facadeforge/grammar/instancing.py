@@ -202,6 +202,9 @@ class Purity:
                 for c, v in n.branches:
                     stack.extend((c, v))
                 stack.append(n.otherwise)
+            elif t is A.CompFunction:
+                for b in n.branches:
+                    stack.extend((b.selector, b.ops))
 
 
 def _hashable(v):

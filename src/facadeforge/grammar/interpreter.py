@@ -83,6 +83,27 @@ class Env:
             return _material_value(self.state, name)
         raise CGARuntimeError(f"unknown attribute or variable '{name}'")
 
+    def comp_function(self, node: A.CompFunction):
+        """``comp(f|e|v){ selector : value | … }``: one value per component, in component order;
+        components no selector takes get the type's default (0, "", false)."""
+        from .ops.subdivision import component_count, op_comp
+        from .values import make_array
+
+        kind = node.kind.name if isinstance(node.kind, A.Name) else to_str(self.evaluator(node.kind))
+        state = self.state.copy()
+        call = OpCall("comp", [kind], state, self.derivation, self, node.branches, False)
+        pieces = op_comp(call) or []
+        n = component_count(state, "e" if kind == "fe" else kind)
+        values: list = [None] * n
+        for piece_state, expr, info in pieces:
+            v = self.with_state(piece_state).evaluator(expr)
+            for c in info.get("components") or [info.get("component")]:
+                if c is not None and 0 <= c < n:
+                    values[c] = v
+        sample = next((v for v in values if v is not None), 0.0)
+        default = "" if isinstance(sample, str) else (False if isinstance(sample, bool) else 0.0)
+        return make_array([default if v is None else v for v in values]) if values else make_array([])
+
     def call(self, name: str, args: list, node):
         found = self.module.function(name, len(args))
         if found is not None:

@@ -68,6 +68,20 @@ class _ToAst(Transformer):
         args = tuple(a for a in c[1:] if a is not None)
         return A.Call(str(c[0]), args, **_pos(meta))
 
+    def comp_fn(self, meta, c):
+        name = str(c[0])
+        args = [a for a in c[1:] if a is not None and not isinstance(a, A.Branch)]
+        branches = tuple(a for a in c[1:] if isinstance(a, A.Branch))
+        if name != "comp" or len(args) != 1:
+            raise ValueError("only comp(f|e|v){ selector : value | … } has a { } body in an expression")
+        return A.CompFunction(args[0], branches, **_pos(meta))
+
+    def fn_each(self, meta, c):
+        return A.Branch(c[0], ":", c[1], **_pos(meta))
+
+    def fn_all(self, meta, c):
+        return A.Branch(c[0], "=", c[1], **_pos(meta))
+
     def index(self, meta, c):
         return A.Index(c[0], tuple(c[1:]), **_pos(meta))
 

@@ -338,6 +338,27 @@ def _selector_key(call, branch) -> object:
     return str(v)
 
 
+def component_count(st, kind: str) -> int:
+    """Number of components ``comp(kind)`` splits the shape into (the comp function's size)."""
+    mesh = st.geometry
+    if kind == "f":
+        return mesh.n_faces
+    if kind in ("v", "fv"):
+        return len(mesh.used_vertices())
+    if kind == "fe":
+        return len(mesh.corners)
+    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
+    if not len(key):
+        return 0
+    _, weld = np.unique(key, axis=0, return_inverse=True)
+    w = weld.reshape(-1)[mesh.corners]
+    nxt = np.arange(1, len(mesh.corners) + 1)
+    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
+    e = np.sort(np.stack([w, w[nxt]], axis=1), axis=1)
+    e = e[e[:, 0] != e[:, 1]]
+    return len(np.unique(e, axis=0))
+
+
 @operation("comp", 1, 2, selectors=(0, 1), body=True)
 def op_comp(call):
     kind = call.sel(0)
@@ -399,7 +420,7 @@ def _comp_faces(call, st):
             ps.geometry = sub
             ps.fit_scope()
             ps.context = {**_clean(st.context), "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
-            out.append((ps, branch.ops, {"sel": sel_name}))
+            out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
         for j, f in enumerate(idx):
             ps = st.child(len(out))
@@ -408,7 +429,7 @@ def _comp_faces(call, st):
             ps.geometry = mesh.subset([f])
             ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": sel_name}
-            out.append((ps, branch.ops, {"sel": sel_name, "index": j}))
+            out.append((ps, branch.ops, {"sel": sel_name, "index": j, "component": int(f)}))
     return out
 
 
@@ -469,7 +490,7 @@ def _comp_edges(call, st):
             ps.geometry = Mesh()
             ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}
-            out.append((ps, branch.ops, {"sel": str(k), "index": j}))
+            out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(e)}))
     return out
 
 
@@ -490,7 +511,7 @@ def _comp_vertices(call, st):
             ps.geometry = Mesh()
             ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}
-            out.append((ps, branch.ops, {"sel": str(k), "index": j}))
+            out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(v)}))
     return out
 
 
