@@ -16,10 +16,9 @@ import subprocess
 import sys
 import tempfile
 import time
-from datetime import UTC, datetime
 from pathlib import Path
 
-from facadeforge.evaluation.bench import machine_info
+from facadeforge.evaluation.bench import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
 GRAMMAR = ROOT / "benchmarks" / "grammars" / "detailed.cga"
@@ -42,14 +41,6 @@ def footprints(n: int = 40) -> dict:
         feats.append({"type": "Feature", "properties": {"name": f"b{i:02d}"},
                       "geometry": {"type": "Polygon", "coordinates": [ring]}})
     return {"type": "FeatureCollection", "features": feats}
-
-
-def commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def main() -> int:
@@ -86,8 +77,7 @@ def main() -> int:
         "triangles": stats["triangles"], "faces_per_second": round(stats["faces"] / best),
         "peak_memory_mib_per_process": round(peak_kib / 1024, 1),
         "warnings": len(stats["warnings"]),
-        "machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": commit(),
+        **provenance(),
     }
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     Path(args.output).write_text(json.dumps(result, indent=2) + "\n")

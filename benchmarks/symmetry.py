@@ -20,31 +20,20 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import subprocess
 import sys
 import tempfile
 import time
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from facadeforge.datasets.synthetic import generate
-from facadeforge.evaluation.bench import machine_info
+from facadeforge.evaluation.bench import provenance
 from facadeforge.imaging.splits import FLOOR_RANGE_M, floor_and_tile_split, to_gray
 from facadeforge.imaging.symmetry import symmetry_profile
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def commit() -> str | None:
-    try:
-        res = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                             capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return res.stdout.strip() or None if res.returncode == 0 else None
 
 
 def best_of(fn, runs: int) -> tuple[float, object]:
@@ -105,8 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         "benchmark": "symmetry", "image_size": [W, H], "seed": args.seed, "style": meta["style"],
         "metres_per_pixel": mpp, "floor_range_m": list(FLOOR_RANGE_M), "h_range_px": h_range,
         "runs": args.runs, "target_stage1_s": 0.5, **res,
-        "machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": commit(),
+        **provenance(),
     }
     Path(args.output).parent.mkdir(parents=True, exist_ok=True)
     Path(args.output).write_text(json.dumps(result, indent=2) + "\n")

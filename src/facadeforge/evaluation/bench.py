@@ -396,7 +396,14 @@ def machine_info() -> dict[str, Any]:
             "python": platform.python_version(), "platform": platform.platform()}
 
 
-def _commit() -> str | None:
+def provenance() -> dict[str, Any]:
+    """``{"machine", "date", "commit"}`` for any benchmark result (STYLE: machine, date, commit)."""
+    return {"machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
+            "commit": git_commit()}
+
+
+def git_commit() -> str | None:
+    """Short hash of the checked-out commit, or ``None`` outside a git checkout."""
     try:
         res = subprocess.run(["git", "rev-parse", "--short", "HEAD"],
                              cwd=Path(__file__).resolve().parent, capture_output=True, text=True,
@@ -574,7 +581,7 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
         "wall_seconds": None,
         "per_image": per_image, "best": best, "worst": worst, "split_rule": rule,
         "machine": machine_info(), "date": datetime.now(UTC).isoformat(timespec="seconds"),
-        "commit": _commit(), "data": str(Path(data).expanduser().resolve()),
+        "commit": git_commit(), "data": str(Path(data).expanduser().resolve()),
         "files": {name: str(p) for name, p in paths.items()},
     })
 
