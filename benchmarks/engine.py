@@ -18,7 +18,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from facadeforge.evaluation.bench import provenance
+from facadeforge.evaluation.bench import provenance, save_result
 
 ROOT = Path(__file__).resolve().parents[1]
 GRAMMAR = ROOT / "benchmarks" / "grammars" / "detailed.cga"
@@ -79,9 +79,7 @@ def main() -> int:
         "warnings": len(stats["warnings"]),
         **provenance(),
     }
-    Path(args.output).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.output).write_text(json.dumps(result, indent=2) + "\n")
-    print(json.dumps(result, indent=2))
+    save_result(result, args.output)
     return 0
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from PIL import Image
 
 from facadeforge.datasets.synthetic import generate
-from facadeforge.evaluation.bench import provenance
+from facadeforge.evaluation.bench import provenance, save_result
 from facadeforge.imaging.splits import FLOOR_RANGE_M, floor_and_tile_split, to_gray
 from facadeforge.imaging.symmetry import symmetry_profile
 
@@ -96,9 +96,7 @@ def main(argv: list[str] | None = None) -> int:
         "runs": args.runs, "target_stage1_s": 0.5, **res,
         **provenance(),
     }
-    Path(args.output).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.output).write_text(json.dumps(result, indent=2) + "\n")
-    print(json.dumps(result, indent=2))
+    save_result(result, args.output)
     return 0
 
 

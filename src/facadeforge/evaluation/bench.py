@@ -402,6 +402,13 @@ def provenance() -> dict[str, Any]:
             "commit": git_commit()}
 
 
+def save_result(result: dict, path: str | Path) -> None:
+    """Write a benchmark result as indented JSON, atomically, and echo it on stdout."""
+    text = json.dumps(result, indent=2) + "\n"
+    _write_atomic(Path(path), text)
+    print(text, end="")
+
+
 def git_commit() -> str | None:
     """Short hash of the checked-out commit, or ``None`` outside a git checkout."""
     try:

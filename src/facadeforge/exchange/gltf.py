@@ -266,16 +266,6 @@ def _group_parts(parts: Sequence[Part]) -> dict[tuple, list[Part]]:
     return groups
 
 
-def _part_triangles(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Triangle corner positions (3T, 3), UVs (3T, 2) and whether the mesh has UVs."""
-    tri, _ = triangulate_corners(mesh)
-    if len(tri) == 0:
-        return np.zeros((0, 3)), np.zeros((0, 2)), False
-    corners, _ = face_corners(mesh)
-    uv, has = corner_uvs(mesh)
-    return mesh.vertices[corners[tri]].reshape(-1, 3), uv[tri].reshape(-1, 2), has
-
-
 # -- import -----------------------------------------------------------------------------------
 
 def load_glb(path: str | os.PathLike, *, texture_dir: str | os.PathLike | None = None

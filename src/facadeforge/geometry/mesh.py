@@ -187,9 +187,6 @@ class Mesh:
         length = np.linalg.norm(n, axis=1, keepdims=True)
         return np.where(length > EPS, n / np.maximum(length, EPS), 0.0)
 
-    def face_normal(self, i: int) -> np.ndarray:
-        return polygon_normal(self.vertices[self.face(i)])
-
     def face_areas(self) -> np.ndarray:
         return np.linalg.norm(self._newell(), axis=1) / 2
 

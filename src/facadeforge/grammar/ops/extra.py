@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, polygon_normal
+from ...geometry.mesh import EPS, Mesh, cross3, polygon_normal
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from ..values import CGARuntimeError
@@ -278,27 +278,17 @@ def op_roof_ridge(call):
         raise CGARuntimeError(f"roofRidge: the roof angle must be between 0 and 90 degrees, not {value}")
     if mode == "byHeight" and value <= 0:
         raise CGARuntimeError(f"roofRidge: the ridge height must be positive, not {value}")
-    # _roof calls the builder once per face that it keeps, in order, in the face's
-    # plane_basis(normal, first edge) frame: precompute the ridge direction for each such face
     rot = call.state.scope.rotation
-    dirs = []
-    for p in call.state.geometry.polygons():
-        n = polygon_normal(p)
-        if not n.any():
-            continue
-        basis = plane_basis(n, p[1] - p[0])
-        xy = (p - p[0]) @ basis[:, :2]
-        x, y = xy[:, 0], xy[:, 1]
-        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
-            continue
-        nn = n / np.linalg.norm(n)
-        u = _in_plane(rot[:, 0], nn)
+
+    def build(xy, basis, n):
+        # the ridge runs along the scope's x projected into the face (its z when x is normal)
+        u = _in_plane(rot[:, 0], n)
         if u is None:
-            u = _in_plane(rot[:, 2], nn)
+            u = _in_plane(rot[:, 2], n)
         d = (u @ basis[:, :2]) if u is not None else np.array([1.0, 0.0])
-        dirs.append(d / max(np.linalg.norm(d), EPS))
-    it = iter(dirs)
-    _roof(call, lambda xy: _ridge_faces(xy, next(it), mode, value))
+        return _ridge_faces(xy, d / max(np.linalg.norm(d), EPS), mode, value)
+
+    _roof(call, build)
 
 
 # ---- splitArea ------------------------------------------------------------------------------

@@ -11,7 +11,10 @@ from . import operation
 
 def _roof(call, builder):
     """Roof volume on every face: the roof planes (and gable/shed walls) plus the original face
-    as the bottom, as CityEngine builds it; the scope's y follows the first face normal."""
+    as the bottom, as CityEngine builds it; the scope's y follows the first face normal.
+
+    ``builder(xy, basis, normal)`` gets each counter-clockwise face in its plane frame (``basis``
+    columns u, v, normal) and returns roof faces as (k, 3) arrays of (u, v, height)."""
     from .geometry import align_scope_y
 
     st = call.state
@@ -30,7 +33,7 @@ def _roof(call, builder):
         if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
             continue
         try:
-            faces = builder(xy)
+            faces = builder(xy, basis, n)
         except ValueError as e:
             raise CGARuntimeError(f"{call.name}: {e}") from None
         polys.append(p[::-1])  # bottom
@@ -56,7 +59,7 @@ def op_roof_hip(call):
 
     angle = _angle(call)
     overhang = call.num(1, 0.0)
-    _roof(call, lambda xy: roof_hip(xy, angle, overhang).faces)
+    _roof(call, lambda xy, basis, n: roof_hip(xy, angle, overhang).faces)
 
 
 @operation("roofGable", 1, 5, selectors=(0,))
@@ -67,7 +70,7 @@ def op_roof_gable(call):
     ox = call.num(1, 0.0)
     oy = call.num(2, ox)  # CityEngine: the y overhang defaults to the x overhang
     even = bool(call.args[3]) if len(call.args) > 3 else False
-    _roof(call, lambda xy: roof_gable(xy, angle, ox, oy, even).faces)
+    _roof(call, lambda xy, basis, n: roof_gable(xy, angle, ox, oy, even).faces)
 
 
 @operation("roofPyramid", 1, 2, selectors=(0,))
@@ -75,7 +78,7 @@ def op_roof_pyramid(call):
     from ...geometry.roofs import roof_pyramid
 
     angle = _angle(call)
-    _roof(call, lambda xy: roof_pyramid(xy, angle).faces)
+    _roof(call, lambda xy, basis, n: roof_pyramid(xy, angle).faces)
 
 
 @operation("roofShed", 1, 2, selectors=(0,))
@@ -84,4 +87,4 @@ def op_roof_shed(call):
 
     angle = _angle(call)
     edge = int(call.num(1, 0.0))
-    _roof(call, lambda xy: roof_shed(xy, angle, edge).faces)
+    _roof(call, lambda xy, basis, n: roof_shed(xy, angle, edge).faces)
