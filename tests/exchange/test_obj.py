@@ -105,3 +105,15 @@ def test_trimesh_reads_it(tmp_path: Path, house: Model):
     export(house, tmp_path / "h.obj")
     scene = trimesh.load(tmp_path / "h.obj", force="scene", group_material=False)
     assert sum(g.area for g in scene.dump()) == pytest.approx(house.mesh().area(), rel=1e-5)
+
+
+def test_material_names_survive_obj_comments(tmp_path: Path):
+    """``#`` starts a comment in OBJ/MTL: colour-named materials must not begin with it."""
+    import facadeforge as ff
+
+    models = ff.derive("Lot --> extrude(3) color(\"#aa5533\") X.", lot_size="4x4")
+    export(models, tmp_path / "m.obj")
+    mtl = (tmp_path / "m.mtl").read_text()
+    names = [line.split(None, 1)[1] for line in mtl.splitlines() if line.startswith("newmtl")]
+    assert names and all("#" not in n for n in names)
+    assert load(tmp_path / "m.obj")[0].parts[0].material.color == pytest.approx((0xaa / 255, 0x55 / 255, 0x33 / 255), abs=1e-3)

@@ -161,8 +161,9 @@ def as_models(models: Model | Sequence[Model]) -> list[Model]:
 
 
 def safe_name(name: str, fallback: str) -> str:
-    """``name`` with whitespace replaced by ``_`` (OBJ/MTL names are whitespace-separated)."""
-    cleaned = re.sub(r"\s+", "_", str(name).strip())
+    """``name`` with whitespace and ``#`` replaced by ``_`` (OBJ/MTL names are
+    whitespace-separated, and ``#`` starts a comment there)."""
+    cleaned = re.sub(r"[\s#]+", "_", str(name).strip())
     return cleaned or fallback
 
 

@@ -456,7 +456,7 @@ class Derivation:
         elif tex and self.assets is not None:
             path = self.assets.texture(tex, self)
         color = tuple(float(c) for c in m.get("color", (1.0, 1.0, 1.0)))
-        name = m.get("name") or (f"tex_{tex}" if tex else "#" + "".join(
+        name = m.get("name") or (f"tex_{tex}" if tex else "color_" + "".join(
             f"{int(round(max(0, min(1, c)) * 255)):02x}" for c in color))
         return Material(name=str(name), color=color, opacity=float(m.get("opacity", 1.0)),
                         texture=path, metallic=float(m.get("metallic", 0.0)),
