@@ -31,11 +31,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from .symmetry import SymmetryProfile, dominant_period, symmetry_profile
+from .symmetry import SymmetryProfile, dominant_period, mean_period, symmetry_profile
 
 __all__ = ["FLOOR_PRIOR_M", "FLOOR_RANGE_M", "TILE_RANGE_M", "FacadeStructure", "edge_maps",
            "floor_and_tile_split", "interest_functions", "local_minima", "optimal_subset",
-           "split_lines", "to_gray"]
+           "periodic_lines", "split_lines", "to_gray"]
 
 #: Floor heights searched (metres).  The paper uses 3–5.5 m; we go down to 2.5 m because
 #: residential storeys (and the synthetic ``residential`` style, 2.6–3.1 m) are lower.
@@ -154,6 +154,48 @@ def optimal_subset(positions: np.ndarray, values: np.ndarray, min_gap: float, ma
     for kk in range(best_k - 1, 0, -1):
         chain.append(int(back[kk - 1][chain[-1]]))
     return np.sort(order[np.asarray(chain[::-1], np.int64)])
+
+
+def periodic_lines(interest: np.ndarray, period: float, extent: tuple[float, float] | None = None,
+                   snap: float = 0.2) -> np.ndarray:
+    """Split lines of a repetition with known ``period``: the phase that minimises the mean
+    interest of a regular grid over ``extent``, then each grid line snapped to the minimum of
+    ``interest`` within ``±snap·period`` (repetitions are nearly, not exactly, regular).
+
+    This is eq. 5/6 with the gap range tightened to the detected period — the irreducible
+    facade's repetition made explicit — solved by exhaustive search over the phase, which
+    (unlike a free mean-minimising subset) cannot drop weak but regular lines.
+    """
+    f = np.asarray(interest, dtype=np.float64)
+    n = f.size
+    p = float(period)
+    if not p >= 2 or n < 3:
+        return np.zeros(0, np.int64)
+    a, b = (0.0, float(n - 1)) if extent is None else (max(0.0, float(extent[0])),
+                                                        min(float(n - 1), float(extent[1])))
+    r = max(1, int(round(snap * p)))
+    # windowed minimum: the best value reachable from each position by snapping
+    from scipy.ndimage import minimum_filter1d
+
+    fmin = minimum_filter1d(f, size=2 * r + 1, mode="nearest")
+    best_phase, best_score = 0.0, np.inf
+    for phase in np.arange(0.0, p, 1.0):
+        grid = np.arange(a + phase, b + 1e-9, p)
+        if grid.size == 0:
+            continue
+        score = float(fmin[np.clip(np.rint(grid).astype(np.int64), 0, n - 1)].mean())
+        if score < best_score - 1e-12:
+            best_phase, best_score = phase, score
+    out = []
+    for g in np.arange(a + best_phase, b + 1e-9, p):
+        c = int(round(g))
+        lo, hi = max(1, c - r), min(n - 1, c + r + 1)
+        if hi <= lo:
+            continue
+        y = lo + int(np.argmin(f[lo:hi]))
+        if not out or y - out[-1] >= 0.5 * p:
+            out.append(y)
+    return np.asarray(out, np.int64)
 
 
 def split_lines(interest: np.ndarray, min_gap_px: float, max_gap_px: float, *,
@@ -331,12 +373,9 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
     extent = _repetitive_extent(profile, f, H) if period > 0 else (0, H - 1)
     fl = np.zeros(0, np.int64)
     if period > 0 and regular:
-        # floors repeat with the period: gaps near it, the chain spans the repeated rows
-        r_lo, r_hi = max(gap_lo, 0.8 * period), min(gap_hi, 1.25 * period)
-        slack = 0.5 * period
-        fl = split_lines(ver_y, r_lo, max(r_hi, r_lo), ends=extent, end_slack=slack)
-        if not (fl.size and fl[0] <= extent[0] + slack and fl[-1] >= extent[1] - slack):
-            fl = np.zeros(0, np.int64)                   # infeasible: period unreliable
+        # floors repeat with the period over the rows the repetitions span (§2.3)
+        fl = periodic_lines(ver_y, period, extent)
+        fl = fl[(fl > 0.15 * period) & (fl < H - 0.15 * period)]
     if fl.size == 0:
         fl = split_lines(ver_y, gap_lo, gap_hi, ends=extent)
     floor_lines = [int(v) for v in fl]
@@ -349,23 +388,38 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
     tile_list: list[list[tuple[int, int]]] = []
     conf_t: list[list[float]] = []
     periods: list[float] = []
+    tile_period = 0.0
+    if tiles:
+        # one horizontal period for the facade: window columns align across floors, so the
+        # repeated rows together give a far stronger MI signal than any single floor band
+        r0, r1 = int(extent[0] / f), max(int(extent[0] / f) + 2, int(math.ceil(extent[1] / f)))
+        tlo = max(2, int(tile_range_m[0] * px_per_m_x / f))
+        thi = int(math.ceil(tile_range_m[1] * px_per_m_x / f))
+        hp = symmetry_profile(small[r0:r1], (tlo, thi), axis=1, bins=16)
+        tile_period = mean_period(hp) * f
     for y0, y1 in floors:
         if not tiles or y1 - y0 < 3:
             tile_list.append([(0, W)])
             conf_t.append([])
             periods.append(0.0)
             continue
-        _, hor_x = interest_functions(hor[y0:y1], ver[y0:y1], sigma_px=px_per_m_x)
-        band = small[int(y0 / f):max(int(y0 / f) + 1, int(math.ceil(y1 / f)))]
-        tlo = max(2, int(tile_range_m[0] * px_per_m_x / f))
-        thi = int(math.ceil(tile_range_m[1] * px_per_m_x / f))
-        hp = symmetry_profile(band, (tlo, thi), axis=1, bins=16)
-        per = dominant_period(hp) * f
-        periods.append(float(per))
-        xl = split_lines(hor_x, tile_range_m[0] * px_per_m_x, tile_range_m[1] * px_per_m_x)
+        sig_x = min(px_per_m_x, tile_period / 6.0 if tile_period > 0 else px_per_m_x)
+        _, hor_x = interest_functions(hor[y0:y1], ver[y0:y1], sigma_px=sig_x)
+        xl = np.zeros(0, np.int64)
+        if tile_period > 0 and regular:
+            # Eq. 6's Hor(x) is lowest on the vertical frame edges of windows (its −β·ver
+            # term), so a regular grid snapped to it cuts windows; between repeated windows
+            # lies wall, the quietest column — split there (all edge energy, smoothed).
+            quiet = gaussian_filter1d((hor[y0:y1] + ver[y0:y1]).sum(axis=0), sig_x,
+                                      mode="nearest")
+            xl = periodic_lines(quiet, tile_period)
+            xl = xl[(xl > 0.15 * tile_period) & (xl < W - 0.15 * tile_period)]
+        if xl.size == 0:
+            xl = split_lines(hor_x, tile_range_m[0] * px_per_m_x, tile_range_m[1] * px_per_m_x)
+        periods.append(float(tile_period))
         xs = [0] + [int(v) for v in xl] + [W]
         tile_list.append([(a, b) for a, b in zip(xs[:-1], xs[1:]) if b > a])
-        conf_t.append(_line_confidence(hor_x, xl, 0.25 * px_per_m_x, per))
+        conf_t.append(_line_confidence(hor_x, xl, 0.25 * px_per_m_x, tile_period))
     timings["tiles"] = time.perf_counter() - t2
     return FacadeStructure(floors=floors, tiles=tile_list, profile=profile,
                            confidences={"floors": conf_f, "tiles": conf_t},

@@ -268,3 +268,32 @@ def irreducible_facade_2d(gray: np.ndarray, v_range: tuple[int, int], h_range: t
     small = collapse(gray, rows, axis=0)
     cols = irreducible_facade(symmetry_profile(small, h_range, axis=1, bins=bins), threshold)
     return rows, cols
+
+
+def mean_period(profile: SymmetryProfile, harmonic: float = 0.8) -> int:
+    """The repetition period (pixels) from the *average* symmetry ``m(h) = mean_y S(y, h)``.
+
+    Neighbouring rows (columns) are alike, so ``S`` is high for small ``h`` whatever the facade:
+    :func:`dominant_period` then returns the smallest ``h`` allowed when the range starts
+    below the correlation length (tiles: 0.5 m).  Here the trivial decay is discounted: each
+    local maximum of ``m`` is scored by its topographic prominence (``scipy.signal.find_peaks``),
+    and among peaks within ``harmonic`` of the best prominence the shortest period wins (multiples
+    of the period are peaks too).  0 when ``m`` has no interior peak.
+    """
+    S = profile.S
+    with np.errstate(invalid="ignore"):
+        cnt = np.isfinite(S).sum(axis=0)
+        m = np.where(cnt > 0, np.nansum(np.where(np.isfinite(S), S, 0.0), axis=0)
+                     / np.maximum(cnt, 1), np.nan)
+    ok = np.isfinite(m)
+    if ok.sum() < 3:
+        return 0
+    m = np.where(ok, m, np.nanmin(m))
+    from scipy.signal import find_peaks
+
+    peaks, props = find_peaks(m, prominence=1e-9)
+    if peaks.size == 0:
+        return 0
+    proms = props["prominences"]
+    keep = proms >= harmonic * proms.max()
+    return int(profile.hs[peaks[keep][0]])
