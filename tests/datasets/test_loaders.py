@@ -66,9 +66,10 @@ def cmp_dir(tmp_path: Path) -> Path:
         label.putpalette(CMP_PALETTE)
         label.save(root / f"{stem}.png")
     (root / "cmp_b0001.xml").write_text(_cmp_xml([
-        ((0.25, 0.5, 0.2, 0.5), 3, "window"),
-        ((0.6, 0.5, 0.2, 0.5), 8, "blind"),      # x given right-to-left
-        ((0.0, 1.0, 0.1, 1.2), 2, "facade"),      # clipped to the photo
+        # CMP's <x> pair is the vertical extent (rows), <y> the horizontal one (columns)
+        ((0.2, 0.5, 0.25, 0.5), 3, "window"),
+        ((0.2, 0.5, 0.6, 0.5), 8, "blind"),      # columns given right-to-left
+        ((0.1, 1.2, 0.0, 1.0), 2, "facade"),      # clipped to the photo
     ]))
     (root / "label_names.txt").write_text("1 background 1\n")
     return root
