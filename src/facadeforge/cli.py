@@ -1,4 +1,4 @@
-"""Command line: ``facadeforge derive | render | synth | bench | demo``.  Thin: each command calls the public API.
+"""Command line: ``facadeforge derive | render | reconstruct | synth | bench | demo``.  Thin: each command calls the public API.
 
 Errors print one line (``facadeforge: error: …``) and exit with status 2; no tracebacks.
 """
@@ -21,6 +21,10 @@ EXAMPLES = {
     "render": """examples:
   facadeforge render building.glb -o preview.png
   facadeforge render building.obj -o preview.png --size 1600x1200""",
+    "reconstruct": """examples:
+  facadeforge reconstruct photo.jpg -o out/
+  facadeforge reconstruct facade.png --rectified --width-m 18.5 -o out/
+  facadeforge reconstruct photo.jpg --depths depths.json -o out/     # {"window": -0.3, "balcony": 1.2}""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -69,13 +73,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, help="PNG file")
     r.add_argument("--size", type=_size, default=(1200, 900), help="WIDTHxHEIGHT (default 1200x900)")
 
+    c = sub.add_parser("reconstruct", help="photo → shape tree, CGA rules and a textured 3D model",
+                       epilog=EXAMPLES["reconstruct"],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    c.add_argument("photo", help="facade photo (JPEG/PNG/TIFF…; gray, RGBA and 16-bit are fine)")
+    c.add_argument("--rectified", action="store_true", help="the photo is already fronto-parallel")
+    c.add_argument("--width-m", type=float, help="facade width in metres (else the floor-height prior)")
+    c.add_argument("--height-m", type=float, help="facade height in metres")
+    c.add_argument("--depths", help="JSON {label or cluster: depth in metres}, negative = recessed")
+    c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")
+    c.add_argument("-o", "--output", required=True, help="output folder")
+
     from .datasets.synthetic import add_parser as add_synth
     from .evaluation.bench import add_parser as add_bench
 
     add_synth(sub)
     add_bench(sub)
 
-    m = sub.add_parser("demo", help="derive the example building, export and render it",
+    m = sub.add_parser("demo", help="derive the example building and reconstruct a synthetic facade",
                        epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
     m.add_argument("-o", "--output", default="demo-out", help="output folder (default demo-out)")
     return p
@@ -118,6 +133,30 @@ def cmd_render(args) -> int:
     return 0
 
 
+def _summary(rec, out) -> str:
+    r = rec.report
+    f = r["facade"]
+    els = ", ".join(f"{n} {k}" for k, n in sorted(r["elements"].items())) or "no elements"
+    t = r["timings"]
+    lines = [f"facade {f['width_m']:.1f} m × {f['height_m']:.1f} m (scale: {f['scale_source']}): "
+             f"{r['floors']} floors, {r['tiles']} tiles in {r['tile_clusters']} clusters, {els}",
+             "timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items()),
+             ("needs review: " + "; ".join(r["flags"])) if r["needs_review"] else "no review flags",
+             f"wrote {out}/: rectified.png structure.png labels.png labels_input.png "
+             "shape_tree.json rules.cga model.glb model.obj model.city.json report.json"]
+    return "\n".join(lines)
+
+
+def cmd_reconstruct(args) -> int:
+    from .reconstruct import reconstruct
+
+    rec = reconstruct(args.photo, rectified=args.rectified, width_m=args.width_m,
+                      height_m=args.height_m, depths=args.depths, out_dir=args.output,
+                      seed=args.seed)
+    print(_summary(rec, args.output))
+    return 0
+
+
 def cmd_demo(args) -> int:
     from . import engine, export, render
 
@@ -138,7 +177,30 @@ def cmd_demo(args) -> int:
     for k, v in sorted(s["report"].items()):
         print(f"  report {k}: n={len(v)} sum={sum(x for x in v if isinstance(x, float)):.2f}")
     print("wrote " + ", ".join(files))
+    _demo_reconstruct(out)
     return 0
+
+
+def _demo_reconstruct(out: Path) -> None:
+    """A synthetic Haussmann facade (exact truth) → reconstruct → summary with window F1."""
+    from . import render
+    from .datasets.synthetic import generate
+    from .evaluation.metrics import match_boxes
+    from .reconstruct import reconstruct
+
+    photo = generate(1, seed=11, out_dir=out / "synthetic", size=640, styles=["haussmann"])[0]
+    meta = json.loads(photo.with_suffix(".meta.json").read_text())
+    objects = json.loads(photo.with_suffix(".objects.json").read_text())
+    rec_dir = out / "reconstruction"
+    rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0], out_dir=rec_dir)
+    truth = [o["box"] for o in objects if o["label"] == "window"]
+    score = match_boxes(truth, rec.windows())
+    if rec.model is not None:
+        render(rec.model, rec_dir / "preview.png")
+    print(f"\nreconstructed the synthetic facade {photo.name} (truth: {len(truth)} windows):")
+    print(_summary(rec, rec_dir))
+    print(f"windows: precision {score.precision:.2f}, recall {score.recall:.2f}, "
+          f"F1 {score.f1:.2f} (IoU ≥ 0.5)")
 
 
 def cmd_bench(args) -> int:
@@ -154,7 +216,7 @@ def cmd_synth(args) -> int:
 
 
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
-            "synth": cmd_synth}
+            "synth": cmd_synth, "reconstruct": cmd_reconstruct}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -40,7 +40,7 @@ from ..datasets import FacadeSample, LabelSet
 from ..errors import InputError
 
 __all__ = ["LABEL_SPACES", "METHODS", "Method", "Prediction", "PriorBaseline", "RowColPrior",
-           "get_method", "register_method"]
+           "StructureMethod", "get_method", "register_method"]
 
 #: Label spaces a method may predict in (see the module docstring).
 LABEL_SPACES: tuple[str, ...] = ("label_set", "canonical")
@@ -284,3 +284,27 @@ register_method("prior", "label_set",
 register_method("rowcol-prior", "label_set",
                 description="baseline: most frequent training class at each normalised "
                             "(row, column) of a 32x32 grid")(RowColPrior())
+
+
+class StructureMethod:
+    """Müller et al. 2007 end to end (:func:`facadeforge.reconstruct`, no 3D model): windows are
+    the shape tree's window leaves, labels its rasterised leaves (canonical labels), mapped back
+    to the photo through the rectifying homography.  Photos of rectified datasets (CMP) skip
+    rectification, as ``--rectified`` does on the command line."""
+
+    RECTIFIED_DATASETS = frozenset({"cmp"})
+
+    def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
+        from ..reconstruct import reconstruct
+
+        rec = reconstruct(sample.image(), model=False,
+                          rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)
+        windows = np.array(rec.windows(), np.float64).reshape(-1, 4)
+        floors = rec.report["floors"]
+        return Prediction(labels=rec.labels, homography=rec.inverse, windows=windows,
+                          floors=floors)
+
+
+register_method("structure", "canonical",
+                description="Müller 2007: repetition detection, tile refinement, element "
+                            "matching → shape tree")(StructureMethod())

@@ -1,0 +1,615 @@
+"""Photo → procedural facade: the whole of Müller et al. 2007 in one call.
+
+``reconstruct(photo)`` runs, in order (each stage timed in ``report["timings"]``):
+
+1. ``load`` — read and normalise the photo (gray/RGBA/16-bit → RGB); huge photos are analysed
+   at :data:`MAX_ANALYSIS_SIDE` and mapped back;
+2. ``rectify`` — vanishing points → homography (App. A), skipped with ``rectified=True``;
+3. ``symmetry`` / ``splits`` — MI repetition detection and floor/tile split lines (§2);
+4. ``cluster`` — groups of similar floors and tiles (§2.3's groups);
+5. ``refine`` — tile refinement with split synchronisation (§3);
+6. ``match`` — element matching per cluster by MI against the element library (§4);
+7. ``tree`` / ``rules`` — the shape tree and its size-independent CGA rules (§5);
+8. ``model`` — the rules derived by our engine on the facade rectangle, textured with the
+   cluster-averaged rectified photo (§4: "backprojection of the original textures").
+
+Confidence (not in the paper): every floor and tile split carries a score and the facade gets a
+``needs_review`` flag with reasons (:func:`review_flags`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+import weakref
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .model.model import Model
+from .model.shape import Shape
+
+__all__ = ["DEFAULT_DEPTHS", "MAX_ANALYSIS_SIDE", "MIN_SIDE", "Reconstruction", "load_depths",
+           "reconstruct", "review_flags"]
+
+#: Photos with a longer side are analysed at this size (the homography maps back).
+MAX_ANALYSIS_SIDE: int = 1600
+#: Smallest photo side we analyse (a floor needs a few rows of pixels).
+MIN_SIDE: int = 64
+#: Default depth per class in metres: negative = recessed behind the wall plane (§5 rule 15).
+DEFAULT_DEPTHS: dict[str, float] = {"window": -0.25, "door": -0.35, "shop": -0.3,
+                                    "balcony": 0.9, "sill": 0.08, "cornice": 0.3, "wall": 0.0}
+#: Element kinds matched on ground floors and on the floors above (§4 restricted per floor).
+GROUND_KINDS: frozenset[str] = frozenset({"window", "door", "shop"})
+UPPER_KINDS: frozenset[str] = frozenset({"window"})
+
+
+@dataclass
+class Reconstruction:
+    """Everything :func:`reconstruct` found and made.
+
+    ``rectified`` is the analysed RGB image; ``homography`` maps input-photo pixels to it and
+    ``inverse`` back.  ``tree`` is the facade's :class:`~facadeforge.model.Shape` tree (metres),
+    ``rules`` its CGA text, ``model`` the derived 3D model (``None`` with ``model=False``),
+    ``labels`` the canonical label map in the rectified frame and ``report`` what goes to
+    ``report.json``.
+    """
+
+    photo: np.ndarray
+    rectified: np.ndarray
+    homography: np.ndarray
+    inverse: np.ndarray
+    tree: Shape
+    rules: str
+    labels: np.ndarray
+    report: dict
+    texture: np.ndarray
+    model: Model | None = None
+    structure: object = None
+    regions: list = field(default_factory=list)
+    assets: dict[str, Model] = field(default_factory=dict)
+
+    def labels_input(self) -> np.ndarray:
+        """The label map warped back into the input photo's pixel frame (nearest neighbour;
+        0 = background outside the rectified facade)."""
+        import cv2
+
+        h, w = self.photo.shape[:2]
+        half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
+        hcv = np.linalg.inv(half) @ self.inverse @ half
+        return cv2.warpPerspective(self.labels, hcv, (w, h), flags=cv2.INTER_NEAREST,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+    def windows(self, label: str = "window") -> list[list[float]]:
+        """Boxes ``[x0, y0, x1, y1]`` (rectified pixels) of the leaves labelled ``label``."""
+        return [list(map(float, s.tags["box_px"])) for s in self.tree.leaves()
+                if s.label == label and "box_px" in s.tags]
+
+    def save(self, out_dir: str | os.PathLike) -> list[Path]:
+        """Write the OUTDIR files (see :func:`reconstruct`) atomically: everything is written
+        into a staging folder inside ``out_dir`` and moved into place at the end."""
+        return _save(self, Path(out_dir))
+
+
+# ================================================================================ input
+def _as_rgb(photo) -> tuple[np.ndarray, str]:
+    if isinstance(photo, (str, os.PathLike)):
+        from .datasets.folder import read_image
+
+        return read_image(photo), str(photo)
+    a = np.asarray(photo)
+    if a.dtype == object or a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (1, 2, 3, 4)):
+        raise InputError(f"photo array has shape {a.shape}; pass (H, W), (H, W, 3) or (H, W, 4)")
+    if a.dtype.kind == "f":
+        if not np.isfinite(a).all():
+            raise InputError("photo array contains NaN or infinite values; clean it first")
+        a = np.clip(a * (255.0 if a.max(initial=0) <= 1.0 else 1.0), 0, 255).astype(np.uint8)
+    elif a.dtype == np.uint16:
+        a = (a // 257).astype(np.uint8)
+    elif a.dtype != np.uint8:
+        a = np.clip(a, 0, 255).astype(np.uint8)
+    if a.ndim == 2:
+        a = np.repeat(a[..., None], 3, axis=2)
+    elif a.shape[2] in (1, 2):
+        a = np.repeat(a[..., :1], 3, axis=2)
+    else:
+        a = a[..., :3]
+    return np.ascontiguousarray(a), "<array>"
+
+
+def _check_size(rgb: np.ndarray, name: str) -> None:
+    h, w = rgb.shape[:2]
+    if min(h, w) < MIN_SIDE:
+        raise InputError(f"photo {name} is only {w}x{h} px; facade analysis needs at least "
+                         f"{MIN_SIDE} px per side (use a larger or less cropped photo)")
+
+
+def load_depths(path: str | os.PathLike | None) -> dict[str, float]:
+    """Per-class depths: :data:`DEFAULT_DEPTHS` updated from a JSON object ``{label: metres}``
+    (keys may also be cluster ids such as ``"T3"``)."""
+    depths = dict(DEFAULT_DEPTHS)
+    if path is None:
+        return depths
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise InputError(f"--depths file {p} does not exist") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"--depths file {p} is not valid JSON ({exc}); write an object such "
+                         'as {"window": -0.3, "balcony": 1.2}') from None
+    if not isinstance(data, dict):
+        raise InputError(f"--depths file {p} must hold a JSON object {{label: metres}}")
+    for k, v in data.items():
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or abs(v) > 20:
+            raise InputError(f"--depths {p}: depth of '{k}' must be a number of metres within "
+                             f"±20, got {v!r}")
+        depths[str(k)] = float(v)
+    return depths
+
+
+# ================================================================================ stages
+def _analysis_copy(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Downscale huge photos; returns the copy and the input→copy pixel homography."""
+    h, w = rgb.shape[:2]
+    f = min(1.0, MAX_ANALYSIS_SIDE / max(h, w))
+    if f >= 1.0:
+        return rgb, np.eye(3)
+    import cv2
+
+    size = (max(1, round(w * f)), max(1, round(h * f)))
+    small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+    sx, sy = size[0] / w, size[1] / h
+    return small, np.diag([sx, sy, 1.0])
+
+
+def _scale(width_m, height_m, shape) -> tuple[float, float] | None:
+    h, w = shape[:2]
+    for name, v in (("--width-m", width_m), ("--height-m", height_m)):
+        if v is not None and not (np.isfinite(v) and 1.0 <= v <= 1000.0):
+            raise InputError(f"{name} {v} is not a facade size; give metres between 1 and 1000")
+    if width_m is not None and height_m is not None:
+        return width_m / w, height_m / h
+    if width_m is not None:
+        return (width_m / w,) * 2
+    if height_m is not None:
+        return (height_m / h,) * 2
+    return None
+
+
+def _tile_boxes(structure) -> tuple[list, list, list]:
+    boxes, owner, counts = [], [], []
+    for i, (y0, y1) in enumerate(structure.floors):
+        counts.append(len(structure.tiles[i]))
+        for j, (x0, x1) in enumerate(structure.tiles[i]):
+            boxes.append((x0, y0, x1, y1))
+            owner.append((i, j))
+    return boxes, owner, counts
+
+
+def _clusters(gray, structure):
+    from .imaging.clusters import cluster_regions
+
+    w = gray.shape[1]
+    fboxes = [(0, y0, w, y1) for y0, y1 in structure.floors]
+    counts = np.array([len(t) for t in structure.tiles])
+    floor_c = cluster_regions(gray, fboxes, size=(16, 96),
+                              must_differ=counts[:, None] != counts[None, :])
+    boxes, owner, _ = _tile_boxes(structure)
+    flat = cluster_regions(gray, boxes)
+    tile_c: list[list[int]] = [[0] * len(t) for t in structure.tiles]
+    for (i, j), c in zip(owner, flat):
+        tile_c[i][j] = int(c)
+    return floor_c.tolist(), tile_c, boxes, owner
+
+
+def _area(r) -> int:
+    x0, y0, x1, y1 = r.box
+    return max(0, x1 - x0) * max(0, y1 - y0)
+
+
+def _collapse_elements(region) -> None:
+    """One element leaf per element found by the refinement (§4 matches whole regions).
+
+    A maximal all-element subtree is either one element with strips beside it (a window and
+    its sill: one leaf holds most of the area — it stays the element, the strips become wall)
+    or an element split into parts (panes, mullions: no dominant leaf — the subtree becomes a
+    single element leaf; the library element supplies the parts)."""
+    from .imaging.refine import elements, leaves
+
+    for sub in elements(region):
+        parts = leaves(sub)
+        big = max(parts, key=_area)
+        if len(parts) > 1 and _area(big) >= 0.6 * _area(sub):
+            for leaf in parts:
+                leaf.role = "element" if leaf is big else "wall"
+        else:
+            sub.children, sub.split, sub.role = [], "none", "element"
+    # Müller's tiles hold one element each (§2: a tile is the repeated unit around a window):
+    # keep the largest, most central sizeable candidate; shutters, railing bars and sills
+    # beside it become wall.
+    x0, y0, x1, y1 = region.box
+    tw, th = max(1, x1 - x0), max(1, y1 - y0)
+
+    def score(r) -> float:
+        rx0, ry0, rx1, ry1 = r.box
+        if (rx1 - rx0) < 0.15 * tw or (ry1 - ry0) < 0.2 * th:
+            return -1.0
+        off = abs((rx0 + rx1) / 2 - (x0 + x1) / 2) / tw
+        return _area(r) * max(0.0, 1.0 - 2.0 * off)
+
+    cands = [r for r in leaves(region) if r.role == "element"]
+    best = max(cands, key=score, default=None)
+    for r in cands:
+        if r is not best or score(r) <= 0:
+            r.role = "wall"
+
+
+def _refine(gray, structure, tile_c, owner, boxes):
+    from .imaging.refine import Tile, refine_tiles
+
+    tiles = [Tile(box=tuple(int(v) for v in b), cluster=tile_c[i][j], row=i, col=j)
+             for b, (i, j) in zip(boxes, owner)]
+    out = refine_tiles(gray, tiles)
+    regions: list[list] = [[None] * len(t) for t in structure.tiles]
+    for (i, j), r in zip(owner, out):
+        _collapse_elements(r)
+        regions[i][j] = r
+    return regions
+
+
+def _element_leaves(region) -> list:
+    from .imaging.refine import leaves
+
+    return [r for r in leaves(region) if r.role == "element"] if region is not None else []
+
+
+def _match(gray, regions, tile_c, n_floors):
+    """Element type per element-leaf cluster (§4 eq. 8), kinds restricted per floor."""
+    from .imaging.matching import match_elements
+
+    groups: dict[str, list] = {}
+    for i, row in enumerate(regions):
+        for j, region in enumerate(row):
+            for k, leaf in enumerate(_element_leaves(region)):
+                groups.setdefault(f"{'G' if i == n_floors - 1 else 'U'}{tile_c[i][j]}.{k}",
+                                  []).append(leaf)
+    chosen: dict[int, str] = {}
+    keys = sorted(groups)
+    for ground in (True, False):
+        sel = [k for k in keys if k.startswith("G") == ground]
+        if not sel:
+            continue
+        boxes, cl = [], []
+        for ci, k in enumerate(sel):
+            for leaf in groups[k]:
+                boxes.append(leaf.box)
+                cl.append(ci)
+        res = match_elements(gray, np.array(boxes), np.array(cl),
+                             kinds=GROUND_KINDS if ground else UPPER_KINDS)
+        for ci, k in enumerate(sel):
+            if ci in res:
+                for leaf in groups[k]:
+                    chosen[id(leaf)] = res[ci].element
+    return chosen
+
+
+def _leaf_info(chosen: Mapping[int, str], depths: Mapping[str, float]):
+    from .elements.library import element_spec
+
+    def info(region, cluster: str) -> dict:
+        if region is None or region.role != "element":
+            return {"label": "wall"}
+        name = chosen.get(id(region))
+        if name is None:
+            return {"label": "window", "depth": depths.get(cluster, depths.get("window", -0.25))}
+        spec = element_spec(name)
+        depth = depths.get(cluster, depths.get(spec.kind, spec.default_depth))
+        return {"label": spec.kind, "element": name, "asset": f"assets/{name}.obj",
+                "depth": float(depth)}
+
+    return info
+
+
+def cluster_averaged_texture(rgb: np.ndarray, tree: Shape) -> np.ndarray:
+    """The rectified photo with every tile replaced by the mean of its cluster (§4: the IF keeps
+    the intensities of all repetitions, so each tile is textured with their average —
+    occluders and noise present in few tiles fade)."""
+    import cv2
+
+    out = rgb.copy()
+    groups: dict[str, list[list[int]]] = {}
+    for node in tree.walk():
+        if node.symbol == "Tile":
+            groups.setdefault(node.tags["cluster"], []).append(node.tags["box_px"])
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        ws = int(np.median([b[2] - b[0] for b in members]))
+        hs = int(np.median([b[3] - b[1] for b in members]))
+        if ws < 2 or hs < 2:
+            continue
+        acc = np.zeros((hs, ws, 3), np.float64)
+        for x0, y0, x1, y1 in members:
+            acc += cv2.resize(rgb[y0:y1, x0:x1], (ws, hs), interpolation=cv2.INTER_AREA)
+        mean = (acc / len(members)).astype(np.float32)
+        for x0, y0, x1, y1 in members:
+            out[y0:y1, x0:x1] = np.clip(cv2.resize(mean, (x1 - x0, y1 - y0),
+                                                   interpolation=cv2.INTER_LINEAR), 0, 255)
+    return out
+
+
+def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str, scale_source: str,
+                 floor_conf: list[float]) -> list[str]:
+    """Reasons a person should look at the result (empty = none found)."""
+    flags = []
+    if not rect_ok:
+        flags.append(f"rectification failed ({rect_reason}); analysed the photo as it is")
+    if structure.floor_period_px <= 0:
+        flags.append("no vertical repetition: the facade is its own irreducible facade")
+    floors = [c for c in tree.children if c.symbol == "Floor"]
+    if len(floors) <= 1:
+        flags.append("one floor found")
+    if floor_conf and float(np.median(floor_conf)) < 0.35:
+        flags.append(f"weak floor split lines (median confidence {np.median(floor_conf):.2f})")
+    if len(floors) >= 3:
+        ground = floors[0]
+        upper = Counter(f.tags["cluster"] for f in floors[1:])
+        if ground.tags["cluster"] not in upper:
+            flags.append("irregular ground floor (unlike every upper floor)")
+    n_el = sum(1 for s in tree.leaves() if s.label != "wall")
+    if n_el == 0:
+        flags.append("no windows or doors found")
+    if scale_source == "prior":
+        flags.append("scale from the floor-height prior (give --width-m for metric output)")
+    return flags
+
+
+# ================================================================================ pipeline
+def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
+                height_m: float | None = None, depths: Mapping[str, float] | str | None = None,
+                out_dir: str | os.PathLike | None = None, model: bool = True,
+                refine: bool = True, seed: int = 0) -> Reconstruction:
+    """Reconstruct a procedural facade from one photo (Müller et al. 2007, all sections).
+
+    Parameters
+    ----------
+    photo : path or (H, W[, C]) array
+        The facade photo (any image Pillow reads; gray, RGBA, 16-bit are converted).
+    rectified : bool
+        The photo is already fronto-parallel: skip rectification.
+    width_m, height_m : float, optional
+        Facade size in metres; otherwise the floor-height prior sets the scale.
+    depths : mapping or path to JSON, optional
+        Depth per class or per cluster id (metres, negative = recessed); see
+        :data:`DEFAULT_DEPTHS`.
+    out_dir : path, optional
+        Write ``rectified.png, structure.png, labels.png, labels_input.png, shape_tree.json,
+        rules.cga, assets/, texture.jpg, model.glb, model.obj (+ .mtl, textures/),
+        model.city.json, report.json`` there (atomically).
+    model : bool
+        Derive the 3D model (the benchmark harness only needs the tree).
+    refine : bool
+        Run tile refinement (§3); without it tiles stay wall leaves.
+
+    Raises
+    ------
+    InputError
+        Unreadable, corrupt or too small photos; bad sizes or depths.
+    """
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    rgb, name = _as_rgb(photo)
+    _check_size(rgb, name)
+    depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
+                                                                            **depths}
+    work, to_work = _analysis_copy(rgb)
+    timings["load"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    rect_ok, rect_reason, rect_conf = True, "", 1.0
+    if rectified:
+        rect_img, H = work, np.eye(3)
+    else:
+        from .imaging.rectify import rectify
+
+        r = rectify(work, rng=seed)
+        rect_ok, rect_reason, rect_conf = bool(r), r.reason, float(r.confidence)
+        rect_img, H = (r.image, r.homography) if r else (work, np.eye(3))
+    if min(rect_img.shape[:2]) < MIN_SIDE:    # a degenerate crop: analyse the photo itself
+        rect_ok, rect_reason = False, "rectified crop too small"
+        rect_img, H = work, np.eye(3)
+    homography = H @ to_work
+    timings["rectify"] = time.perf_counter() - t
+
+    from .imaging.splits import floor_and_tile_split, to_gray
+
+    gray = to_gray(rect_img)
+    mpp = _scale(width_m, height_m, rect_img.shape)
+    structure = floor_and_tile_split(rect_img, metres_per_pixel=mpp)
+    timings["symmetry"] = structure.timings.get("symmetry", 0.0)
+    timings["splits"] = structure.timings.get("floors", 0.0) + structure.timings.get("tiles", 0.0)
+    px_per_m = (1.0 / mpp[0], 1.0 / mpp[1]) if mpp else (structure.px_per_m, structure.px_per_m)
+
+    t = time.perf_counter()
+    floor_c, tile_c, boxes, owner = _clusters(gray, structure)
+    timings["cluster"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    regions = _refine(gray, structure, tile_c, owner, boxes) if refine else None
+    timings["refine"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    chosen = _match(gray, regions, tile_c, len(structure.floors)) if regions else {}
+    timings["match"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    from .imaging.shape_tree import PixelFrame, build_shape_tree
+
+    frame = PixelFrame(rect_img.shape[1], rect_img.shape[0], px_per_m)
+    tree = build_shape_tree(frame, structure.floors, structure.tiles, floor_c, tile_c,
+                            regions=regions, leaf_info=_leaf_info(chosen, depth_map),
+                            floor_confidence=structure.confidences["floors"],
+                            tile_confidence=structure.confidences["tiles"])
+    from .exchange.raster import label_map
+
+    labels = label_map(tree, size=rect_img.shape[:2])
+    timings["tree"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    from .grammar.extract import extract_rules
+
+    rules = extract_rules(tree, texture="texture.jpg", depths=depth_map)
+    timings["rules"] = time.perf_counter() - t
+
+    texture = cluster_averaged_texture(rect_img, tree)
+    flags = review_flags(structure, tree, rect_ok, rect_reason, structure.scale_source
+                         if mpp is None else "given", structure.confidences["floors"])
+    w_m, h_m = frame.size_m
+    report = {
+        "input": {"photo": name, "width_px": int(rgb.shape[1]), "height_px": int(rgb.shape[0])},
+        "rectification": {"applied": not rectified, "ok": rect_ok, "confidence": round(rect_conf, 4),
+                          "reason": rect_reason, "homography": homography.tolist()},
+        "facade": {"width_m": round(w_m, 3), "height_m": round(h_m, 3),
+                   "px_per_m": [round(v, 4) for v in px_per_m],
+                   "scale_source": "given" if mpp else structure.scale_source,
+                   "floor_period_m": round(structure.floor_period_px / px_per_m[1], 3)},
+        "floors": len(structure.floors),
+        "tiles": int(sum(len(t) for t in structure.tiles)),
+        "floor_clusters": len(set(floor_c)),
+        "tile_clusters": len({c for row in tile_c for c in row}),
+        "elements": dict(Counter(s.label for s in tree.leaves() if s.label != "wall")),
+        "confidences": structure.confidences,
+        "needs_review": bool(flags),
+        "flags": flags,
+        "timings": timings,
+    }
+    rec = Reconstruction(photo=rgb, rectified=rect_img, homography=homography,
+                         inverse=np.linalg.inv(homography), tree=tree, rules=rules, labels=labels,
+                         report=report, texture=texture, structure=structure,
+                         regions=regions or [])
+    if model:
+        t = time.perf_counter()
+        rec.model, rec.assets = _derive_model(rec, frame)
+        timings["model"] = time.perf_counter() - t
+    if out_dir is not None:
+        t = time.perf_counter()
+        rec.save(out_dir)
+        timings["export"] = time.perf_counter() - t
+    report["timings"]["total"] = sum(v for k, v in timings.items() if k != "total")
+    if out_dir is not None:   # the report carries the final timings
+        _write_json(Path(out_dir) / "report.json", report)
+    return rec
+
+
+def _asset_models(tree: Shape) -> dict[str, Model]:
+    from .elements.library import element_model, element_spec
+
+    names = sorted({s.tags["element"] for s in tree.leaves() if "element" in s.tags})
+    return {f"assets/{n}.obj": element_model(element_spec(n)) for n in names}
+
+
+def _write_workdir(rec: Reconstruction, work: Path, assets: dict[str, Model]) -> None:
+    from PIL import Image
+
+    from .exchange.obj import export_obj
+
+    Image.fromarray(rec.texture).save(work / "texture.jpg", quality=90)
+    (work / "rules.cga").write_text(rec.rules)
+    for rel, m in assets.items():
+        export_obj(m, work / rel)
+
+
+def _derive_model(rec: Reconstruction, frame) -> tuple[Model, dict[str, Model]]:
+    """Derive ``rec.rules`` on the facade rectangle in a scratch folder holding the texture and
+    the element assets (the model's materials point at files there until exported)."""
+    from .engine import derive_facade
+
+    assets = _asset_models(rec.tree)
+    work = Path(tempfile.mkdtemp(prefix="facadeforge-model-"))
+    _write_workdir(rec, work, assets)
+    w_m, h_m = frame.size_m
+    m = derive_facade(work / "rules.cga", w_m, h_m, assets=work, name="facade")
+    weakref.finalize(rec, shutil.rmtree, work, True)   # texture files live as long as the result
+    return m, assets
+
+
+def _write_json(path: Path, obj) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=2, default=_json_default))
+    os.replace(tmp, path)
+
+
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _structure_png(rec: Reconstruction) -> np.ndarray:
+    """Rectified photo with floors/tiles drawn and a translucent colour per tile cluster."""
+    import cv2
+
+    img = rec.rectified.astype(np.float32).copy()
+    rng = np.random.default_rng(7)
+    palette: dict[str, np.ndarray] = {}
+    overlay = img.copy()
+    for node in rec.tree.walk():
+        if node.symbol == "Tile":
+            c = palette.setdefault(node.tags["cluster"], rng.uniform(40, 255, 3))
+            x0, y0, x1, y1 = node.tags["box_px"]
+            overlay[y0:y1, x0:x1] = c
+    img = 0.65 * img + 0.35 * overlay
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    thick = max(1, round(max(out.shape[:2]) / 500))
+    for node in rec.tree.walk():
+        x0, y0, x1, y1 = node.tags.get("box_px", (0, 0, 0, 0))
+        if node.symbol == "Floor":
+            cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (255, 40, 40), 2 * thick)
+        elif node.symbol == "Tile":
+            cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (255, 210, 0), thick)
+        elif not node.children and node.label not in ("", "wall"):
+            cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (40, 120, 255), thick)
+    return out
+
+
+def _save(rec: Reconstruction, out: Path) -> list[Path]:
+    from PIL import Image
+
+    from .exchange import export
+    from .exchange.raster import write_label_png
+
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+    try:
+        Image.fromarray(rec.rectified).save(stage / "rectified.png")
+        Image.fromarray(_structure_png(rec)).save(stage / "structure.png")
+        write_label_png(rec.labels, stage / "labels.png")
+        write_label_png(rec.labels_input(), stage / "labels_input.png")
+        (stage / "shape_tree.json").write_text(json.dumps(rec.tree.to_dict(), indent=1,
+                                                          default=_json_default))
+        assets = rec.assets or _asset_models(rec.tree)
+        _write_workdir(rec, stage, assets)
+        if rec.model is not None:
+            for suffix in ("glb", "obj", "city.json"):
+                export(rec.model, stage / f"model.{suffix}")
+        _write_json(stage / "report.json", rec.report)
+        written = []
+        for src in sorted(stage.rglob("*")):
+            if src.is_file():
+                dst = out / src.relative_to(stage)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(src, dst)
+                written.append(dst)
+        return written
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
