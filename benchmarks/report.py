@@ -52,6 +52,23 @@ def methods_table() -> str:
     return head + "\n".join(rows)
 
 
+def reconstruct_table() -> str:
+    path = ROOT / "benchmarks" / "results" / "reconstruct.json"
+    if not path.exists():
+        return "_no result yet: run `.venv/bin/python benchmarks/reconstruct.py`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}), best of {r['runs']} warm runs, every OUTDIR file written.\n\n"
+            "| facade (synthetic) | pixels | reconstruct | stage 1 (symmetry) | floors | tiles "
+            "| window P / R / F1 |\n|---|---|---|---|---|---|---|\n")
+    rows = [f"| {f['style']} | {f['size'][0]}×{f['size'][1]} | {f['seconds']:.2f} s | "
+            f"{f['timings']['symmetry']:.3f} s | {f['floors']} | {f['tiles']} | "
+            f"{f['window_precision']:.2f} / {f['window_recall']:.2f} / {f['window_f1']:.2f} |"
+            for f in r["facades"]]
+    return head + "\n".join(rows)
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -66,9 +83,11 @@ def replace(path: Path, marker: str, text: str) -> None:
 def main() -> None:
     table = engine_table()
     methods = methods_table()
+    rec = reconstruct_table()
     for p in (ROOT / "README.md", ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
         replace(p, "methods", methods)
+        replace(p, "reconstruct", rec)
     print(table)
     print(methods)
 

@@ -14,7 +14,7 @@ from facadeforge.datasets.synthetic import generate
 from facadeforge.engine import derive_facade
 from facadeforge.evaluation.metrics import match_boxes
 from facadeforge.exchange import load
-from facadeforge.reconstruct import load_depths, reconstruct
+from facadeforge.reconstruction import load_depths, reconstruct
 
 OUT_FILES = ("rectified.png", "structure.png", "labels.png", "labels_input.png",
              "shape_tree.json", "rules.cga", "model.glb", "model.obj", "model.city.json",

@@ -18,9 +18,17 @@ __version__ = "0.1.0"
 __all__ = [
     "DerivationError", "FacadeForgeError", "InputError", "Labels", "Material", "Model", "Part",
     "RuleError", "RuleSyntaxError", "Rules", "Scope", "Shape", "derive", "derive_facade", "export",
-    "load_rules",
+    "load_rules", "reconstruct",
     "render", "stats",
 ]
+
+
+def reconstruct(photo, **options):
+    """Photo → shape tree, CGA rules and textured 3D model (Müller 2007); see
+    :func:`facadeforge.reconstruct.reconstruct` for the options."""
+    from .reconstruction import reconstruct as _reconstruct
+
+    return _reconstruct(photo, **options)
 
 
 def export(models, path, **options):

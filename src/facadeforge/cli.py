@@ -148,7 +148,7 @@ def _summary(rec, out) -> str:
 
 
 def cmd_reconstruct(args) -> int:
-    from .reconstruct import reconstruct
+    from .reconstruction import reconstruct
 
     rec = reconstruct(args.photo, rectified=args.rectified, width_m=args.width_m,
                       height_m=args.height_m, depths=args.depths, out_dir=args.output,
@@ -186,7 +186,7 @@ def _demo_reconstruct(out: Path) -> None:
     from . import render
     from .datasets.synthetic import generate
     from .evaluation.metrics import match_boxes
-    from .reconstruct import reconstruct
+    from .reconstruction import reconstruct
 
     photo = generate(1, seed=11, out_dir=out / "synthetic", size=640, styles=["haussmann"])[0]
     meta = json.loads(photo.with_suffix(".meta.json").read_text())

@@ -295,7 +295,7 @@ class StructureMethod:
     RECTIFIED_DATASETS = frozenset({"cmp"})
 
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
-        from ..reconstruct import reconstruct
+        from ..reconstruction import reconstruct
 
         rec = reconstruct(sample.image(), model=False,
                           rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)

@@ -276,7 +276,8 @@ def mean_period(profile: SymmetryProfile, harmonic: float = 0.8) -> int:
     Neighbouring rows (columns) are alike, so ``S`` is high for small ``h`` whatever the facade:
     :func:`dominant_period` then returns the smallest ``h`` allowed when the range starts
     below the correlation length (tiles: 0.5 m).  Here the trivial decay is discounted: each
-    local maximum of ``m`` is scored by its topographic prominence (``scipy.signal.find_peaks``),
+    local maximum of ``m`` is scored by its topographic prominence (as ``scipy.signal.peak_prominences`` defines it; computed
+    here because importing ``scipy.signal`` costs two seconds),
     and among peaks within ``harmonic`` of the best prominence the shortest period wins (multiples
     of the period are peaks too).  0 when ``m`` has no interior peak.
     """
@@ -289,11 +290,34 @@ def mean_period(profile: SymmetryProfile, harmonic: float = 0.8) -> int:
     if ok.sum() < 3:
         return 0
     m = np.where(ok, m, np.nanmin(m))
-    from scipy.signal import find_peaks
-
-    peaks, props = find_peaks(m, prominence=1e-9)
+    peaks, proms = _peak_prominences(m)
     if peaks.size == 0:
         return 0
-    proms = props["prominences"]
     keep = proms >= harmonic * proms.max()
     return int(profile.hs[peaks[keep][0]])
+
+
+def _peak_prominences(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Strict interior local maxima of ``m`` (plateaus: their first sample) and their
+    topographic prominences: height above the higher of the two lowest points reachable on each
+    side before a higher sample."""
+    n = m.size
+    peaks, proms = [], []
+    for i in range(1, n - 1):
+        if not (m[i] > m[i - 1] and m[i] >= m[i + 1]):
+            continue
+        j = i - 1
+        left = m[i]
+        while j >= 0 and m[j] <= m[i]:
+            left = min(left, m[j])
+            j -= 1
+        k = i + 1
+        right = m[i]
+        while k < n and m[k] <= m[i]:
+            right = min(right, m[k])
+            k += 1
+        prom = m[i] - max(left, right)
+        if prom > 0:
+            peaks.append(i)
+            proms.append(prom)
+    return np.asarray(peaks, np.int64), np.asarray(proms, np.float64)
