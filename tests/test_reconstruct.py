@@ -133,8 +133,15 @@ def test_image_kinds(kind):
 def test_no_repetition_is_its_own_irreducible_facade():
     img = np.random.default_rng(1).integers(0, 255, (200, 260), dtype=np.uint8)
     rec = reconstruct(img, rectified=True, model=False)
-    assert rec.report["needs_review"]
+    assert rec.structure.floor_period_px == 0
+    assert any("no vertical repetition" in f for f in rec.report["flags"])
     assert rec.labels.shape == img.shape
+
+
+def test_regular_facade_has_repetition():
+    rec = reconstruct(_facade_like(), rectified=True, model=False)
+    assert rec.structure.floor_period_px > 0
+    assert not any("no vertical repetition" in f for f in rec.report["flags"])
 
 
 def test_one_floor_strip():

@@ -142,6 +142,7 @@ def _summary(rec, out) -> str:
              f"{r['floors']} floors, {r['tiles']} tiles in {r['tile_clusters']} clusters, {els}",
              "timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items()),
              ("needs review: " + "; ".join(r["flags"])) if r["needs_review"] else "no review flags",
+             *(f"note: {n}" for n in r.get("notes", [])),
              f"wrote {out}/: rectified.png structure.png labels.png labels_input.png "
              "shape_tree.json rules.cga model.glb model.obj model.city.json report.json"]
     return "\n".join(lines)

@@ -74,7 +74,7 @@ class Reconstruction:
     model: Model | None = None
     structure: object = None
     regions: list = field(default_factory=list)
-    assets: dict[str, Model] = field(default_factory=dict)
+    workdir: Path | None = None     # texture.jpg, rules.cga, assets/ the model was derived from
 
     def labels_input(self) -> np.ndarray:
         """The label map warped back into the input photo's pixel frame (nearest neighbour;
@@ -100,28 +100,17 @@ class Reconstruction:
 
 # ================================================================================ input
 def _as_rgb(photo) -> tuple[np.ndarray, str]:
+    """(H, W, 3) uint8 and a name for messages, from a path or any image array."""
     if isinstance(photo, (str, os.PathLike)):
         from .datasets.folder import read_image
 
         return read_image(photo), str(photo)
+    from .imaging.rectify import to_rgb8
+
     a = np.asarray(photo)
-    if a.dtype == object or a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (1, 2, 3, 4)):
-        raise InputError(f"photo array has shape {a.shape}; pass (H, W), (H, W, 3) or (H, W, 4)")
-    if a.dtype.kind == "f":
-        if not np.isfinite(a).all():
-            raise InputError("photo array contains NaN or infinite values; clean it first")
-        a = np.clip(a * (255.0 if a.max(initial=0) <= 1.0 else 1.0), 0, 255).astype(np.uint8)
-    elif a.dtype == np.uint16:
-        a = (a // 257).astype(np.uint8)
-    elif a.dtype != np.uint8:
-        a = np.clip(a, 0, 255).astype(np.uint8)
-    if a.ndim == 2:
-        a = np.repeat(a[..., None], 3, axis=2)
-    elif a.shape[2] in (1, 2):
-        a = np.repeat(a[..., :1], 3, axis=2)
-    else:
-        a = a[..., :3]
-    return np.ascontiguousarray(a), "<array>"
+    if a.dtype == object:
+        raise InputError("photo array holds Python objects; pass a numeric (H, W[, C]) array")
+    return to_rgb8(a), "<array>"
 
 
 def _check_size(rgb: np.ndarray, name: str) -> None:
@@ -170,11 +159,15 @@ def _analysis_copy(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return small, np.diag([sx, sy, 1.0])
 
 
-def _scale(width_m, height_m, shape) -> tuple[float, float] | None:
-    h, w = shape[:2]
+def _check_sizes(width_m, height_m) -> None:
     for name, v in (("--width-m", width_m), ("--height-m", height_m)):
         if v is not None and not (np.isfinite(v) and 1.0 <= v <= 1000.0):
             raise InputError(f"{name} {v} is not a facade size; give metres between 1 and 1000")
+
+
+def _scale(width_m, height_m, shape) -> tuple[float, float] | None:
+    """Metres per pixel ``(mx, my)`` of the rectified image, or ``None`` (floor prior)."""
+    h, w = shape[:2]
     if width_m is not None and height_m is not None:
         return width_m / w, height_m / h
     if width_m is not None:
@@ -184,14 +177,14 @@ def _scale(width_m, height_m, shape) -> tuple[float, float] | None:
     return None
 
 
-def _tile_boxes(structure) -> tuple[list, list, list]:
-    boxes, owner, counts = [], [], []
+def _tile_boxes(structure) -> tuple[list, list]:
+    """Pixel boxes of all tiles and their ``(floor, tile)`` indices."""
+    boxes, owner = [], []
     for i, (y0, y1) in enumerate(structure.floors):
-        counts.append(len(structure.tiles[i]))
         for j, (x0, x1) in enumerate(structure.tiles[i]):
             boxes.append((x0, y0, x1, y1))
             owner.append((i, j))
-    return boxes, owner, counts
+    return boxes, owner
 
 
 def _clusters(gray, structure):
@@ -202,7 +195,7 @@ def _clusters(gray, structure):
     counts = np.array([len(t) for t in structure.tiles])
     floor_c = cluster_regions(gray, fboxes, size=(16, 96),
                               must_differ=counts[:, None] != counts[None, :])
-    boxes, owner, _ = _tile_boxes(structure)
+    boxes, owner = _tile_boxes(structure)
     flat = cluster_regions(gray, boxes)
     tile_c: list[list[int]] = [[0] * len(t) for t in structure.tiles]
     for (i, j), c in zip(owner, flat):
@@ -346,7 +339,7 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape) -> np.ndarray:
     return out
 
 
-def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str, scale_source: str,
+def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str,
                  floor_conf: list[float]) -> list[str]:
     """Reasons a person should look at the result (empty = none found)."""
     flags = []
@@ -367,8 +360,6 @@ def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str, scale_
     n_el = sum(1 for s in tree.leaves() if s.label != "wall")
     if n_el == 0:
         flags.append("no windows or doors found")
-    if scale_source == "prior":
-        flags.append("scale from the floor-height prior (give --width-m for metric output)")
     return flags
 
 
@@ -406,6 +397,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     """
     timings: dict[str, float] = {}
     t = time.perf_counter()
+    _check_sizes(width_m, height_m)
     rgb, name = _as_rgb(photo)
     _check_size(rgb, name)
     depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
@@ -470,8 +462,8 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     timings["rules"] = time.perf_counter() - t
 
     texture = cluster_averaged_texture(rect_img, tree)
-    flags = review_flags(structure, tree, rect_ok, rect_reason, structure.scale_source
-                         if mpp is None else "given", structure.confidences["floors"])
+    flags = review_flags(structure, tree, rect_ok, rect_reason, structure.confidences["floors"])
+    notes = [] if mpp else ["scale from the floor-height prior: give --width-m for true metres"]
     w_m, h_m = frame.size_m
     report = {
         "input": {"photo": name, "width_px": int(rgb.shape[1]), "height_px": int(rgb.shape[0])},
@@ -489,6 +481,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         "confidences": structure.confidences,
         "needs_review": bool(flags),
         "flags": flags,
+        "notes": notes,
         "timings": timings,
     }
     rec = Reconstruction(photo=rgb, rectified=rect_img, homography=homography,
@@ -497,7 +490,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
                          regions=regions or [])
     if model:
         t = time.perf_counter()
-        rec.model, rec.assets = _derive_model(rec, frame)
+        rec.model, rec.workdir = _derive_model(rec, frame)
         timings["model"] = time.perf_counter() - t
     if out_dir is not None:
         t = time.perf_counter()
@@ -509,36 +502,30 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     return rec
 
 
-def _asset_models(tree: Shape) -> dict[str, Model]:
-    from .elements.library import element_model, element_spec
-
-    names = sorted({s.tags["element"] for s in tree.leaves() if "element" in s.tags})
-    return {f"assets/{n}.obj": element_model(element_spec(n)) for n in names}
-
-
-def _write_workdir(rec: Reconstruction, work: Path, assets: dict[str, Model]) -> None:
+def _write_workdir(rec: Reconstruction, work: Path) -> None:
+    """``texture.jpg``, ``rules.cga`` and the matched library elements as ``assets/*.obj``."""
     from PIL import Image
 
+    from .elements.library import element_model, element_spec
     from .exchange.obj import export_obj
 
     Image.fromarray(rec.texture).save(work / "texture.jpg", quality=90)
     (work / "rules.cga").write_text(rec.rules)
-    for rel, m in assets.items():
-        export_obj(m, work / rel)
+    for name in sorted({s.tags["element"] for s in rec.tree.leaves() if "element" in s.tags}):
+        export_obj(element_model(element_spec(name)), work / "assets" / f"{name}.obj")
 
 
-def _derive_model(rec: Reconstruction, frame) -> tuple[Model, dict[str, Model]]:
+def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:
     """Derive ``rec.rules`` on the facade rectangle in a scratch folder holding the texture and
     the element assets (the model's materials point at files there until exported)."""
     from .engine import derive_facade
 
-    assets = _asset_models(rec.tree)
     work = Path(tempfile.mkdtemp(prefix="facadeforge-model-"))
-    _write_workdir(rec, work, assets)
+    _write_workdir(rec, work)
     w_m, h_m = frame.size_m
     m = derive_facade(work / "rules.cga", w_m, h_m, assets=work, name="facade")
     weakref.finalize(rec, shutil.rmtree, work, True)   # texture files live as long as the result
-    return m, assets
+    return m, work
 
 
 def _write_json(path: Path, obj) -> None:
@@ -597,8 +584,10 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
         write_label_png(rec.labels_input(), stage / "labels_input.png")
         (stage / "shape_tree.json").write_text(json.dumps(rec.tree.to_dict(), indent=1,
                                                           default=_json_default))
-        assets = rec.assets or _asset_models(rec.tree)
-        _write_workdir(rec, stage, assets)
+        if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
+            shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)
+        else:
+            _write_workdir(rec, stage)
         if rec.model is not None:
             for suffix in ("glb", "obj", "city.json"):
                 export(rec.model, stage / f"model.{suffix}")

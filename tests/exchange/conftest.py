@@ -85,3 +85,21 @@ def house_factory():
 def box():
     """``box_faces(lo, hi)``: the six outward quads of an axis-aligned box."""
     return box_faces
+
+
+def _by_label(models: list[Model]) -> dict:
+    out: dict[str, dict] = {}
+    for m in models:
+        for p in m.parts:
+            d = out.setdefault(p.label, {"area": 0.0, "faces": 0, "material": p.material,
+                                         "symbols": set()})
+            d["area"] += p.mesh.area()
+            d["faces"] += p.mesh.n_faces
+            d["symbols"].add(p.symbol)
+    return out
+
+
+@pytest.fixture
+def by_label():
+    """``f(models) -> {label: {"area", "faces", "material", "symbols"}}`` for round-trip checks."""
+    return _by_label

@@ -14,24 +14,12 @@ from facadeforge.exchange.gltf import export_glb, load_glb
 from facadeforge.model import Model
 
 
-def _by_label(models: list[Model]) -> dict:
-    out: dict[str, dict] = {}
-    for m in models:
-        for p in m.parts:
-            d = out.setdefault(p.label, {"area": 0.0, "faces": 0, "material": p.material,
-                                         "symbols": set()})
-            d["area"] += p.mesh.area()
-            d["faces"] += p.mesh.n_faces
-            d["symbols"].add(p.symbol)
-    return out
-
-
 def test_registered():
     assert EXPORTERS["glb"] is export_glb
     assert IMPORTERS["glb"] is load_glb
 
 
-def test_round_trip(tmp_path: Path, house: Model, texture_png: str):
+def test_round_trip(tmp_path: Path, house: Model, texture_png: str, by_label):
     written = export(house, tmp_path / "house.glb")
     assert written == [tmp_path / "house.glb"]
     models = load(tmp_path / "house.glb", texture_dir=tmp_path / "tex")
@@ -42,7 +30,7 @@ def test_round_trip(tmp_path: Path, house: Model, texture_png: str):
     assert back.mesh().area() == pytest.approx(house.mesh().area(), rel=1e-6)
     assert sum(p.mesh.n_faces for p in back.parts) == house.stats()["triangles"]
 
-    before, after = _by_label([house]), _by_label(models)
+    before, after = by_label([house]), by_label(models)
     assert set(after) == set(before)
     for label, d in before.items():
         assert after[label]["area"] == pytest.approx(d["area"], rel=1e-6)

@@ -11,24 +11,12 @@ from facadeforge.exchange.obj import export_obj, load_obj
 from facadeforge.model import Model
 
 
-def _by_label(models: list[Model]) -> dict:
-    out: dict[str, dict] = {}
-    for m in models:
-        for p in m.parts:
-            d = out.setdefault(p.label, {"area": 0.0, "faces": 0, "material": p.material,
-                                         "symbols": set()})
-            d["area"] += p.mesh.area()
-            d["faces"] += p.mesh.n_faces
-            d["symbols"].add(p.symbol)
-    return out
-
-
 def test_registered():
     assert EXPORTERS["obj"] is export_obj
     assert IMPORTERS["obj"] is load_obj
 
 
-def test_round_trip(tmp_path: Path, house: Model, texture_png: str):
+def test_round_trip(tmp_path: Path, house: Model, texture_png: str, by_label):
     written = export(house, tmp_path / "out" / "house.obj")
     out = tmp_path / "out"
     assert written == [out / "house.obj", out / "house.mtl", out / "textures" / "brick.png"]
@@ -41,7 +29,7 @@ def test_round_trip(tmp_path: Path, house: Model, texture_png: str):
     assert len(back.parts) == len(house.parts)
     assert sum(p.mesh.n_faces for p in back.parts) == sum(p.mesh.n_faces for p in house.parts)
     assert back.mesh().area() == pytest.approx(house.mesh().area(), abs=1e-4)
-    before, after = _by_label([house]), _by_label(models)
+    before, after = by_label([house]), by_label(models)
     assert set(after) == set(before)
     for label, d in before.items():
         assert after[label]["faces"] == d["faces"]

@@ -366,6 +366,10 @@ def test_golden_rules_text():
     row = [(0.5, "T1", "wall"), (2.0, "T2", win), (2.0, "T2", win)]
     tree = facade([(4.0, "F0", [(4.5, "T0", "door")]), (3.0, "F1", row), (3.0, "F1", row)])
     assert extract_rules(tree, name="small") == GOLDEN
+    # the golden text pins the format; check it also means the facade it was extracted from
+    model = derive_facade(GOLDEN, 4.5, 10.0)
+    assert model.warnings == [] and labels(model) == {"door": 1, "wall": 10, "window": 4}
+    assert round_trip(tree) < 1e-3
 
 
 def test_hostile_text_is_sanitised_and_escaped(tmp_path):
@@ -382,6 +386,33 @@ def test_hostile_text_is_sanitised_and_escaped(tmp_path):
     assert labels(model) == {"wall": 2, "window": 1}
     assert all("missing" in w or "not found" in w or "texture" in w or "asset" in w
                for w in model.warnings)
+
+
+def test_unusable_class_depths_are_flat():
+    tree = regular(1, 2)
+    rules = extract_rules(tree, depths={"window": "deep", "wall": float("nan"), "T1": 1e-6})
+    assert "_depth" not in rules and "s('1" not in rules
+    assert round_trip(tree, depths={"window": float("inf")}) < 1e-3
+
+
+def test_unusual_labels_still_give_valid_depth_attrs():
+    tree = facade([(3.0, "F1", [(2.0, "T1", {"label": "3d", "depth": -0.2}),
+                                (2.0, "T2", {"label": "3d", "depth": -0.2})])])
+    rules = extract_rules(tree)
+    assert "attr _3d_depth = -0.2" in rules
+    assert round_trip(tree) < 1e-3
+
+
+def test_rejects_trees_larger_than_max_nodes(monkeypatch):
+    import facadeforge.grammar.extract as extract
+
+    tree = regular(2, 2)
+    n = sum(1 for _ in tree.walk())
+    monkeypatch.setattr(extract, "MAX_NODES", n)
+    assert "@StartRule" in extract_rules(tree)
+    monkeypatch.setattr(extract, "MAX_NODES", n - 1)
+    with pytest.raises(InputError, match="more than"):
+        extract_rules(tree)
 
 
 def test_rejects_what_is_not_a_shape_tree():

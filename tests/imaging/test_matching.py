@@ -1,6 +1,5 @@
 """§4 of Müller et al. 2007: regions ↔ library elements by mutual information (eq. 7–8)."""
 
-import time
 
 import numpy as np
 import pytest
@@ -36,6 +35,8 @@ def _wall(rng, shape=(160, 220)):
 @pytest.mark.parametrize("name", ["window_mullion_2x2", "window_arched_round",
                                   "window_shutters_open", "balcony_bars", "shop_sign_door"])
 def test_single_region_finds_its_element(name):
+    """Hand-picked elements that are matched exactly (see the library-wide rate test below:
+    not every element is)."""
     rng = np.random.default_rng(1)
     img = _wall(rng)
     box = _paste(img, _photo_of(name, 60, rng), 20, 20)
@@ -46,12 +47,33 @@ def test_single_region_finds_its_element(name):
 
 @pytest.mark.parametrize("name", ["door_single_panel", "door_transom", "window_lintel_2x2"])
 def test_single_region_finds_its_kind(name):
+    """Elements for which only the kind is asserted (the exact variant may be a look-alike)."""
     rng = np.random.default_rng(2)
     img = _wall(rng)
     box = _paste(img, _photo_of(name, 64, rng, gain=1.1, offset=-0.05), 30, 10)
     match = match_elements(img, [box], [0])[0]
     assert element_spec(match.element).kind == element_spec(name).kind
     assert match.kind == element_spec(name).kind
+
+
+def test_library_wide_match_rate():
+    """Every element that fits the test wall, pasted as in the tests above: how often the exact
+    variant and the kind are found.  Measured 33/41 exact and 38/41 kind (misses are look-alike
+    windows, e.g. ``window_plain`` -> ``window_mullion_2x3``, and double / arched doors taken for
+    windows); the floors sit just under that, a regression guard rather than a specification."""
+    exact = kind = n = 0
+    for spec in element_library():
+        rng = np.random.default_rng(1)
+        img = _wall(rng)
+        patch = _photo_of(spec.name, 60, rng)
+        if patch.shape[1] + 20 > img.shape[1]:
+            continue
+        match = match_elements(img, [_paste(img, patch, 20, 20)], [0])[0]
+        n += 1
+        exact += match.element == spec.name
+        kind += match.kind == spec.kind
+    assert n >= 35
+    assert exact / n >= 0.75 and kind / n >= 0.9
 
 
 def test_cluster_vote_beats_a_bad_region():
@@ -110,14 +132,3 @@ def test_regions_outside_the_image_score_zero_and_normalised_option():
     assert np.all(res.region_scores[1] == 0)
     assert res.element == "window_mullion_2x2"
     assert (res.region_scores <= 1 + 1e-9).all()
-
-
-def test_matching_is_fast():
-    rng = np.random.default_rng(7)
-    img = rng.random((300, 420)).astype(np.float32)
-    boxes = [[x, y, x + 30, y + 40] for x in range(0, 400, 50) for y in range(0, 250, 50)][:40]
-    lib = element_library()[:30]
-    match_elements(img, boxes, np.arange(40) % 5, library=lib)  # warm the render cache
-    t = time.perf_counter()
-    match_elements(img, boxes, np.arange(40) % 5, library=lib)
-    assert time.perf_counter() - t < 0.5  # ~10 ms measured; generous for slow CI

@@ -170,6 +170,15 @@ def facades():
 
 
 def test_windows_recovered_on_synthetic_facades(facades):
+    """Window recovery on three synthetic facades (modern 0 and 3, residential 0).
+
+    The seeds are hand-picked: on them refinement does well (synchronised mean IoU ~0.91, ~95 %
+    of windows at IoU >= 0.7; local ~0.81), and the thresholds below were set under those
+    numbers.  On other seeds at this 320 px width it does much worse (modern 2/4/5,
+    residential 2/5: mean IoU 0.0-0.65): tiles are 19-36 px wide, so windows are often not cut
+    out or lie within ``tau_size`` of the tile border and get the role ``wall``.  This test
+    guards against regressions on easy inputs; it is not a measure of general accuracy.
+    """
     scores = {}
     for sync in (False, True):
         ious = []
@@ -181,8 +190,6 @@ def test_windows_recovered_on_synthetic_facades(facades):
         scores[sync] = np.array(ious)
     n = scores[True].size
     assert n >= 50
-    print({s: (round(float(v.mean()), 3), round(float((v >= 0.7).mean()), 3))
-           for s, v in scores.items()})
     assert (scores[True] >= 0.7).mean() >= 0.85
     assert scores[True].mean() >= 0.85
     assert scores[True].mean() >= scores[False].mean() + 0.03   # synchronisation helps

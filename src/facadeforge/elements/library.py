@@ -43,8 +43,8 @@ __all__ = ["ElementSpec", "LABEL_INDEX", "MATERIALS", "element_library", "elemen
            "element_spec", "render_front"]
 
 #: Canonical label index (the order of :class:`Labels`; identical to
-#: ``facadeforge.datasets.CANONICAL_INDEX``, which is not imported because the datasets package is
-#: slow to import).
+#: ``facadeforge.exchange.raster.LABEL_INDEX`` and ``facadeforge.datasets.CANONICAL_INDEX``, which
+#: are not imported because those packages are slow to import; a test keeps the three equal).
 LABEL_INDEX: dict[str, int] = {label.value: i for i, label in enumerate(Labels)}
 
 #: The materials of the library by name.
@@ -150,17 +150,9 @@ def _rect(x0, x1, y0, y1) -> list[tuple[float, float]]:
 
 
 def _tube_inward(outline: np.ndarray, z0: float, z1: float) -> list[np.ndarray]:
-    """The reveal: side walls of an opening (counter-clockwise ``outline``) facing inwards."""
-    p = _ccw(outline)
-    n = len(p)
-    out = []
-    for i in range(n):
-        a, b = p[i], p[(i + 1) % n]
-        if np.allclose(a, b):
-            continue
-        out.append(np.array([[a[0], a[1], z1], [b[0], b[1], z1], [b[0], b[1], z0],
-                             [a[0], a[1], z0]]))
-    return out
+    """The reveal: side walls of an opening (counter-clockwise ``outline``) facing inwards (the
+    side walls of :func:`_prism`, wound the other way)."""
+    return [q[::-1] for q in _prism(outline, z0, z1, caps=False)]
 
 
 def _extrude_x(profile_zy, x0: float, x1: float) -> list[np.ndarray]:

@@ -62,7 +62,6 @@ _LINE = 100
 class _Group:
     """Shapes that become one rule: same symbol, cluster and sub-hierarchy."""
 
-    gid: int
     symbol: str
     cluster: str | None
     members: list[Shape] = field(default_factory=list)
@@ -72,6 +71,7 @@ class _Group:
     label: str = ""
     asset: str | None = None
     depths: list[float] = field(default_factory=list)
+    size_sums: list[float] = field(default_factory=list)   # per child position, over members
     name: str = ""
 
     @property
@@ -134,15 +134,10 @@ def _ordered_children(node: Shape) -> tuple[list[Shape], str]:
     return kids, axis
 
 
-def _leaf_depth(node: Shape, label: str, depths: Mapping[str, float]) -> float:
-    d = node.tags.get("depth")
-    if d is None:
-        cluster = node.tags.get("cluster")
-        d = depths.get(str(cluster)) if cluster is not None else None
-        if d is None:
-            d = depths.get(label, 0.0)
+def _as_depth(value) -> float:
+    """``value`` as a depth in metres: clamped, and 0 (flat) when tiny or not a finite number."""
     try:
-        d = float(d)
+        d = float(value)
     except (TypeError, ValueError):
         return 0.0
     if not math.isfinite(d) or abs(d) < FLAT_EPS:
@@ -150,24 +145,26 @@ def _leaf_depth(node: Shape, label: str, depths: Mapping[str, float]) -> float:
     return max(-MAX_DEPTH_M, min(MAX_DEPTH_M, d))
 
 
+def _leaf_depth(node: Shape, label: str, depths: Mapping[str, float]) -> float:
+    d = node.tags.get("depth")
+    if d is None:
+        cluster = node.tags.get("cluster")
+        d = depths.get(str(cluster)) if cluster is not None else None
+        if d is None:
+            d = depths.get(label, 0.0)
+    return _as_depth(d)
+
+
 def _group(tree: Shape, depths: Mapping[str, float]) -> tuple[dict[int, _Group], int]:
     """Post-order: every node's group is keyed by its symbol, cluster and the groups of its
     children, so cluster members with another sub-hierarchy fall into a variant group."""
-    count = 0
     order: list[tuple[Shape, list[Shape], str | None]] = []
-    stack = [tree]
-    while stack:                         # pre-order, then processed in reverse = post-order
-        node = stack.pop()
-        count += 1
+    for count, node in enumerate(tree.walk(), 1):   # pre-order; processed in reverse = post-order
         if count > MAX_NODES:
             raise InputError(f"shape tree has more than {MAX_NODES} nodes; extract rules from a "
                              "smaller facade")
-        if node.children:
-            kids, axis = _ordered_children(node)
-        else:
-            kids, axis = [], None
+        kids, axis = _ordered_children(node) if node.children else ([], None)
         order.append((node, kids, axis))
-        stack.extend(kids)
     gid_of: dict[int, int] = {}
     keys: dict[tuple, int] = {}
     groups: dict[int, _Group] = {}
@@ -193,14 +190,24 @@ def _group(tree: Shape, depths: Mapping[str, float]) -> tuple[dict[int, _Group],
         gid = keys.get(key)
         if gid is None:
             gid = keys[key] = len(keys)
-            groups[gid] = _Group(gid, node.symbol, cluster, children=child_ids, axis=axis,
-                                 split=split, label=label, asset=asset)
+            groups[gid] = _Group(node.symbol, cluster, children=child_ids, axis=axis,
+                                 split=split, label=label, asset=asset,
+                                 size_sums=[0.0] * len(kids))
         g = groups[gid]
         g.members.append(node)
-        if not kids:
+        if kids:
+            k = _AXES[axis]
+            for j, c in enumerate(kids):
+                g.size_sums[j] += max(float(c.scope.size[k]), 0.0)
+        else:
             g.depths.append(depth)
         gid_of[id(node)] = gid
     return groups, gid_of[id(tree)]
+
+
+def _depth_attr(label: str) -> str:
+    """Name of the class depth ``attr`` (``window_depth``; a CGA name even for ``"3d"``)."""
+    return f"{label}_depth" if not label[:1].isdigit() else f"_{label}_depth"
 
 
 def _clean_label(label: str) -> str:
@@ -276,29 +283,12 @@ def _depth_attrs(groups: dict[int, _Group], depths: Mapping[str, float]) -> dict
                 by_label.setdefault(g.label, []).extend(ds)
     attrs = {}
     for label in sorted(by_label):
-        given = depths.get(label)
-        try:
-            given = float(given) if given is not None else None
-        except (TypeError, ValueError):
-            given = None
-        if given is None or not math.isfinite(given) or abs(given) < FLAT_EPS:
-            given = sum(by_label[label]) / len(by_label[label])
-        attrs[label] = max(-MAX_DEPTH_M, min(MAX_DEPTH_M, given))
+        given = _as_depth(depths.get(label))   # members' depths are already clamped
+        attrs[label] = given if given != 0.0 else sum(by_label[label]) / len(by_label[label])
     return attrs
 
 
 # -- sizes ----------------------------------------------------------------------------------------
-
-def _child_sizes(g: _Group) -> list[float]:
-    """Size of each child position along the split axis, averaged over the group's members."""
-    k = _AXES[g.axis]
-    sums = [0.0] * len(g.children)
-    for m in g.members:
-        kids, _ = _ordered_children(m)
-        for j, c in enumerate(kids):
-            sums[j] += max(float(c.scope.size[k]), 0.0)
-    return [s / len(g.members) for s in sums]
-
 
 def _num(v: float) -> str:
     s = f"{v:.3f}".rstrip("0").rstrip(".")
@@ -307,13 +297,9 @@ def _num(v: float) -> str:
 
 def _items(g: _Group, groups: dict[int, _Group]) -> list[str]:
     """The split pattern of an internal group."""
-    sizes = _child_sizes(g)
+    sizes = [s / len(g.members) for s in g.size_sums]   # averaged over the cluster members
     names = [groups[c].name for c in g.children]
     n = len(names)
-    if g.split in _SINGLE and n == 2:
-        small = 0 if sizes[0] <= sizes[1] else 1
-        return [f"{_num(sizes[j])} : {names[j]}" if j == small else f"~1 : {names[j]}"
-                for j in range(2)]
     if g.split in _DUAL and n == 3:
         return [f"~{_num(sizes[0])} : {names[0]}", f"{_num(sizes[1])} : {names[1]}",
                 f"~{_num(sizes[2])} : {names[2]}"]
@@ -324,13 +310,13 @@ def _items(g: _Group, groups: dict[int, _Group]) -> list[str]:
         else:
             runs.append((j, 1))
     repeats = [r for r in runs if r[1] >= 2]
+    if n == 2 and (g.split in _SINGLE or not repeats):   # the smaller absolute, the bigger ~1
+        small = 0 if sizes[0] <= sizes[1] else 1
+        return [f"{_num(sizes[j])} : {names[j]}" if j == small else f"~1 : {names[j]}"
+                for j in range(2)]
     if not repeats:
         if n == 1:
             return [f"~1 : {names[0]}"]
-        if n == 2:
-            small = 0 if sizes[0] <= sizes[1] else 1
-            return [f"{_num(sizes[j])} : {names[j]}" if j == small else f"~1 : {names[j]}"
-                    for j in range(2)]
         return [f"{'' if j in (0, n - 1) else '~'}{_num(sizes[j])} : {names[j]}"
                 for j in range(n)]
     main = max(repeats, key=lambda r: (r[1], sum(sizes[r[0]:r[0] + r[1]])))
@@ -383,7 +369,7 @@ def _leaf_ops(g: _Group, attrs: dict[str, float], textured: bool) -> str:
         return " ".join(ops)
     attr = attrs.get(g.label)
     if attr is not None and abs(attr - depth) <= 1e-3:
-        var = f"{g.label}_depth"
+        var = _depth_attr(g.label)
         ops.append(f"s('1, '1, abs({var})) t(0, 0, min({var}, 0))")
     elif depth < 0:
         ops.append(f"s('1, '1, {_num(-depth)}) t(0, 0, {_num(depth)})")
@@ -413,7 +399,7 @@ def _emit(groups: dict[int, _Group], root: int, attrs: dict[str, float], texture
     if attrs:
         lines.append("# depth of each element class in metres: < 0 recessed behind the wall, "
                      "> 0 protruding")
-        lines += [f"attr {label}_depth = {_num(v)}" for label, v in attrs.items()]
+        lines += [f"attr {_depth_attr(label)} = {_num(v)}" for label, v in attrs.items()]
         lines.append("")
     for gid in _bfs(groups, root):
         g = groups[gid]

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .symmetry import quantise
+from .symmetry import _clogc_table, quantise
 
 __all__ = ["Match", "match_elements", "mutual_information_matrix", "region_stack"]
 
@@ -102,13 +102,6 @@ def region_stack(gray: np.ndarray, boxes: np.ndarray, size: int) -> tuple[np.nda
     return out, valid
 
 
-def _clogc(n: int) -> np.ndarray:
-    c = np.arange(n + 1, dtype=np.float64)
-    t = np.zeros(n + 1)
-    t[1:] = c[1:] * np.log(c[1:])
-    return t
-
-
 def _row_hist(x: np.ndarray, bins: int) -> np.ndarray:
     """Histogram of every row of integer levels: (n, bins)."""
     off = (np.arange(len(x), dtype=np.int64) * bins)[:, None]
@@ -133,7 +126,7 @@ def mutual_information_matrix(a: np.ndarray, b: np.ndarray, bins: int,
     pair = (np.arange(n * m, dtype=np.int64) * bb).reshape(n, m, 1)
     idx = pair + (a * bins)[:, None, :] + b[None, :, :]
     joint = np.bincount(idx.ravel(), minlength=n * m * bb).reshape(n, m, bb)
-    table = _clogc(P)
+    table = _clogc_table(P)
     ha = table[_row_hist(a, bins)].sum(axis=1)  # (n,)
     hb = table[_row_hist(b, bins)].sum(axis=1)  # (m,)
     hab = table[joint].sum(axis=2)  # (n, m)
@@ -177,11 +170,11 @@ def match_elements(gray: np.ndarray, boxes, clusters, *, library=None,
     from ..errors import InputError
 
     specs = list(element_library() if library is None else library)
-    if kinds is not None:
-        wanted = {str(k) for k in kinds}
+    wanted = None if kinds is None else {str(k) for k in kinds}
+    if wanted is not None:
         specs = [s for s in specs if s.kind in wanted]
     if not specs:
-        raise InputError(f"no library element to match (kinds={sorted(kinds or [])!r})")
+        raise InputError(f"no library element to match (kinds={sorted(wanted or ())!r})")
     gray = np.asarray(gray, np.float32)
     if gray.ndim != 2:
         raise InputError(f"match_elements needs a gray (H, W) image, got shape {gray.shape}")

@@ -36,7 +36,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["Rectification", "detect_segments", "rectify", "rectifying_homography",
-           "segment_geometry", "vanishing_points", "warped_bounds"]
+           "segment_geometry", "to_rgb8", "vanishing_points", "warped_bounds"]
 
 #: Inlier threshold: angle (degrees) between a segment and the direction to the vanishing point.
 INLIER_ANGLE_DEG = 2.0
@@ -58,7 +58,7 @@ def _cv2():
     return cv2
 
 
-def _to_uint8_rgb(image: np.ndarray) -> np.ndarray:
+def to_rgb8(image: np.ndarray) -> np.ndarray:
     """(H, W, 3) uint8 from gray, RGB, RGBA, 16-bit or float images."""
     a = np.asarray(image)
     if a.ndim == 2:
@@ -87,11 +87,11 @@ def _to_uint8_rgb(image: np.ndarray) -> np.ndarray:
 def _to_gray_u8(gray: np.ndarray) -> np.ndarray:
     a = np.asarray(gray)
     if a.ndim == 3:
-        rgb = _to_uint8_rgb(a).astype(np.float32)
+        rgb = to_rgb8(a).astype(np.float32)
         return (rgb @ np.array([0.299, 0.587, 0.114], np.float32)).round().astype(np.uint8)
     if a.ndim != 2:
         raise InputError(f"expected a 2D grayscale image, got shape {a.shape}")
-    return _to_uint8_rgb(a)[:, :, 0]
+    return to_rgb8(a)[:, :, 0]
 
 
 def segment_geometry(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -423,7 +423,7 @@ def rectify(image: np.ndarray, *, crop: bool = True, rng: np.random.Generator | 
     half the confidence and a note in ``reason``.  Raises :class:`InputError` for images that
     are not images (wrong shape, NaN values).
     """
-    rgb = _to_uint8_rgb(image)
+    rgb = to_rgb8(image)
     h, w = rgb.shape[:2]
     if min(h, w) < MIN_SIDE:
         return Rectification.failed(f"image too small ({w}x{h}); need at least {MIN_SIDE} px "

@@ -201,7 +201,8 @@ class _Edges:
         return float(s[y1, x1] - s[y0, x1] - s[y1, x0] + s[y0, x0])
 
     def noise(self, box: tuple[int, int, int, int], floor: float) -> float:
-        """Mean gradient magnitude in the zone around the tile boundary (§3.1)."""
+        """Mean squared gradient magnitude in the zone around the tile boundary (§3.1), at least
+        ``floor``."""
         h, w = self.shape
         x0, y0, x1, y1 = box
         b = max(2, min(x1 - x0, y1 - y0) // 10)
@@ -291,11 +292,11 @@ def _bounds(box: tuple[int, int, int, int], side: str) -> tuple[int, int]:
 
 
 def _candidates(edges: _Edges, box: tuple[int, int, int, int], thr: float,
-                noise: float, min_strip: int = 1) -> dict[str, _Cand]:
+                noise: float, min_strip: int) -> dict[str, _Cand]:
     """First relevant line from each side (local maximum of the strength profile above
-    ``thr``) with its edge-responding segment."""
+    ``thr``, leaving strips of at least ``min_strip`` px) with its edge-responding segment."""
     out: dict[str, _Cand] = {}
-    x0, y0, x1, y1 = box
+    x0, y0 = box[:2]
     for vertical, sides in ((True, ("left", "right")), (False, ("top", "bottom"))):
         p = edges.profile(box, vertical)
         if p.size < 3:

@@ -13,7 +13,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError
 from . import operation
 from .roofs import _roof
-from .subdivision import _AXES, RepeatItem, _selector_key, _size_items, resolve_split
+from .subdivision import _AXES, _selector_key, call_pieces
 
 # ---- innerRectangle -------------------------------------------------------------------------
 
@@ -315,10 +315,7 @@ def op_split_area(call):
     coord = local.vertices[local.corners][:, axis]
     lo, hi = float(coord.min()), float(coord.max())
     total = local.area()
-    items = _size_items(call.branches, call.env)
-    if call.repeat:
-        items = [RepeatItem(items)]
-    pieces = resolve_split(items, total)
+    pieces = call_pieces(call, total)
     if not pieces:
         return []
 

@@ -102,6 +102,14 @@ def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, floa
     return out
 
 
+def call_pieces(call, total: float) -> list[tuple[A.Branch, float, float]]:
+    """:func:`resolve_split` of a split call's branches (a whole-split ``{…}*`` repeats)."""
+    items = _size_items(call.branches, call.env)
+    if call.repeat:
+        items = [RepeatItem(items)]
+    return resolve_split(items, total)
+
+
 def _size_items(branches, env) -> list:
     items = []
     for b in branches:
@@ -129,10 +137,7 @@ def op_split(call):
     adjust = call.sel(1, "adjust") != "noAdjust"
     st = call.state
     total = float(st.scope.size[axis])
-    items = _size_items(call.branches, call.env)
-    if call.repeat:
-        items = [RepeatItem(items)]
-    pieces = resolve_split(items, total)
+    pieces = call_pieces(call, total)
     if not pieces:
         return []
     cuts = [pieces[0][1]] + [p[1] + p[2] for p in pieces]
@@ -199,10 +204,7 @@ def _split_uv(call, k: int):
     if space == "unitSpace":
         scale = _metres_per_uv(mesh, k)
     total = (hi - lo) * scale
-    items = _size_items(call.branches, call.env)
-    if call.repeat:
-        items = [RepeatItem(items)]
-    pieces = resolve_split(items, total)
+    pieces = call_pieces(call, total)
     out = []
     n = len(pieces)
     for i, (branch, start, width) in enumerate(pieces):
