@@ -578,8 +578,10 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
     out.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:
-        Image.fromarray(rec.rectified).save(stage / "rectified.png")
-        Image.fromarray(_structure_png(rec)).save(stage / "structure.png")
+        # photo-sized RGB PNGs: zlib level 1 writes them ~4x faster than the
+        # default 6 for 17 % more bytes (measured on a 1600x1200 synthetic facade)
+        Image.fromarray(rec.rectified).save(stage / "rectified.png", compress_level=1)
+        Image.fromarray(_structure_png(rec)).save(stage / "structure.png", compress_level=1)
         write_label_png(rec.labels, stage / "labels.png")
         write_label_png(rec.labels_input(), stage / "labels_input.png")
         (stage / "shape_tree.json").write_text(json.dumps(rec.tree.to_dict(), indent=1,
