@@ -136,7 +136,8 @@ def cmd_render(args) -> int:
 def _summary(rec, out) -> str:
     r = rec.report
     f = r["facade"]
-    els = ", ".join(f"{n} {k}" for k, n in sorted(r["elements"].items())) or "no elements"
+    els = ", ".join(f"{n} {k}{'' if n == 1 else 's'}" for k, n in sorted(r["elements"].items())
+                    ) or "no elements"
     t = r["timings"]
     lines = [f"facade {f['width_m']:.1f} m × {f['height_m']:.1f} m (scale: {f['scale_source']}): "
              f"{r['floors']} floors, {r['tiles']} tiles in {r['tile_clusters']} clusters, {els}",
