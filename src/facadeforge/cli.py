@@ -84,11 +84,13 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")
     c.add_argument("-o", "--output", required=True, help="output folder")
 
+    from .classify.train import add_parser as add_train
     from .datasets.synthetic import add_parser as add_synth
     from .evaluation.bench import add_parser as add_bench
 
     add_synth(sub)
     add_bench(sub)
+    add_train(sub)
 
     m = sub.add_parser("demo", help="derive the example building and reconstruct a synthetic facade",
                        epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -217,8 +219,15 @@ def cmd_synth(args) -> int:
     return run(args)
 
 
+def cmd_train_classifier(args) -> int:
+    from .classify.train import cmd_train_classifier as run
+
+    return run(args)
+
+
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
-            "synth": cmd_synth, "reconstruct": cmd_reconstruct}
+            "synth": cmd_synth, "reconstruct": cmd_reconstruct,
+            "train-classifier": cmd_train_classifier}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -39,8 +39,8 @@ import numpy as np
 from ..datasets import FacadeSample, LabelSet
 from ..errors import InputError
 
-__all__ = ["LABEL_SPACES", "METHODS", "Method", "Prediction", "PriorBaseline", "RowColPrior",
-           "StructureMethod", "get_method", "register_method"]
+__all__ = ["LABEL_SPACES", "METHODS", "ClassifierMethod", "Method", "Prediction", "PriorBaseline",
+           "RowColPrior", "StructureMethod", "get_method", "register_method"]
 
 #: Label spaces a method may predict in (see the module docstring).
 LABEL_SPACES: tuple[str, ...] = ("label_set", "canonical")
@@ -308,3 +308,36 @@ class StructureMethod:
 register_method("structure", "canonical",
                 description="Müller 2007: repetition detection, tile refinement, element "
                             "matching → shape tree")(StructureMethod())
+
+
+class ClassifierMethod:
+    """Baseline of ``simon2011`` §4.4.1: the pixel classifier alone, each pixel its most
+    probable class (the shipped auto-context model of the dataset's label set); with
+    ``smoothness > 0``, the MRF-Potts segmentation of the same probabilities (eq. 4.14,
+    alpha-expansion graph cuts).  The models are trained on the development train split, so
+    ``fit`` does nothing; held-out data is scored with the same shipped models."""
+
+    def __init__(self, smoothness: float = 0.0) -> None:
+        self.smoothness = float(smoothness)
+
+    def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
+        from ..classify import default_classifier
+
+        clf = default_classifier(label_set.name)
+        if clf.classes != label_set.classes:
+            raise InputError(f"the shipped {label_set.name} classifier's classes {clf.classes} "
+                             f"differ from the label set's {label_set.classes}")
+        prob = clf.predict_proba(sample.image())
+        if self.smoothness > 0:
+            from ..parsing.mrf import potts_labels
+
+            return Prediction(labels=potts_labels(prob, self.smoothness))
+        return Prediction(labels=np.argmax(prob, axis=2).astype(np.uint8))
+
+
+register_method("classifier", "label_set",
+                description="baseline (simon2011 §4.4.1): auto-context forest classifier, "
+                            "argmax per pixel")(ClassifierMethod())
+register_method("mrf", "label_set",
+                description="baseline (simon2011 §4.4.1): MRF-Potts (λ = 1) on the classifier's "
+                            "probabilities, alpha-expansion")(ClassifierMethod(smoothness=1.0))

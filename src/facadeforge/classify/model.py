@@ -1,0 +1,166 @@
+"""Pixel classifiers: the common interface, and one safe file format for all of them.
+
+A pixel classifier gives every pixel of a facade photo a probability per class — the *image
+support* of grammar-driven parsing (``simon2011`` §4.2.1, eq. 4.4).  Every kind (the randomised
+forest of §4.3.1, the scribble GMM of §4.3.2, the auto-context forest) implements
+:class:`PixelClassifier`: ``predict_proba(image) -> (H, W, K) float32`` in the photo's own pixel
+frame, rows summing to one, with ``classes`` naming the K channels by canonical label
+(:class:`~facadeforge.model.Labels`) in the order of the label set it was trained in.
+
+File format (``.npz``, written by :func:`save_classifier`, read by :func:`load_classifier`): plain
+numeric arrays plus one JSON document in the array ``__meta__`` (kind, classes, label set, how the
+model was trained).  It is read with ``allow_pickle=False``: a model file holds numbers and text,
+never code, so loading one from a stranger executes nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["CLASSIFIER_KINDS", "ClassifierFileError", "PixelClassifier", "load_classifier",
+           "register_kind", "save_classifier"]
+
+FORMAT_VERSION = 1
+
+
+class ClassifierFileError(InputError, ValueError):
+    """A classifier file is missing, not a facadeforge model, or of an unknown kind/version."""
+
+
+class PixelClassifier(ABC):
+    """Per-pixel class probabilities for a facade photo.
+
+    Attributes
+    ----------
+    kind : str
+        Registry key of the implementation (``forest``, ``autocontext``, ``gmm``).
+    classes : tuple of str
+        Canonical label of each output channel.
+    label_set : str
+        Name of the label set the classes come from (``cmp6``, ``ecp7``, or ``scribbles``).
+    meta : dict
+        JSON-able provenance: training data, ids, command, date, parameters.
+    """
+
+    kind: ClassVar[str] = ""
+
+    def __init__(self, classes: tuple[str, ...], label_set: str, meta: Mapping[str, Any] | None):
+        self.classes = tuple(classes)
+        self.label_set = str(label_set)
+        self.meta = dict(meta or {})
+
+    @property
+    def num_classes(self) -> int:
+        return len(self.classes)
+
+    @abstractmethod
+    def predict_proba(self, image: np.ndarray) -> np.ndarray:
+        """``(H, W, K)`` float32 class probabilities of an ``(H, W, 3)`` uint8 RGB photo."""
+
+    def predict(self, image: np.ndarray) -> np.ndarray:
+        """``(H, W)`` uint8 most probable class index (classifier-only labelling)."""
+        return np.argmax(self.predict_proba(image), axis=2).astype(np.uint8)
+
+    @abstractmethod
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The model's parameters as named numeric arrays (see the module docstring)."""
+
+    @classmethod
+    @abstractmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], classes: tuple[str, ...],
+                    label_set: str, meta: Mapping[str, Any]) -> PixelClassifier:
+        """Rebuild a classifier from :meth:`to_arrays` output."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(classes={self.classes!r}, label_set={self.label_set!r})"
+
+
+#: Classifier implementations by kind.
+CLASSIFIER_KINDS: dict[str, type[PixelClassifier]] = {}
+
+
+def register_kind(cls: type[PixelClassifier]) -> type[PixelClassifier]:
+    """Class decorator adding ``cls`` to :data:`CLASSIFIER_KINDS` under ``cls.kind``."""
+    if not cls.kind:
+        raise TypeError(f"{cls.__name__} has no kind")
+    CLASSIFIER_KINDS[cls.kind] = cls
+    return cls
+
+
+def save_classifier(clf: PixelClassifier, path: str | Path) -> Path:
+    """Write ``clf`` to ``path`` (``.npz``) atomically: a temporary file in the same folder is
+    renamed into place, so a failed write never leaves a half-written model."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise InputError(f"classifier output {path}: use a .npz file name")
+    if not path.parent.is_dir():
+        raise InputError(f"classifier output {path}: folder {path.parent} does not exist; "
+                         "create it first")
+    meta = {"format": "facadeforge-classifier", "version": FORMAT_VERSION, "kind": clf.kind,
+            "classes": list(clf.classes), "label_set": clf.label_set, "meta": clf.meta}
+    arrays = clf.to_arrays()
+    if "__meta__" in arrays:
+        raise ValueError("array name __meta__ is reserved")
+    blob = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, __meta__=blob, **arrays)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a model file is for sharing
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_classifier(path: str | Path) -> PixelClassifier:
+    """Read a classifier written by :func:`save_classifier` (no pickle, see module docstring).
+
+    Raises
+    ------
+    ClassifierFileError
+        Missing file, not an ``.npz`` facadeforge model, unknown kind or newer format version.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ClassifierFileError(f"classifier {path}: no such file; train one with "
+                                  "'facadeforge train-classifier' or omit --classifier")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        meta = json.loads(arrays.pop("__meta__").tobytes().decode())
+    except (OSError, ValueError, KeyError, UnicodeDecodeError) as exc:
+        raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file "
+                                  f"({exc.__class__.__name__}); train one with "
+                                  "'facadeforge train-classifier'") from None
+    if meta.get("format") != "facadeforge-classifier":
+        raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file")
+    if int(meta.get("version", 0)) > FORMAT_VERSION:
+        raise ClassifierFileError(f"classifier {path}: format version {meta.get('version')} is "
+                                  f"newer than this facadeforge reads ({FORMAT_VERSION}); "
+                                  "upgrade facadeforge")
+    _load_kinds()
+    kind = meta.get("kind")
+    if kind not in CLASSIFIER_KINDS:
+        raise ClassifierFileError(f"classifier {path}: unknown kind {kind!r}; this facadeforge "
+                                  f"reads {', '.join(sorted(CLASSIFIER_KINDS))}")
+    return CLASSIFIER_KINDS[kind].from_arrays(arrays, tuple(meta["classes"]),
+                                              meta["label_set"], meta.get("meta", {}))
+
+
+def _load_kinds() -> None:
+    """Import the implementations so they register themselves."""
+    from . import autocontext, forest, gmm  # noqa: F401

@@ -1,0 +1,117 @@
+"""Fitting a parse grammar to class probabilities: layout derivation + energy + search.
+
+:func:`fit_grammar` is the core of grammar-driven parsing (``simon2011`` §4.2): it binds a parse
+grammar's procedural space (:func:`~.search.parameters_of`), its fast 2D derivation
+(:class:`~.layout.SplitLayout`) and the facade energy (:class:`~.energy.SegmentationEnergy`) into
+one objective, and minimises it with the chosen search.  The photo's aspect ratio fixes the
+facade rectangle: ``facadeWidth`` × ``facadeWidth · H / W`` metres.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..datasets import LabelSet
+from ..errors import InputError
+from .energy import SegmentationEnergy
+from .layout import Layout, ParseGrammarError, SplitLayout
+from .search import SearchResult, hill_climb, parameters_of
+
+__all__ = ["DEFAULT_GRAMMAR", "GRAMMARS", "FitResult", "fit_grammar", "grammar_path",
+           "SEARCH_METHODS"]
+
+GRAMMAR_DIR = Path(__file__).with_name("grammars")
+#: Built-in parse grammars by name.
+GRAMMARS: dict[str, Path] = {p.stem: p for p in sorted(GRAMMAR_DIR.glob("*.cga"))}
+DEFAULT_GRAMMAR = "generic"
+#: Long side (pixels) of the probability maps the energy is computed on.
+ENERGY_SIDE = 256
+
+
+def grammar_path(grammar: str | Path | None) -> Path:
+    """A built-in grammar name (``generic``, ``haussmann``) or a ``.cga`` path."""
+    if grammar is None:
+        return GRAMMARS[DEFAULT_GRAMMAR]
+    if str(grammar) in GRAMMARS:
+        return GRAMMARS[str(grammar)]
+    p = Path(grammar)
+    if not p.is_file():
+        raise InputError(f"grammar {grammar}: no such file and not a built-in grammar "
+                         f"({', '.join(GRAMMARS)})")
+    return p
+
+
+@dataclass
+class FitResult:
+    """The best derivation found: parameters, layout, energies and the search trace."""
+
+    attrs: dict[str, Any]
+    layout: Layout
+    search: SearchResult
+    energy_per_pixel: float
+    labels: np.ndarray       # (h, w) label-set classes at the energy's resolution
+    width_m: float
+    height_m: float
+
+
+def _shrink(prob: np.ndarray, side: int) -> np.ndarray:
+    h, w = prob.shape[:2]
+    s = min(1.0, side / max(h, w))
+    if s >= 1.0:
+        return prob.astype(np.float32)
+    size = (max(2, round(w * s)), max(2, round(h * s)))
+    k = prob.shape[2]
+    out = np.empty((size[1], size[0], k), np.float32)
+    for c0 in range(0, k, 4):
+        c1 = min(k, c0 + 4)
+        out[:, :, c0:c1] = cv2.resize(np.ascontiguousarray(prob[:, :, c0:c1], np.float32), size,
+                                      interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
+    return out
+
+
+def search_method(name: str):
+    if name not in SEARCH_METHODS:
+        raise InputError(f"unknown search method {name!r}; use one of {', '.join(SEARCH_METHODS)}")
+    return SEARCH_METHODS[name]
+
+
+SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb}
+
+
+def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "hill",
+                budget: int = 1500, seed: int = 0, fixed: Mapping[str, Any] | None = None,
+                **options: Any) -> FitResult:
+    """Fit the parse grammar ``rules`` (loaded) to ``(H, W, K)`` probabilities of a rectified
+    facade; ``fixed`` pins attributes (e.g. ``facadeWidth`` when the width is known)."""
+    search = search_method(method)
+    small = _shrink(np.asarray(prob), ENERGY_SIDE)
+    energy = SegmentationEnergy(small, label_set)
+    layout = SplitLayout(rules)
+    fixed = dict(fixed or {})
+    params = [p for p in parameters_of(rules) if p.name not in fixed]
+    if "facadeWidth" not in fixed and all(p.name != "facadeWidth" for p in params):
+        raise ParseGrammarError("a parse grammar needs @Range attr facadeWidth (the photo's "
+                                "width in metres), or pass its value in fixed")
+    aspect = small.shape[0] / small.shape[1]
+
+    def size_of(attrs: Mapping[str, Any]) -> tuple[float, float]:
+        w = float(attrs["facadeWidth"])
+        return w, w * aspect
+
+    def objective(attrs: Mapping[str, Any]) -> float:
+        full = {**fixed, **attrs}
+        w, h = size_of(full)
+        return energy(layout.derive(w, h, full))
+
+    result = search(objective, params, budget=budget, seed=seed, **options)
+    best = {**fixed, **result.attrs}
+    w, h = size_of(best)
+    lay = layout.derive(w, h, best)
+    return FitResult(best, lay, result, energy.per_pixel(result.energy), energy.rasterize(lay),
+                     w, h)

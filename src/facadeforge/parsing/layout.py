@@ -1,0 +1,257 @@
+"""Fast 2D layouts of split grammars: the candidate generator of grammar-driven parsing.
+
+Parsing (``simon2011`` ch. 4–5) scores thousands of derivations per facade.  A full derivation by
+:mod:`facadeforge.grammar.interpreter` builds meshes, states and a shape tree (≈ 50 µs per
+shape); the energy of §4.2.2 only needs each terminal's rectangle and label.  :class:`SplitLayout`
+derives the *same rules* restricted to what a 2D facade layout uses, returning leaf rectangles:
+
+- ``split(x|y) { … }`` and ``{ … }*`` with absolute, relative (``'``) and floating (``~``) sizes,
+  resolved by the interpreter's own :func:`~facadeforge.grammar.ops.subdivision.resolve_split`;
+- successor rules with parameters, ``case … else`` on expressions, ``NIL``;
+- ``label("…")`` (a leaf's label; otherwise the label guessed from the rule name, as for
+  derived models); appearance-only operations (``color``, ``t``, ``s``, ``texture``, …) are
+  ignored, since they do not move a 2D rectangle.
+
+Expressions are evaluated by the interpreter's :class:`~facadeforge.grammar.expressions.Evaluator`
+(attributes, rule parameters, ``scope.sx``/``scope.sy``, built-in functions).  Because nothing in
+this subset depends on a shape's position or on randomness, a rule applied to two shapes of the
+same size with the same arguments yields the same layout up to translation: results are memoised
+per (rule, arguments, size), so twenty identical floors cost one.  A grammar using anything else
+(``rand``, ``comp``, ``extrude``, ``split.index``…) raises :class:`ParseGrammarError` naming the rule
+and line; such grammars still derive in the engine, just not in the parser's inner loop.
+
+Tests check the rectangles against full derivations by the engine.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..grammar import ast as A
+from ..grammar.expressions import Evaluator
+from ..grammar.functions import FUNCTIONS
+from ..grammar.ops import OPERATIONS
+from ..grammar.ops.subdivision import call_pieces
+from ..grammar.values import CGARuntimeError, to_bool, to_str
+from ..model.labels import label_for_name
+
+__all__ = ["Layout", "ParseGrammarError", "SplitLayout"]
+
+#: Operations that change nothing about a 2D rectangle and its label.
+_APPEARANCE_OPS = frozenset({
+    "color", "t", "s", "r", "texture", "setupProjection", "projectUV", "set", "print", "report",
+    "tileUV", "scaleUV", "translateUV", "rotateUV", "normalizeUV", "deleteUV", "alignScopeToAxes",
+    "center", "i", "extrude", "primitiveQuad", "setNormals", "softenNormals", "cleanupGeometry", "tag"})
+
+MAX_DEPTH = 64
+MAX_LEAVES = 100_000
+
+
+class ParseGrammarError(InputError, ValueError):
+    """A grammar uses something the parser's 2D layout derivation does not support."""
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Leaf rectangles of one derivation, metres, facade frame (x right, y up from the bottom).
+
+    ``boxes`` is ``(n, 4)`` float ``x0, y0, x1, y1``; ``labels`` the canonical label of each.
+    """
+
+    boxes: np.ndarray
+    labels: tuple[str, ...]
+    width: float
+    height: float
+
+
+class _Env:
+    """What the expression evaluator asks of an environment, for the 2D subset."""
+
+    __slots__ = ("layout", "locals", "sx", "sy", "evaluator")
+
+    def __init__(self, layout: SplitLayout, local_vars: Mapping[str, Any], sx: float, sy: float):
+        self.layout = layout
+        self.locals = local_vars
+        self.sx = sx
+        self.sy = sy
+        self.evaluator = Evaluator(self)
+
+    def random_float(self) -> float:
+        raise CGARuntimeError("parse grammars must be deterministic: rand() is not supported")
+
+    def lookup(self, name: str, node):
+        if name in self.locals:
+            return self.locals[name]
+        if name == "scope.sx":
+            return self.sx
+        if name == "scope.sy":
+            return self.sy
+        if name == "scope.sz":
+            return 0.0
+        if name in self.layout.attr_defs:
+            return self.layout.attr_value(name)
+        raise CGARuntimeError(f"'{name}' is not available in a parse grammar (attributes, rule "
+                              "parameters and scope.sx/scope.sy are)")
+
+    def call(self, name: str, args: list, node):
+        if name in self.layout.functions and len(self.layout.functions[name].params) == len(args):
+            fdef = self.layout.functions[name]
+            env = _Env(self.layout, {p.name: v for p, v in zip(fdef.params, args)}, self.sx,
+                       self.sy)
+            return env.evaluator(fdef.body)
+        if name in ("rand", "p"):
+            raise CGARuntimeError(f"parse grammars must be deterministic: {name}() is not "
+                                  "supported")
+        entry = FUNCTIONS.get(name)
+        if entry is None:
+            raise CGARuntimeError(f"function '{name}' is not available in a parse grammar")
+        return entry[0](self, args)
+
+    def comp_function(self, node):
+        raise CGARuntimeError("comp(…) functions are not available in a parse grammar")
+
+
+class SplitLayout:
+    """The 2D layout derivation of a loaded rule set (module docstring).
+
+    Parameters
+    ----------
+    rules : facadeforge.engine.Rules
+        Loaded rules (:func:`facadeforge.engine.load_rules`); only the main file is used.
+    start : str, optional
+        Start rule (default: the rules' ``@StartRule``).
+    """
+
+    def __init__(self, rules, start: str | None = None):
+        module = rules.ruleset.main
+        self.module = module
+        self.start = start or rules.ruleset.start_rule
+        if not self.start:
+            raise ParseGrammarError("the parse grammar has no @StartRule; mark one or pass start")
+        self.rule_defs: dict[tuple[str, int], A.RuleDef] = {}
+        for name, by_arity in module.rules.items():
+            for arity, rdef in by_arity.items():
+                self.rule_defs[(name, arity)] = rdef
+        if (self.start, 0) not in self.rule_defs:
+            raise ParseGrammarError(f"start rule '{self.start}' is not defined (without "
+                                    "parameters) in the parse grammar")
+        self.attr_defs: dict[str, A.AttrDef] = dict(module.attrs)
+        self.functions = {f.name: f for f in module.ast.functions}
+        self._overrides: dict[str, Any] = {}
+        self._attr_cache: dict[str, Any] = {}
+        self._memo: dict[tuple, tuple[np.ndarray, list[str]]] = {}
+
+    # ------------------------------------------------------------------ attributes
+    def attr_value(self, name: str):
+        if name in self._attr_cache:
+            return self._attr_cache[name]
+        adef = self.attr_defs[name]
+        if not adef.const and name in self._overrides:
+            value = self._overrides[name]
+        else:
+            self._attr_cache[name] = CGARuntimeError  # cycle guard
+            value = _Env(self, {}, 0.0, 0.0).evaluator(adef.value)
+        self._attr_cache[name] = value
+        return value
+
+    # ------------------------------------------------------------------ derivation
+    def derive(self, width: float, height: float, attrs: Mapping[str, Any] | None = None
+               ) -> Layout:
+        """Leaf rectangles of the start rule on a ``width`` × ``height`` facade."""
+        if not (width > 0 and height > 0):
+            raise InputError(f"layout size {width} x {height} must be positive")
+        self._overrides = dict(attrs or {})
+        self._attr_cache = {}
+        self._memo = {}
+        self._count = 0
+        boxes, labels = self._rule(self.start, (), width, height, None, 0)
+        return Layout(boxes, tuple(labels), float(width), float(height))
+
+    def _rule(self, name: str, args: tuple, sx: float, sy: float, label: str | None, depth: int
+              ) -> tuple[np.ndarray, list[str]]:
+        rdef = self.rule_defs.get((name, len(args)))
+        if rdef is None:  # a leaf: an undefined successor is a terminal shape
+            return self._leaf(name, label, sx, sy)
+        if depth > MAX_DEPTH:
+            raise ParseGrammarError(f"rule '{name}' (line {rdef.line}) nests deeper than "
+                                    f"{MAX_DEPTH} levels")
+        key = (name, args, round(sx, 9), round(sy, 9), label)
+        hit = self._memo.get(key)
+        if hit is not None:
+            return hit
+        env = _Env(self, {p.name: v for p, v in zip(rdef.params, args)}, sx, sy)
+        try:
+            out = self._ops(rdef.body, env, name, sx, sy, label, depth, rdef)
+        except CGARuntimeError as exc:
+            raise ParseGrammarError(f"parse grammar, rule '{name}' (line {rdef.line}): {exc}"
+                                    ) from None
+        self._memo[key] = out
+        return out
+
+    def _leaf(self, name: str, label: str | None, sx: float, sy: float):
+        self._count += 1
+        if self._count > MAX_LEAVES:
+            raise ParseGrammarError(f"the parse grammar makes more than {MAX_LEAVES} leaves")
+        lab = label or str(label_for_name(name) or "other")
+        return np.array([[0.0, 0.0, sx, sy]]), [lab]
+
+    def _ops(self, ops, env: _Env, name: str, sx: float, sy: float, label, depth, rdef):
+        for i, op in enumerate(ops):
+            last = i == len(ops) - 1
+            if isinstance(op, A.Successor) and op.name == "label":
+                label = to_str(env.evaluator(op.args[0])) if op.args else label
+                continue
+            if isinstance(op, A.Successor) and op.name in _APPEARANCE_OPS:
+                continue
+            if isinstance(op, A.Nil):
+                return np.zeros((0, 4)), []
+            if isinstance(op, A.Leaf) or (isinstance(op, A.Successor) and last
+                                           and op.name not in OPERATIONS):
+                args = tuple(env.evaluator(a) for a in getattr(op, "args", ()))
+                return self._rule(op.name, args, sx, sy, label, depth + 1)
+            if isinstance(op, A.CaseOps):
+                for cond, body in op.branches:
+                    if to_bool(env.evaluator(cond)):
+                        return self._ops(body, env, name, sx, sy, label, depth, rdef)
+                return self._ops(op.otherwise, env, name, sx, sy, label, depth, rdef)
+            if isinstance(op, A.BodyOp) and op.name == "split" and last:
+                return self._split(op, env, sx, sy, label, depth)
+            what = getattr(op, "name", type(op).__name__)
+            raise ParseGrammarError(f"parse grammar, rule '{name}' (line {rdef.line}): "
+                                    f"'{what}' is not supported in a 2D parse grammar (use "
+                                    "split, case, label and successor rules)")
+        return self._leaf(name, label, sx, sy)
+
+    def _split(self, op: A.BodyOp, env: _Env, sx: float, sy: float, label, depth):
+        axis_name = op.args[0].name if op.args and isinstance(op.args[0], A.Name) else None
+        if axis_name not in ("x", "y"):
+            raise ParseGrammarError(f"parse grammar, line {op.line}: only split(x) and split(y) "
+                                    "are supported")
+        total = sx if axis_name == "x" else sy
+        boxes, labels = [], []
+        call = SimpleNamespace(branches=op.branches, env=env, repeat=op.repeat)
+        for branch, start, size in call_pieces(call, total):
+            w, h = (size, sy) if axis_name == "x" else (sx, size)
+            sub_env = _Env(self, env.locals, w, h)
+            b, lab = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
+                               _Line(branch.line))
+            if len(b):
+                b = b.copy()
+                if axis_name == "x":
+                    b[:, [0, 2]] += start
+                else:
+                    b[:, [1, 3]] += start
+                boxes.append(b)
+                labels += lab
+        return (np.concatenate(boxes) if boxes else np.zeros((0, 4))), labels
+
+
+@dataclass(frozen=True)
+class _Line:
+    line: int
