@@ -95,9 +95,12 @@ def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "
     layout = SplitLayout(rules)
     fixed = dict(fixed or {})
     params = [p for p in parameters_of(rules) if p.name not in fixed]
+    if "facadeWidth" not in layout.attr_defs:
+        raise ParseGrammarError("a parse grammar needs attr facadeWidth (the width in metres "
+                                "the photo spans)")
     if "facadeWidth" not in fixed and all(p.name != "facadeWidth" for p in params):
-        raise ParseGrammarError("a parse grammar needs @Range attr facadeWidth (the photo's "
-                                "width in metres), or pass its value in fixed")
+        fixed["facadeWidth"] = float(layout.derive(1.0, 1.0).width and  # evaluates defaults
+                                     layout.attr_value("facadeWidth"))
     aspect = small.shape[0] / small.shape[1]
 
     def size_of(attrs: Mapping[str, Any]) -> tuple[float, float]:
