@@ -39,7 +39,7 @@ def test_layout_matches_engine(generic, seed):
     params = parameters_of(generic)
     attrs = {p.name: (p.choices[rng.integers(len(p.choices))] if p.discrete else
                       p.clip(rng.uniform(p.lo, p.hi))) for p in params}
-    w = attrs["facadeWidth"]
+    w = rng.uniform(8, 30)
     h = w * rng.uniform(0.8, 1.6)
     lay = SplitLayout(generic).derive(w, h, attrs)
     ours = sorted((round(b[0], 6), round(b[1], 6), round(b[2], 6), round(b[3], 6), lab)
@@ -69,7 +69,7 @@ def test_energy_equals_direct_sum(generic):
     rng = np.random.default_rng(3)
     prob = rng.dirichlet(np.ones(7), size=(60, 45)).astype(np.float32)
     energy = SegmentationEnergy(prob, ECP7)
-    lay = SplitLayout(generic).derive(15, 20, {"facadeWidth": 15})
+    lay = SplitLayout(generic).derive(15, 20)
     labels = energy.rasterize(lay)
     direct = -np.log(np.clip(np.take_along_axis(prob, labels[:, :, None].astype(int), 2),
                              1e-3, 1)).sum()
@@ -77,9 +77,9 @@ def test_energy_equals_direct_sum(generic):
 
 
 def test_hill_climbing_recovers_a_known_layout(generic):
-    truth_attrs = {"facadeWidth": 14.0, "floorHeight": 3.4, "tileWidth": 3.1, "sideMargin": 0.9,
-                   "windowWidth": 0.5, "windowHeight": 0.6, "groundHeight": 4.5,
-                   "groundKind": "shops", "balconyHeight": 0.0, "skyHeight": 1.0}
+    truth_attrs = {"floors": 5, "tiles": 4, "sideMargin": 0.06, "windowWidth": 0.5,
+                   "windowHeight": 0.6, "groundFrac": 0.2, "groundKind": "shops",
+                   "balconyFrac": 0.0, "skyFrac": 0.05, "windowsPerTile": 1}
     lay = SplitLayout(generic).derive(14.0, 21.0, truth_attrs)
     base = SegmentationEnergy(np.full((150, 100, 7), 1 / 7, np.float32), ECP7)
     truth = base.rasterize(lay)

@@ -123,7 +123,7 @@ class _Policy:
 _ISLAND_POLICIES = (
     _Policy("rules", p_rule=0.6, p_concurrent=0.3, sigma=0.25, p_blocked=0.8),
     _Policy("coarse", p_rule=0.1, p_concurrent=0.4, sigma=0.25, p_blocked=0.5),
-    _Policy("fine", p_rule=0.05, p_concurrent=0.4, sigma=0.05, p_blocked=0.2),
+    _Policy("fine", p_rule=0.05, p_concurrent=0.4, sigma=0.1, p_blocked=0.2),
 )
 _MIXED = _Policy("mixed", p_rule=0.25, p_concurrent=0.4, sigma=0.15, p_blocked=0.5)
 #: σ schedule: the amplitude shrinks geometrically by this factor over the whole budget
