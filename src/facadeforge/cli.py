@@ -85,6 +85,20 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("-o", "--output", required=True, help="output folder")
 
     from .classify.train import add_parser as add_train
+
+    g = sub.add_parser("parse", help="photo → best derivation of a parse grammar (Simon 2011)",
+                       description="Fit a parse grammar to a facade photo: pixel classifier → "
+                                   "energy → hill climbing or evolutionary search → shape tree, "
+                                   "labels, fitted rules and 3D model in OUTDIR.")
+    g.add_argument("photo", help="facade photo")
+    g.add_argument("--grammar", help="parse grammar: built-in name (generic) or .cga file")
+    g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
+    g.add_argument("--method", default="hill", choices=("hill", "evolution"))
+    g.add_argument("--budget", type=int, default=2000, help="derivations (default 2000)")
+    g.add_argument("--rectified", action="store_true", help="the photo is already rectified")
+    g.add_argument("--width-m", type=float, help="facade width in metres (scales the model)")
+    g.add_argument("--seed", type=int, default=0)
+    g.add_argument("-o", "--output", required=True, help="output folder")
     from .datasets.synthetic import add_parser as add_synth
     from .evaluation.bench import add_parser as add_bench
 
@@ -219,6 +233,22 @@ def cmd_synth(args) -> int:
     return run(args)
 
 
+def cmd_parse(args) -> int:
+    from .parsing.parse import parse
+
+    result = parse(args.photo, grammar=args.grammar, classifier=args.classifier,
+                   method=args.method, budget=args.budget, rectified=args.rectified,
+                   width_m=args.width_m, seed=args.seed)
+    result.save(args.output)
+    r = result.report
+    e = r["elements"]
+    print(f"parsed {args.photo} with {Path(r['grammar']).stem} ({r['method']}, "
+          f"{r['derivations']} derivations, energy {r['energy_per_pixel']:.3f}/px): "
+          f"{e['window']} windows, {e['door']} doors, {e['balcony']} balconies, {e['shop']} "
+          f"shops; {r['timings']['total']:.2f} s → {args.output}")
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -227,7 +257,7 @@ def cmd_train_classifier(args) -> int:
 
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
-            "train-classifier": cmd_train_classifier}
+            "train-classifier": cmd_train_classifier, "parse": cmd_parse}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -40,7 +40,8 @@ from ..datasets import FacadeSample, LabelSet
 from ..errors import InputError
 
 __all__ = ["LABEL_SPACES", "METHODS", "ClassifierMethod", "Method", "Prediction", "PriorBaseline",
-           "RowColPrior", "StructureMethod", "get_method", "register_method"]
+           "GrammarMethod", "RowColPrior", "StructureMethod", "get_method",
+           "register_method"]
 
 #: Label spaces a method may predict in (see the module docstring).
 LABEL_SPACES: tuple[str, ...] = ("label_set", "canonical")
@@ -341,3 +342,37 @@ register_method("classifier", "label_set",
 register_method("mrf", "label_set",
                 description="baseline (simon2011 §4.4.1): MRF-Potts (λ = 1) on the classifier's "
                             "probabilities, alpha-expansion")(ClassifierMethod(smoothness=1.0))
+
+
+class GrammarMethod:
+    """Grammar-driven parsing (``simon2011`` ch. 4–5, :func:`facadeforge.parsing.parse.parse`):
+    the shipped classifier of the dataset's label set, the generic parse grammar fitted by
+    ``search`` within ``budget`` derivations; labels are the derived layout mapped back to the
+    photo (the classifier's labels outside the rectified facade).  CMP photos are rectified
+    already, as ``--rectified`` says on the command line."""
+
+    RECTIFIED_DATASETS = frozenset({"cmp"})
+
+    def __init__(self, search: str = "hill", budget: int = 2000) -> None:
+        self.search = search
+        self.budget = budget
+
+    def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
+        from ..classify import default_classifier
+        from ..parsing.parse import parse
+
+        result = parse(sample.image(), classifier=default_classifier(label_set.name),
+                       method=self.search, budget=self.budget, model=False,
+                       rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)
+        return Prediction(labels=result.labels_input())
+
+
+register_method("grammar-hill", "canonical",
+                description="simon2011 §4.2: generic parse grammar fitted by hill climbing "
+                            "(2000 derivations) to the auto-context classifier")(GrammarMethod())
+register_method("grammar-evo", "canonical",
+                description="simon2011 §5.2: generic parse grammar fitted by the evolutionary "
+                            "search (2000 derivations)")(GrammarMethod("evolution"))
+register_method("grammar", "canonical",
+                description="grammar parsing, best default: generic grammar, hill climbing, "
+                            "2000 derivations")(GrammarMethod())

@@ -28,7 +28,8 @@ Parameter mutation (eq. 5.1)
     eq. 4.8 of the hill climber) with σ = island policy (coarse/fine) × a schedule that shrinks
     geometrically ×0.1 over the budget × a per-island factor adapted by the "one-fifth rule" the
     thesis cites (grow σ when more than 1/5 of the offspring beat their parent, shrink it
-    otherwise).
+    otherwise).  A stepped parameter (a count: floors, tiles) whose draw rounds back to its value
+    moves by one step instead, so no derivation is spent on a no-op.
 
 Concurrent mutation (eq. 5.2)
     The thesis picks ``x_i`` and ``x_j`` "from the same node or from successive ones" and moves
@@ -36,7 +37,7 @@ Concurrent mutation (eq. 5.2)
     stays put (e.g. ``roofHeight + u`` with ``skyHeight − u`` lifts the roof's top edge alone:
     their sum, hence every other split, is unchanged).  In our genome parameters of the same or
     of successive rules are *neighbours in declaration order*, so ``j`` is the next or previous
-    continuous parameter of ``i``.  ``u ~ N(0, σ·min(range_i, range_j))`` is applied in the
+    continuous parameter of ``i`` (stepped counts are left out: ``±u`` has no meaning for them).  ``u ~ N(0, σ·min(range_i, range_j))`` is applied in the
     parameters' own units (split sizes are metres, like the thesis's), and ``u`` is first clamped
     to the interval that keeps *both* values in range, so the compensation stays exact (up to
     ``step`` snapping) instead of being broken by clipping one side.
@@ -229,7 +230,12 @@ def _parameter_mutation(child: dict[str, Any], conts: list[Parameter], sigma: fl
                         rng: np.random.Generator):
     """Eq. 5.1: ``x_i ← x_i + u``."""
     p = conts[rng.integers(len(conts))]
-    child[p.name] = p.clip(child[p.name] + rng.normal(0.0, sigma * (p.hi - p.lo)))
+    x = child[p.name]
+    v = p.clip(x + rng.normal(0.0, sigma * (p.hi - p.lo)))
+    if p.step > 0 and v == x:      # a count moves by one step at least (else a no-op)
+        v = p.clip(x + (p.step if rng.uniform() < 0.5 else -p.step))
+        v = v if v != x else p.clip(x + p.step if x <= p.lo else x - p.step)
+    child[p.name] = v
 
 
 def _concurrent_mutation(child: dict[str, Any], conts: list[Parameter], sigma: float,
@@ -281,6 +287,8 @@ class _Islands:
         self.params = list(params)
         self.enums = [p for p in self.params if p.discrete]
         self.conts = [p for p in self.params if not p.discrete]
+        #: partners of concurrent mutations: sizes, not stepped counts (eq. 5.2 needs ±u)
+        self.smooth = [p for p in self.conts if p.step <= 0]
         self.rng = rng
         self.weights = None if weights is None else np.asarray(weights, float).ravel()
         self.m: int | None = None
@@ -352,8 +360,8 @@ class _Islands:
         for _ in range(n_ops):
             if self.enums and (not self.conts or rng.uniform() < policy.p_rule):
                 _rule_mutation(child, self.enums, rng)
-            elif len(self.conts) > 1 and rng.uniform() < policy.p_concurrent:
-                _concurrent_mutation(child, self.conts, sigma, rng)
+            elif len(self.smooth) > 1 and rng.uniform() < policy.p_concurrent:
+                _concurrent_mutation(child, self.smooth, sigma, rng)
             else:
                 _parameter_mutation(child, self.conts, sigma, rng)
 

@@ -20,6 +20,7 @@ import numpy as np
 from ..datasets import LabelSet
 from ..errors import InputError
 from .energy import SegmentationEnergy
+from .evolution import evolve
 from .layout import Layout, ParseGrammarError, SplitLayout
 from .search import SearchResult, hill_climb, parameters_of
 
@@ -81,7 +82,7 @@ def search_method(name: str):
     return SEARCH_METHODS[name]
 
 
-SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb}
+SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb, "evolution": evolve}
 
 
 def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "hill",

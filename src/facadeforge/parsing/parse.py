@@ -1,0 +1,268 @@
+"""Photo → grammar derivation: ``facadeforge parse`` and :func:`parse` (``simon2011`` ch. 4–5).
+
+Stages (``report.json`` times each):
+
+1. **load** the photo (any format Pillow reads; gray, RGBA and 16-bit are converted);
+2. **classify**: the pixel classifier's probabilities in the photo frame (§4.2.1) — a model
+   file (``--classifier``) or the shipped auto-context model (``cmp6`` for rectified photos,
+   ``ecp7``, trained on street photos, otherwise);
+3. **rectify** (unless ``--rectified``): vanishing points → homography (Müller 2007 App. A, as
+   ``reconstruct`` does); the probabilities are warped into the rectified frame;
+4. **search**: the parse grammar's parameters minimising the §4.2.2 energy (hill climbing or the
+   evolutionary search) within a budget of derivations;
+5. **derive**: the engine derives the fitted rules into the shape tree and the 3D model.
+
+OUTDIR: ``labels.png`` (rectified frame) and ``labels_input.png`` (photo frame; outside the
+rectified facade the classifier's own labels), ``shape_tree.json``, ``rules.cga`` (the grammar
+with the fitted values as attribute defaults, so it derives the same layout on its own),
+``model.glb``, ``model.obj``, ``model.city.json``, ``rectified.png``, ``energy.png`` (the
+search's best energy per derivation) and ``report.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import tempfile
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..datasets import IGNORE, get_label_set
+from ..errors import InputError
+from ..model import Model, Shape
+from .fit import FitResult, fit_grammar, grammar_path
+
+__all__ = ["Parse", "parse", "write_fitted_rules"]
+
+
+@dataclass
+class Parse:
+    """What :func:`parse` found: see the module docstring for the fields' files."""
+
+    photo: np.ndarray
+    rectified: np.ndarray
+    homography: np.ndarray        # photo pixels → rectified pixels
+    inverse: np.ndarray
+    fit: FitResult
+    tree: Shape
+    labels: np.ndarray            # canonical label indices, rectified frame
+    fallback: np.ndarray          # canonical labels of the classifier alone, photo frame
+    rules: str
+    report: dict
+    model: Model | None = None
+    width_m: float = 0.0
+    height_m: float = 0.0
+    _files: dict = field(default_factory=dict)
+
+    def labels_input(self) -> np.ndarray:
+        """Canonical labels in the photo frame: the derivation inside the rectified facade, the
+        classifier's argmax outside it."""
+        import cv2
+
+        h, w = self.photo.shape[:2]
+        half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
+        hcv = np.linalg.inv(half) @ self.inverse @ half
+        warped = cv2.warpPerspective(self.labels, hcv, (w, h), flags=cv2.INTER_NEAREST,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=IGNORE)
+        return np.where(warped == IGNORE, self.fallback, warped).astype(np.uint8)
+
+    def save(self, out_dir: str | os.PathLike) -> list[Path]:
+        """Write OUTDIR atomically (a staging folder inside it, moved into place at the end)."""
+        return _save(self, Path(out_dir))
+
+
+def _default_classifier(rectified: bool):
+    from ..classify import default_classifier
+
+    return default_classifier("cmp6" if rectified else "ecp7")
+
+
+def _warp_prob(prob: np.ndarray, H: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Probabilities warped by pixel homography ``H`` into an image of ``shape``; pixels from
+    outside the photo get a uniform distribution."""
+    import cv2
+
+    half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
+    hcv = np.linalg.inv(half) @ H @ half
+    h, w = shape
+    k = prob.shape[2]
+    out = np.empty((h, w, k), np.float32)
+    for c0 in range(0, k, 4):
+        c1 = min(k, c0 + 4)
+        out[:, :, c0:c1] = cv2.warpPerspective(
+            np.ascontiguousarray(prob[:, :, c0:c1]), hcv, (w, h), flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=0).reshape(h, w, c1 - c0)
+    s = out.sum(axis=2, keepdims=True)
+    return np.where(s > 1e-6, out / np.maximum(s, 1e-6), 1.0 / k).astype(np.float32)
+
+
+def _literal(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    f = float(v)
+    return str(int(f)) if f.is_integer() else f"{f:.6g}"
+
+
+def write_fitted_rules(source: str, attrs: Mapping[str, Any]) -> str:
+    """The grammar text with each fitted attribute's default replaced by its value."""
+    out = source
+    for name, value in attrs.items():
+        pattern = re.compile(rf"^(\s*(?:@\w+(?:\([^)]*\))?\s*)*attr\s+{re.escape(name)}\s*=\s*)"
+                             r"([^\n#]*?)(\s*(#.*)?)$", re.M)
+        text = _literal(value)
+        out, n = pattern.subn(lambda m, t=text: m.group(1) + t + m.group(3), out, count=1)
+        if n != 1:
+            raise InputError(f"cannot write fitted value of attr {name}: its declaration is not "
+                             "on one line in the grammar")
+    return out
+
+
+def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
+          method: str = "hill", budget: int = 2000, rectified: bool = False,
+          width_m: float | None = None, seed: int = 0, model: bool = True) -> Parse:
+    """Parse a facade photo with a grammar (module docstring).
+
+    Parameters
+    ----------
+    photo : path or (H, W[, C]) array
+    grammar : built-in name (``generic``) or ``.cga`` path, optional
+    classifier : PixelClassifier or path to a model file, optional
+        Default: the shipped model (``cmp6`` if ``rectified`` else ``ecp7``).
+    method : {"hill", "evolution"}
+    budget : int
+        Derivations the search may evaluate.
+    width_m : float, optional
+        Facade width in metres (scales the model; default the grammar's ``facadeWidth``).
+    """
+    from ..classify import PixelClassifier, load_classifier
+    from ..engine import derive_facade, load_rules
+    from ..exchange.raster import label_map
+    from ..reconstruction import _analysis_copy, _as_rgb, _check_size, _check_sizes
+
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    _check_sizes(width_m, None)
+    if not isinstance(budget, int) or budget < 1:
+        raise InputError(f"--budget {budget}: give a positive number of derivations")
+    rgb, name = _as_rgb(photo)
+    _check_size(rgb, name)
+    gpath = grammar_path(grammar)
+    rules = load_rules(gpath)
+    clf = classifier if isinstance(classifier, PixelClassifier) else (
+        load_classifier(classifier) if classifier is not None else
+        _default_classifier(rectified))
+    label_set = get_label_set(clf.label_set)
+    timings["load"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    prob = clf.predict_proba(rgb)
+    fallback = label_set.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
+    timings["classify"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    work, to_work = _analysis_copy(rgb)
+    rect_note = "photo given as rectified"
+    if rectified:
+        rect_img, H = work, to_work
+    else:
+        from ..imaging.rectify import rectify
+
+        r = rectify(work, rng=seed)
+        rect_note = r.reason or "rectified"
+        rect_img, H = (r.image, r.homography @ to_work) if r else (work, to_work)
+    rect_prob = _warp_prob(prob, H, rect_img.shape[:2])
+    timings["rectify"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    fixed = {"facadeWidth": float(width_m)} if width_m is not None else None
+    fit = fit_grammar(rect_prob, label_set, rules, method=method, budget=budget, seed=seed,
+                      fixed=fixed)
+    timings["search"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    text = write_fitted_rules(Path(gpath).read_text(), fit.attrs)
+    derived = derive_facade(load_rules(text), fit.width_m, fit.height_m, name="facade")
+    tree = derived.root
+    labels = label_map(tree, size=rect_img.shape[:2]).astype(np.uint8)
+    timings["derive"] = time.perf_counter() - t
+    timings["total"] = sum(timings.values())
+
+    counts = {lab: int(sum(1 for s in tree.leaves() if s.label == lab))
+              for lab in ("window", "door", "balcony", "shop")}
+    report = {
+        "photo": name, "grammar": str(gpath), "method": fit.search.method,
+        "budget": budget, "derivations": fit.search.derivations, "seed": seed,
+        "energy_per_pixel": round(fit.energy_per_pixel, 6),
+        "classifier": {"kind": clf.kind, "label_set": clf.label_set,
+                       "trained": clf.meta.get("trained"), "photos": clf.meta.get("photos")},
+        "rectification": rect_note, "facade_m": [round(fit.width_m, 3), round(fit.height_m, 3)],
+        "attrs": fit.attrs, "elements": counts,
+        "timings": {k: round(v, 4) for k, v in timings.items()},
+    }
+    return Parse(rgb, rect_img, H, np.linalg.inv(H), fit, tree, labels, fallback, text, report,
+                 derived if model else None, fit.width_m, fit.height_m)
+
+
+def _energy_png(curve: list[float], path: Path, title: str) -> None:
+    """Best energy per derivation, drawn with OpenCV (no plotting library needed)."""
+    import cv2
+
+    w, h, m = 640, 360, 48
+    img = np.full((h, w, 3), 255, np.uint8)
+    c = np.asarray(curve, float)
+    c = c[np.isfinite(c)]
+    if len(c) >= 2:
+        lo, hi = float(c.min()), float(c.max()) or 1.0
+        xs = m + (np.arange(len(c)) / (len(c) - 1)) * (w - 2 * m)
+        ys = h - m - (c - lo) / max(hi - lo, 1e-12) * (h - 2 * m)
+        pts = np.stack([xs, ys], 1).astype(np.int32)
+        cv2.polylines(img, [pts], False, (200, 60, 30), 2, cv2.LINE_AA)
+        cv2.putText(img, f"{hi:.4g}", (4, m), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+        cv2.putText(img, f"{lo:.4g}", (4, h - m), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1)
+    cv2.rectangle(img, (m, m), (w - m, h - m), (0, 0, 0), 1)
+    cv2.putText(img, title, (m, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, f"derivations (0..{len(curve)})", (w // 2 - 70, h - 12),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.imwrite(str(path), img[:, :, ::-1])
+
+
+def _save(p: Parse, out: Path) -> list[Path]:
+    from PIL import Image
+
+    from ..exchange import export
+    from ..exchange.raster import write_label_png
+    from ..reconstruction import _write_json
+
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+    try:
+        Image.fromarray(p.rectified).save(stage / "rectified.png", compress_level=1)
+        write_label_png(p.labels, stage / "labels.png")
+        write_label_png(p.labels_input(), stage / "labels_input.png")
+        (stage / "shape_tree.json").write_text(json.dumps(p.tree.to_dict(), indent=1))
+        (stage / "rules.cga").write_text(p.rules)
+        _energy_png(p.fit.search.curve, stage / "energy.png",
+                    f"{p.fit.search.method}: best energy per derivation")
+        if p.model is not None:
+            for suffix in ("glb", "obj", "city.json"):
+                export(p.model, stage / f"model.{suffix}")
+        _write_json(stage / "report.json", p.report)
+        written = []
+        for src in sorted(stage.rglob("*")):
+            if src.is_file():
+                dst = out / src.relative_to(stage)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(src, dst)
+                written.append(dst)
+        return written
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)

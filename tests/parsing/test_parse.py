@@ -1,0 +1,69 @@
+"""``facadeforge parse`` end to end on a synthetic facade with the shipped classifier."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from facadeforge.cli import main
+from facadeforge.engine import derive_facade, load_rules
+from facadeforge.exchange.raster import label_map
+from facadeforge.parsing.parse import parse, write_fitted_rules
+
+
+@pytest.fixture(scope="module")
+def photo(tmp_path_factory):
+    """A light wall with a 4 x 5 grid of dark windows and a dark shop band."""
+    rng = np.random.default_rng(0)
+    img = np.full((300, 240, 3), (205, 195, 175), np.float64)
+    for r in range(30, 220, 48):
+        for c in range(20, 230, 46):
+            img[r:r + 30, c:c + 22] = (55, 65, 80)
+    img[250:] = (90, 60, 50)
+    img += rng.normal(0, 8, img.shape)
+    path = tmp_path_factory.mktemp("photo") / "facade.png"
+    Image.fromarray(np.clip(img, 0, 255).astype(np.uint8)).save(path)
+    return path
+
+
+def test_parse_writes_every_file_and_rules_derive_the_same_layout(photo, tmp_path):
+    out = tmp_path / "out"
+    assert main(["parse", str(photo), "--rectified", "--budget", "300", "-o", str(out)]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"labels.png", "labels_input.png", "shape_tree.json", "rules.cga", "model.glb",
+            "model.obj", "model.city.json", "rectified.png", "energy.png",
+            "report.json"} <= names
+    report = json.loads((out / "report.json").read_text())
+    assert report["derivations"] == 300 and report["method"] == "hill"
+    assert set(report["timings"]) >= {"classify", "search", "derive", "total"}
+    labels = np.array(Image.open(out / "labels.png"))
+    # rules.cga alone (fitted values as defaults) derives the same label layout
+    w, h = report["facade_m"]
+    again = label_map(derive_facade(load_rules(out / "rules.cga"), w, h).root,
+                      size=labels.shape)
+    assert (again == labels).mean() > 0.99
+    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+
+
+def test_parse_finds_windows(photo):
+    p = parse(str(photo), rectified=True, budget=800, model=False)
+    assert p.report["elements"]["window"] >= 4
+    win = p.labels == 2  # canonical index of window
+    assert win.any()
+
+
+def test_write_fitted_rules_replaces_defaults():
+    src = ('@Range(0, 1) attr a = 0.5   # comment\nattr b = "x"\n@Enum(1, 2) attr n = 1\n')
+    out = write_fitted_rules(src, {"a": 0.25, "b": "y", "n": 2.0})
+    assert "attr a = 0.25   # comment" in out and 'attr b = "y"' in out and "attr n = 2" in out
+
+
+def test_cli_errors(photo, tmp_path, capsys):
+    assert main(["parse", str(tmp_path / "missing.jpg"), "-o", str(tmp_path / "o")]) == 2
+    assert main(["parse", str(photo), "--grammar", "nope", "-o", str(tmp_path / "o")]) == 2
+    assert "built-in grammar" in capsys.readouterr().err
+    assert main(["parse", str(photo), "--budget", "0", "-o", str(tmp_path / "o")]) == 2
+    assert not (tmp_path / "o").exists()
