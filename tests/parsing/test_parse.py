@@ -37,7 +37,7 @@ def test_parse_writes_every_file_and_rules_derive_the_same_layout(photo, tmp_pat
             "model.obj", "model.city.json", "rectified.png", "energy.png",
             "report.json"} <= names
     report = json.loads((out / "report.json").read_text())
-    assert report["derivations"] == 300 and report["method"] == "hill"
+    assert report["derivations"] == 300 and report["method"] == "evolution"
     assert set(report["timings"]) >= {"classify", "search", "derive", "total"}
     labels = np.array(Image.open(out / "labels.png"))
     # rules.cga alone (fitted values as defaults) derives the same label layout

@@ -10,7 +10,7 @@ facade rectangle: ``facadeWidth`` × ``facadeWidth · H / W`` metres.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -30,7 +30,7 @@ __all__ = ["DEFAULT_GRAMMAR", "GRAMMARS", "FitResult", "fit_grammar", "grammar_p
 GRAMMAR_DIR = Path(__file__).with_name("grammars")
 #: Built-in parse grammars by name.
 GRAMMARS: dict[str, Path] = {p.stem: p for p in sorted(GRAMMAR_DIR.glob("*.cga"))}
-DEFAULT_GRAMMAR = "generic"
+DEFAULT_GRAMMAR = "grid"
 #: Long side (pixels) of the probability maps the energy is computed on.
 ENERGY_SIDE = 256
 
@@ -87,15 +87,23 @@ SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb, "evolution": evolve}
 
 def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "hill",
                 budget: int = 1500, seed: int = 0, fixed: Mapping[str, Any] | None = None,
-                **options: Any) -> FitResult:
+                initialiser=None, **options: Any) -> FitResult:
     """Fit the parse grammar ``rules`` (loaded) to ``(H, W, K)`` probabilities of a rectified
-    facade; ``fixed`` pins attributes (e.g. ``facadeWidth`` when the width is known)."""
+    facade; ``fixed`` pins attributes (e.g. ``facadeWidth`` when the width is known);
+    ``initialiser(prob, label_set) -> attrs or None`` measures a starting point that replaces
+    the attribute defaults (:mod:`.init`)."""
     search = search_method(method)
     small = _shrink(np.asarray(prob), ENERGY_SIDE)
     energy = SegmentationEnergy(small, label_set)
     layout = SplitLayout(rules)
     fixed = dict(fixed or {})
     params = [p for p in parameters_of(rules) if p.name not in fixed]
+    start = initialiser(small, label_set) if initialiser is not None else None
+    if start:
+        params = [replace(p, default=(start[p.name] if p.discrete and start[p.name] in p.choices
+                                      else p.clip(start[p.name]) if not p.discrete
+                                      else p.default)) if p.name in start else p
+                  for p in params]
     if "facadeWidth" not in layout.attr_defs:
         raise ParseGrammarError("a parse grammar needs attr facadeWidth (the width in metres "
                                 "the photo spans)")

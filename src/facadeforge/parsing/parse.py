@@ -127,7 +127,7 @@ def write_fitted_rules(source: str, attrs: Mapping[str, Any]) -> str:
 
 
 def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
-          method: str = "hill", budget: int = 2000, rectified: bool = False,
+          method: str = "evolution", budget: int = 1500, rectified: bool = False,
           width_m: float | None = None, seed: int = 0, model: bool = True) -> Parse:
     """Parse a facade photo with a grammar (module docstring).
 
@@ -184,8 +184,10 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
 
     t = time.perf_counter()
     fixed = {"facadeWidth": float(width_m)} if width_m is not None else None
+    from .init import INITIALISERS
+
     fit = fit_grammar(rect_prob, label_set, rules, method=method, budget=budget, seed=seed,
-                      fixed=fixed)
+                      fixed=fixed, initialiser=INITIALISERS.get(Path(gpath).stem))
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()

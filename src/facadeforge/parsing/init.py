@@ -1,0 +1,107 @@
+"""Starting points for the search, read from the classifier's window map.
+
+The thesis seeds its hill climbing with "customised average values … from expert assessments"
+(§4.2.4) and notes that a random start is less robust.  On facades of many styles one expert
+seed is far from most photos, and a local search from it stalls in the wrong basin (seen on CMP:
+window columns and floors counted wrong).  The classifier already sees most windows, so the seed
+here is measured: the connected components of its window class are grouped into columns (by
+their horizontal extent) and rows (by their vertical extent), and the grid's lines, window size,
+sill height, roof line and ground floor follow.  The search then refines this seed like any other
+(it replaces the expert seed; random layouts are still drawn and compete with it).
+
+An initialiser is keyed by the built-in grammar it knows the attribute names of
+(:data:`INITIALISERS`); other grammars start from their attribute defaults.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..datasets import LabelSet
+
+__all__ = ["INITIALISERS", "grid_seed", "window_boxes"]
+
+
+def window_boxes(prob: np.ndarray, label_set: LabelSet, min_area: int = 6) -> np.ndarray:
+    """``(n, 4)`` boxes ``x0, y0, x1, y1`` (pixels, exclusive ends, row 0 on top) of the
+    connected components of the most-probable window class."""
+    win = (np.argmax(prob, axis=2) == label_set.index("window")).astype(np.uint8)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(win, connectivity=4)
+    boxes = [(x, y, x + w, y + h) for x, y, w, h, a in stats[1:] if a >= min_area]
+    return np.array(boxes, float).reshape(-1, 4)
+
+
+def _groups(lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
+    """Indices grouped by overlapping 1-D intervals [lo, hi) (interval graph components)."""
+    order = np.argsort(lo)
+    groups, cur, end = [], [], -np.inf
+    for i in order:
+        if cur and lo[i] >= end:
+            groups.append(np.array(cur))
+            cur, end = [], -np.inf
+        cur.append(i)
+        end = max(end, hi[i])
+    if cur:
+        groups.append(np.array(cur))
+    return groups
+
+
+def _supported(groups: list[np.ndarray], min_count: int) -> list[np.ndarray]:
+    """Keep groups with at least ``min_count`` members (a column needs windows on several
+    floors, a row windows in several columns)."""
+    return [g for g in groups if len(g) >= min_count]
+
+
+def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
+              max_columns: int = 12) -> dict[str, Any] | None:
+    """Attributes of ``grid.cga`` read from the window map, or ``None`` with too few windows."""
+    h, w = prob.shape[:2]
+    boxes = window_boxes(prob, label_set)
+    if len(boxes) < 2:
+        return None
+    cols = _supported(_groups(boxes[:, 0], boxes[:, 2]), 2)
+    rows = _supported(_groups(boxes[:, 1], boxes[:, 3]), 2)
+    if not cols or not rows:
+        return None
+    cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))[:max_columns]
+    rows = sorted(rows, key=lambda g: -np.median(boxes[g, 3]))[:max_floors]   # bottom first
+    win_w = float(np.median([np.median(boxes[g, 2] - boxes[g, 0]) for g in cols])) / w
+    left = [float(np.median(boxes[g, 0])) / w for g in cols]
+    # rows in facade coordinates (fractions, y up): window bottom a, top b
+    a = [1.0 - float(np.median(boxes[g, 3])) / h for g in rows]
+    b = [1.0 - float(np.median(boxes[g, 1])) / h for g in rows]
+    heights = [bi - ai for ai, bi in zip(a, b)]
+    gaps = [a[i + 1] - b[i] for i in range(len(rows) - 1)]
+    gap = float(np.median(gaps)) if gaps else 0.5 * float(np.median(heights))
+    lines = [a[0] - gap / 2] + [(b[i] + a[i + 1]) / 2 for i in range(len(rows) - 1)]
+    roof = b[-1] + gap / 2
+    floor_h = [(lines[i + 1] if i + 1 < len(lines) else roof) - lines[i]
+               for i in range(len(lines))]
+    fh = float(np.median(floor_h))
+    seed: dict[str, Any] = {
+        "nColumns": float(len(cols)), "windowWidth": float(np.clip(win_w, 0.01, 0.3)),
+        "nFloors": float(len(rows)), "groundTop": float(np.clip(lines[0], 0, 0.6)),
+        "roofLine": float(np.clip(roof, 0.1, 1)),
+        "windowHeight": float(np.clip(np.median(heights) / fh, 0.1, 0.95)),
+        "sillHeight": float(np.clip((gap / 2) / fh, 0, 0.6)),
+    }
+    for j, x in enumerate(left, start=1):
+        seed[f"column{j}"] = float(np.clip(x, 0, 1))
+    for i, y in enumerate(lines[1:], start=2):
+        seed[f"floor{i}"] = float(np.clip(y, 0, 1))
+    # ground floor: shops where the band below the first floor line is mostly shop
+    band = prob[int(round((1 - seed["groundTop"]) * h)):, :, :]
+    if band.size and "shop" in label_set.classes:
+        shop = band[:, :, label_set.index("shop")].mean()
+        seed["groundKind"] = "shops" if shop > 0.25 else "wall"
+    return seed
+
+
+#: Seed functions by built-in grammar name: ``f(prob, label_set) -> attrs or None``.
+INITIALISERS: dict[str, Callable[[np.ndarray, LabelSet], dict[str, Any] | None]] = {
+    "grid": grid_seed,
+}
