@@ -18,8 +18,7 @@ __version__ = "0.1.0"
 __all__ = [
     "DerivationError", "FacadeForgeError", "InputError", "Labels", "Material", "Model", "Part",
     "RuleError", "RuleSyntaxError", "Rules", "Scope", "Shape", "derive", "derive_facade", "export",
-    "load_rules", "reconstruct",
-    "render", "stats",
+    "load_rules", "parse", "reconstruct", "render", "stats",
 ]
 
 
@@ -29,6 +28,14 @@ def reconstruct(photo, **options):
     from .reconstruction import reconstruct as _reconstruct
 
     return _reconstruct(photo, **options)
+
+
+def parse(photo, **options):
+    """Photo → best derivation of a parse grammar (Simon 2011 ch. 4–5); see
+    :func:`facadeforge.parsing.parse.parse` for the options."""
+    from .parsing.parse import parse as _parse
+
+    return _parse(photo, **options)
 
 
 def export(models, path, **options):

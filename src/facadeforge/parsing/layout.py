@@ -146,6 +146,8 @@ class SplitLayout:
         self._overrides: dict[str, Any] = {}
         self._attr_cache: dict[str, Any] = {}
         self._memo: dict[tuple, tuple[np.ndarray, list[str]]] = {}
+        self._pieces: dict[tuple, list] = {}
+        self._reads_cache: dict[int, frozenset[str]] = {}
 
     # ------------------------------------------------------------------ attributes
     def attr_value(self, name: str):
@@ -169,6 +171,7 @@ class SplitLayout:
         self._overrides = dict(attrs or {})
         self._attr_cache = {}
         self._memo = {}
+        self._pieces = {}
         self._count = 0
         boxes, labels = self._rule(self.start, (), width, height, None, 0)
         return Layout(boxes, tuple(labels), float(width), float(height))
@@ -235,8 +238,22 @@ class SplitLayout:
                                     "are supported")
         total = sx if axis_name == "x" else sy
         boxes, labels = [], []
-        call = SimpleNamespace(branches=op.branches, env=env, repeat=op.repeat)
-        for branch, start, size in call_pieces(call, total):
+        # The pieces depend on the split's size expressions: attributes (fixed during one
+        # derivation), rule parameters, and the scope sizes they read.  Cache them per split,
+        # keyed by what they can depend on, so twenty floors of one width share one x split.
+        reads = self._reads(op)
+        key = (id(op), tuple(sorted(env.locals.items())) if env.locals else (), total,
+               sx if "scope.sx" in reads else None, sy if "scope.sy" in reads else None)
+        try:
+            pieces = self._pieces.get(key)
+        except TypeError:  # an unhashable rule argument (an array): no caching
+            key, pieces = None, None
+        if pieces is None:
+            call = SimpleNamespace(branches=op.branches, env=env, repeat=op.repeat)
+            pieces = call_pieces(call, total)
+            if key is not None:
+                self._pieces[key] = pieces
+        for branch, start, size in pieces:
             w, h = (size, sy) if axis_name == "x" else (sx, size)
             sub_env = _Env(self, env.locals, w, h)
             b, lab = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
@@ -250,6 +267,31 @@ class SplitLayout:
                 boxes.append(b)
                 labels += lab
         return (np.concatenate(boxes) if boxes else np.zeros((0, 4))), labels
+
+
+    def _reads(self, op: A.BodyOp) -> frozenset[str]:
+        """Scope sizes the split's size expressions read (both if they call functions)."""
+        hit = self._reads_cache.get(id(op))
+        if hit is None:
+            names: set[str] = set()
+            stack: list[Any] = [op.branches]
+            while stack:
+                node = stack.pop()
+                if isinstance(node, tuple | list):
+                    stack.extend(node)
+                elif isinstance(node, A.Branch):
+                    stack.append(node.selector)
+                elif isinstance(node, A.RepeatGroup):
+                    stack.append(node.branches)
+                elif isinstance(node, A.Name):
+                    names.add(node.name)
+                elif isinstance(node, A.Call) and node.name in self.functions:
+                    names.update(("scope.sx", "scope.sy"))
+                    stack.extend(node.args)
+                elif isinstance(node, A.Node):
+                    stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
+            hit = self._reads_cache[id(op)] = frozenset(names & {"scope.sx", "scope.sy"})
+        return hit
 
 
 @dataclass(frozen=True)
