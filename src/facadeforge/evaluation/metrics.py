@@ -738,7 +738,7 @@ class RunCost(NamedTuple):
     peak_memory_bytes: int
 
 
-def measure(fn: Callable[..., Any], *args, **kwargs) -> RunCost:
+def measure(fn: Callable[..., Any], *args, trace_memory: bool = True, **kwargs) -> RunCost:
     """Call ``fn(*args, **kwargs)`` and report its wall time and peak memory.
 
     Parameters
@@ -746,6 +746,9 @@ def measure(fn: Callable[..., Any], *args, **kwargs) -> RunCost:
     fn : callable
     *args, **kwargs
         Passed to ``fn``.
+    trace_memory : bool
+        ``False``: do not trace (no slowdown); the memory figure is then the process's peak
+        resident set size so far (``ru_maxrss``), not the call's own peak.
 
     Returns
     -------
@@ -763,6 +766,13 @@ def measure(fn: Callable[..., Any], *args, **kwargs) -> RunCost:
     If ``tracemalloc`` is already tracing (e.g. nested ``measure`` calls), it is left running,
     but its peak is reset, so an enclosing measurement may under-report its own peak.
     """
+    if not trace_memory:
+        import resource
+
+        t0 = time.perf_counter()
+        result = fn(*args, **kwargs)
+        seconds = time.perf_counter() - t0
+        return RunCost(result, seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
     was_tracing = tracemalloc.is_tracing()
     if not was_tracing:
         tracemalloc.start()
