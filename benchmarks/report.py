@@ -69,6 +69,42 @@ def reconstruct_table() -> str:
     return head + "\n".join(rows)
 
 
+# Per-class accuracy (%) on the Ecole Centrale Paris facades, simon2011 §4.3.1 (randomised forest
+# alone) and §4.4.1 (grammar-driven parsing), 10 test facades, classes in ecp7 order.
+THESIS_ECP = {
+    "simon2011 RF (ECP, §4.3.1)": (30, 62, 48, 81, 57, 89, 40),
+    "simon2011 grammar (ECP, §4.4.1)": (81, 83, 72, 71, 80, 94, 95),
+}
+
+
+def parsing_table() -> str:
+    """Per-class accuracy (confusion diagonals) of the parsing methods beside the thesis."""
+    res = ROOT / "benchmarks" / "results"
+    out = []
+    for dataset, label_set in (("ruemonge", "ecp7"), ("cmp", "cmp6")):
+        rows, classes = [], None
+        if dataset == "ruemonge":
+            classes = ("window", "wall", "balcony", "door", "roof", "sky", "shop")
+            for name, acc in THESIS_ECP.items():
+                rows.append(f"| {name} | " + " | ".join(str(a) for a in acc)
+                            + f" | {sum(acc) / len(acc):.1f} |")
+        for method in ("classifier", "mrf", "grammar-hill", "grammar"):
+            path = res / f"bench_{method}_{dataset}.json"
+            if not path.exists():
+                continue
+            r = json.loads(path.read_text())
+            classes = tuple(r["classes"])
+            diag = [r["confusion_percent"][i][i] for i in range(len(classes))]
+            rows.append(f"| {method} ({dataset} {r['split']}, {r['n_images']}) | "
+                        + " | ".join(f"{d:.0f}" for d in diag)
+                        + f" | {100 * r['class_avg_accuracy']:.1f} |")
+        if rows and classes:
+            out.append(f"{dataset} ({label_set}), per-class accuracy %:\n\n"
+                       f"| method | {' | '.join(classes)} | class-avg |\n"
+                       f"|---|{'---|' * (len(classes) + 1)}\n" + "\n".join(rows))
+    return "\n\n".join(out) if out else "_no result yet_"
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -84,10 +120,12 @@ def main() -> None:
     table = engine_table()
     methods = methods_table()
     rec = reconstruct_table()
+    parsing = parsing_table()
     for p in (ROOT / "README.md", ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
         replace(p, "methods", methods)
         replace(p, "reconstruct", rec)
+        replace(p, "parsing", parsing)
     print(table)
     print(methods)
 

@@ -8,6 +8,7 @@ import pytest
 
 from facadeforge.datasets import get_label_set
 from facadeforge.engine import derive_facade, load_rules
+from facadeforge.grammar.parameters import ParameterError
 from facadeforge.parsing.energy import SegmentationEnergy
 from facadeforge.parsing.fit import fit_grammar, grammar_path
 from facadeforge.parsing.layout import ParseGrammarError, SplitLayout
@@ -61,7 +62,7 @@ def test_unsupported_operation_is_named(tmp_path):
                  'Facade --> split(x) { rand(1, 2) : Wall }*\n')
     with pytest.raises(ParseGrammarError, match="deterministic"):
         SplitLayout(load_rules(g)).derive(10, 10)
-    with pytest.raises(ParseGrammarError, match="@Range"):
+    with pytest.raises(ParameterError, match="@Range"):
         parameters_of(load_rules(g))
 
 

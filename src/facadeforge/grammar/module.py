@@ -142,16 +142,12 @@ class RuleSet:
         self.start_rule = start_rule
 
     def parameter_ranges(self) -> dict:
-        """Attributes an optimiser may vary: ``{name: (min, max)}`` from ``@Range`` annotations
-        on numeric literal attributes (seed simon2011 §4.1.1)."""
-        out = {}
-        for a in self.main.ast.attrs:
-            for ann in a.annotations:
-                if ann.name == "Range" and len(ann.args) >= 2 and not a.const:
-                    lo, hi = ann.args[0], ann.args[1]
-                    if isinstance(lo, A.Num) and isinstance(hi, A.Num):
-                        out[a.name] = (lo.value, hi.value)
-        return out
+        """Attributes an optimiser may vary: ``{name: (min, max)}`` of the ``@Range`` parameters
+        (:func:`facadeforge.grammar.parameters.parameters_of`, seed simon2011 §4.1.1)."""
+        from .parameters import parameters_of
+
+        return {p.name: (p.lo, p.hi) for p in parameters_of(self, required=False)
+                if not p.discrete}
 
 
 def _did_you_mean(name: str, candidates) -> str:
