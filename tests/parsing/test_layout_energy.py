@@ -34,18 +34,20 @@ def _engine_boxes(rules, w, h, attrs):
     return sorted(rows)
 
 
-@pytest.mark.parametrize("seed", range(6))
-def test_layout_matches_engine(generic, seed):
+@pytest.mark.parametrize("name", ["generic", "grid", "haussmann"])
+@pytest.mark.parametrize("seed", range(4))
+def test_layout_matches_engine(name, seed):
+    rules = load_rules(grammar_path(name))
     rng = np.random.default_rng(seed)
-    params = parameters_of(generic)
+    params = parameters_of(rules)
     attrs = {p.name: (p.choices[rng.integers(len(p.choices))] if p.discrete else
                       p.clip(rng.uniform(p.lo, p.hi))) for p in params}
     w = rng.uniform(8, 30)
     h = w * rng.uniform(0.8, 1.6)
-    lay = SplitLayout(generic).derive(w, h, attrs)
+    lay = SplitLayout(rules).derive(w, h, attrs)
     ours = sorted((round(b[0], 6), round(b[1], 6), round(b[2], 6), round(b[3], 6), lab)
                   for b, lab in zip(lay.boxes.tolist(), lay.labels))
-    theirs = _engine_boxes(generic, w, h, attrs)
+    theirs = _engine_boxes(rules, w, h, attrs)
     assert len(ours) == len(theirs)
     for a, b in zip(ours, theirs):
         assert a[4] == b[4]

@@ -104,4 +104,6 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
 #: Seed functions by built-in grammar name: ``f(prob, label_set) -> attrs or None``.
 INITIALISERS: dict[str, Callable[[np.ndarray, LabelSet], dict[str, Any] | None]] = {
     "grid": grid_seed,
+    "haussmann": lambda prob, label_set: grid_seed(prob, label_set, max_floors=7,
+                                                   max_columns=10),
 }
