@@ -28,25 +28,30 @@ __all__ = ["INITIALISERS", "grid_seed", "window_boxes"]
 
 def window_boxes(prob: np.ndarray, label_set: LabelSet, min_area: int = 6) -> np.ndarray:
     """``(n, 4)`` boxes ``x0, y0, x1, y1`` (pixels, exclusive ends, row 0 on top) of the
-    connected components of the most-probable window class."""
-    win = (np.argmax(prob, axis=2) == label_set.index("window")).astype(np.uint8)
+    connected components of the window class where it is the most probable class and clearly
+    so (p > 0.35): pixels without evidence, such as the uniform probabilities outside a warped
+    photo, never form windows."""
+    c = label_set.index("window")
+    win = ((np.argmax(prob, axis=2) == c) & (prob[:, :, c] > 0.35)).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(win, connectivity=4)
     boxes = [(x, y, x + w, y + h) for x, y, w, h, a in stats[1:] if a >= min_area]
     return np.array(boxes, float).reshape(-1, 4)
 
 
 def _groups(lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
-    """Indices grouped by overlapping 1-D intervals [lo, hi) (interval graph components)."""
-    order = np.argsort(lo)
-    groups, cur, end = [], [], -np.inf
-    for i in order:
-        if cur and lo[i] >= end:
+    """Indices grouped by the centres of 1-D intervals [lo, hi): sorted centres split where two
+    neighbours are further apart than half the median interval length.  (Grouping overlapping
+    intervals instead chains everything together through a few tall or wide fragments.)"""
+    centre = (lo + hi) / 2
+    order = np.argsort(centre)
+    gap = 0.5 * float(np.median(hi - lo))
+    groups, cur = [], [order[0]]
+    for a, b in zip(order[:-1], order[1:]):
+        if centre[b] - centre[a] > gap:
             groups.append(np.array(cur))
-            cur, end = [], -np.inf
-        cur.append(i)
-        end = max(end, hi[i])
-    if cur:
-        groups.append(np.array(cur))
+            cur = []
+        cur.append(b)
+    groups.append(np.array(cur))
     return groups
 
 
@@ -63,6 +68,10 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     boxes = window_boxes(prob, label_set)
     if len(boxes) < 2:
         return None
+    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+    boxes = boxes[area >= 0.25 * np.median(area)]       # drop fragments
+    if len(boxes) < 2:
+        return None
     cols = _supported(_groups(boxes[:, 0], boxes[:, 2]), 2)
     rows = _supported(_groups(boxes[:, 1], boxes[:, 3]), 2)
     if not cols or not rows:
@@ -77,7 +86,7 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     heights = [bi - ai for ai, bi in zip(a, b)]
     gaps = [a[i + 1] - b[i] for i in range(len(rows) - 1)]
     gap = float(np.median(gaps)) if gaps else 0.5 * float(np.median(heights))
-    lines = [a[0] - gap / 2] + [(b[i] + a[i + 1]) / 2 for i in range(len(rows) - 1)]
+    lines = sorted([a[0] - gap / 2] + [(b[i] + a[i + 1]) / 2 for i in range(len(rows) - 1)])
     roof = b[-1] + gap / 2
     floor_h = [(lines[i + 1] if i + 1 < len(lines) else roof) - lines[i]
                for i in range(len(lines))]
