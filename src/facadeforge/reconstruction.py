@@ -574,10 +574,9 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
 
     from .exchange import export
     from .exchange.raster import write_label_png
+    from .outdir import write_outdir
 
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-    try:
+    def write(stage: Path) -> None:
         # photo-sized RGB PNGs: zlib level 1 writes them ~4x faster than the
         # default 6 for 17 % more bytes (measured on a 1600x1200 synthetic facade)
         Image.fromarray(rec.rectified).save(stage / "rectified.png", compress_level=1)
@@ -594,13 +593,5 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
             for suffix in ("glb", "obj", "city.json"):
                 export(rec.model, stage / f"model.{suffix}")
         _write_json(stage / "report.json", rec.report)
-        written = []
-        for src in sorted(stage.rglob("*")):
-            if src.is_file():
-                dst = out / src.relative_to(stage)
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(src, dst)
-                written.append(dst)
-        return written
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+
+    return write_outdir(out, write)

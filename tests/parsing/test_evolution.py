@@ -7,12 +7,9 @@ import numpy as np
 import pytest
 
 from facadeforge.datasets import get_label_set
-from facadeforge.engine import load_rules
 from facadeforge.errors import InputError
 from facadeforge.parsing import fit as fit_module
-from facadeforge.parsing.energy import SegmentationEnergy
 from facadeforge.parsing.evolution import evolve, pareto_mask, spea2_fitness, spea2_select
-from facadeforge.parsing.layout import SplitLayout
 from facadeforge.parsing.search import Parameter, random_point
 
 ECP7 = get_label_set("ecp7")
@@ -145,19 +142,8 @@ def test_invalid_arguments():
         evolve(two_objectives, PARAMS, budget=10, weights=[-1.0, 1.0])
 
 
-def test_evolution_recovers_a_known_layout(monkeypatch):
-    generic = load_rules(fit_module.grammar_path("generic"))
-    truth_attrs = {"floors": 5, "tiles": 4, "sideMargin": 0.06, "windowWidth": 0.5,
-                   "windowHeight": 0.6, "groundFrac": 0.2, "groundKind": "shops",
-                   "balconyFrac": 0.0, "skyFrac": 0.05, "windowsPerTile": 1}
-    lay = SplitLayout(generic).derive(14.0, 21.0, truth_attrs)
-    base = SegmentationEnergy(np.full((150, 100, 7), 1 / 7, np.float32), ECP7)
-    truth = base.rasterize(lay)
-    rng = np.random.default_rng(0)
-    prob = np.full((150, 100, 7), 0.05, np.float32)
-    np.put_along_axis(prob, truth[:, :, None].astype(int), 0.7, axis=2)
-    prob += rng.uniform(0, 0.15, prob.shape).astype(np.float32)  # noise
-    prob /= prob.sum(axis=2, keepdims=True)
+def test_evolution_recovers_a_known_layout(monkeypatch, known_layout):
+    generic, prob, truth = known_layout
     monkeypatch.setattr(fit_module, "SEARCH_METHODS", {"evolution": evolve})
     fit = fit_module.fit_grammar(prob, ECP7, generic, method="evolution", budget=2500, seed=1)
     assert fit.search.method == "evolution" and fit.search.derivations == 2500

@@ -79,18 +79,8 @@ def test_energy_equals_direct_sum(generic):
     assert energy(lay) == pytest.approx(direct, rel=1e-9)
 
 
-def test_hill_climbing_recovers_a_known_layout(generic):
-    truth_attrs = {"floors": 5, "tiles": 4, "sideMargin": 0.06, "windowWidth": 0.5,
-                   "windowHeight": 0.6, "groundFrac": 0.2, "groundKind": "shops",
-                   "balconyFrac": 0.0, "skyFrac": 0.05, "windowsPerTile": 1}
-    lay = SplitLayout(generic).derive(14.0, 21.0, truth_attrs)
-    base = SegmentationEnergy(np.full((150, 100, 7), 1 / 7, np.float32), ECP7)
-    truth = base.rasterize(lay)
-    rng = np.random.default_rng(0)
-    prob = np.full((150, 100, 7), 0.05, np.float32)
-    np.put_along_axis(prob, truth[:, :, None].astype(int), 0.7, axis=2)
-    prob += rng.uniform(0, 0.15, prob.shape).astype(np.float32)  # noise
-    prob /= prob.sum(axis=2, keepdims=True)
+def test_hill_climbing_recovers_a_known_layout(known_layout):
+    generic, prob, truth = known_layout
     fit = fit_grammar(prob, ECP7, generic, budget=2500, seed=1)
     assert fit.search.derivations == 2500
     assert all(b <= a for a, b in zip(fit.search.curve, fit.search.curve[1:]))  # best-so-far

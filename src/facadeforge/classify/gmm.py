@@ -317,16 +317,11 @@ def train_gmm(image: np.ndarray | str | Path, scribbles: np.ndarray | str | Path
         image = read_image(image)
     rgb = to_rgb8(image)
     if isinstance(scribbles, np.ndarray) and scribbles.ndim == 2:
-        index = scribbles
-        if index.dtype.kind not in "iu":
-            raise ScribbleError(f"scribbles: a class-index map must hold integers, got dtype "
-                                f"{index.dtype}")
-        bad = (index < 0) | ((index >= ls.num_classes) & (index != IGNORE))
-        if bad.any():
-            raise ScribbleError(
-                f"scribbles: class indices {np.unique(index[bad])[:10].tolist()} are not classes "
-                f"of label set {ls.name!r} (0..{ls.num_classes - 1}, {IGNORE} = no stroke); "
-                "decode scribble PNGs with read_scribbles")
+        try:
+            index = ls.check_indices(scribbles)
+        except InputError as exc:
+            raise ScribbleError(f"scribbles: {exc} ({IGNORE} = no stroke; decode scribble PNGs "
+                                "with read_scribbles)") from None
     else:
         index = read_scribbles(scribbles, ls)
     if index.shape != rgb.shape[:2]:

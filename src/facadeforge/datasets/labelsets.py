@@ -327,7 +327,7 @@ class LabelSet:
         """
         table = np.full(256, IGNORE, np.uint8)
         table[:self.num_classes] = [CANONICAL_INDEX[c] for c in self.classes]
-        return table[self._check_indices(index_map)]
+        return table[self.check_indices(index_map)]
 
     def to_color(self, index_map: np.ndarray) -> np.ndarray:
         """Colour picture of a class-index map.
@@ -345,9 +345,11 @@ class LabelSet:
         table[:self.num_classes] = self.colors
         if self.ignore_color is not None:
             table[IGNORE] = self.ignore_color
-        return table[self._check_indices(index_map)]
+        return table[self.check_indices(index_map)]
 
-    def _check_indices(self, index_map: np.ndarray) -> np.ndarray:
+    def check_indices(self, index_map: np.ndarray) -> np.ndarray:
+        """``index_map`` as intp class indices; :class:`InputError` for non-integers or values
+        that are neither a class index nor :data:`IGNORE`."""
         arr = np.asarray(index_map)
         if arr.dtype.kind not in "iu":
             raise InputError(f"label set {self.name!r}: class-index maps must be integers, got "
@@ -390,7 +392,7 @@ def convert(index_map: np.ndarray, source: LabelSet | str, target: LabelSet | st
         return np.asarray(index_map).astype(np.uint8)
     table = np.full(256, IGNORE, np.uint8)
     table[:source.num_classes] = [target.canonical_map[c] for c in source.classes]
-    return table[source._check_indices(index_map)]
+    return table[source.check_indices(index_map)]
 
 
 # CMP palette (label PNGs are palette images; index = class id).

@@ -24,8 +24,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
-import tempfile
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -242,11 +240,10 @@ def _save(p: Parse, out: Path) -> list[Path]:
 
     from ..exchange import export
     from ..exchange.raster import write_label_png
+    from ..outdir import write_outdir
     from ..reconstruction import _write_json
 
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-    try:
+    def write(stage: Path) -> None:
         Image.fromarray(p.rectified).save(stage / "rectified.png", compress_level=1)
         write_label_png(p.labels, stage / "labels.png")
         write_label_png(p.labels_input(), stage / "labels_input.png")
@@ -258,13 +255,5 @@ def _save(p: Parse, out: Path) -> list[Path]:
             for suffix in ("glb", "obj", "city.json"):
                 export(p.model, stage / f"model.{suffix}")
         _write_json(stage / "report.json", p.report)
-        written = []
-        for src in sorted(stage.rglob("*")):
-            if src.is_file():
-                dst = out / src.relative_to(stage)
-                dst.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(src, dst)
-                written.append(dst)
-        return written
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+
+    return write_outdir(out, write)

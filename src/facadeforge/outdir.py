@@ -1,0 +1,34 @@
+"""Writing an output folder atomically: everything goes to a staging folder inside it first and
+is moved into place only when every file was written, so a failure never leaves a half-written
+result next to an older complete one."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = ["write_outdir"]
+
+
+def write_outdir(out: str | os.PathLike, write: Callable[[Path], None]) -> list[Path]:
+    """Create ``out``, call ``write(stage)`` to fill a staging folder, then move its files into
+    ``out`` (sub-folders kept); returns the written paths.  The staging folder is removed
+    whatever happens."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+    try:
+        write(stage)
+        written = []
+        for src in sorted(stage.rglob("*")):
+            if src.is_file():
+                dst = out / src.relative_to(stage)
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(src, dst)
+                written.append(dst)
+        return written
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
