@@ -102,11 +102,40 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         seed[f"column{j}"] = float(np.clip(x, 0, 1))
     for i, y in enumerate(lines[1:], start=2):
         seed[f"floor{i}"] = float(np.clip(y, 0, 1))
+    labels = np.argmax(prob, axis=2)
+    ground_row = int(round((1 - seed["groundTop"]) * h))
     # ground floor: shops where the band below the first floor line is mostly shop
-    band = prob[int(round((1 - seed["groundTop"]) * h)):, :, :]
+    band = prob[ground_row:, :, :]
     if band.size and "shop" in label_set.classes:
         shop = band[:, :, label_set.index("shop")].mean()
         seed["groundKind"] = "shops" if shop > 0.25 else "wall"
+    # the door: the largest door component of the ground floor band
+    if "door" in label_set.classes and ground_row < h:
+        door = (labels[ground_row:] == label_set.index("door")).astype(np.uint8)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(door, connectivity=4)
+        if n > 1:
+            x, y, dw, dh, _ = stats[1 + int(np.argmax(stats[1:, 4]))]
+            band_h = h - ground_row
+            seed["doorWidth"] = float(np.clip(dw / w, 0, 0.25))
+            seed["doorPosition"] = float(np.clip(x / max(w - dw, 1), 0, 1))
+            seed["doorHeight"] = float(np.clip((band_h - y) / band_h, 0.3, 1))
+        else:
+            seed["doorWidth"] = 0.0
+    # running balconies: floors whose lowest part is balcony across most of the width
+    if "balcony" in label_set.classes:
+        bal = labels == label_set.index("balcony")
+        tops = lines[1:] + [roof]
+        fracs = []
+        for i, (lo, hi) in enumerate(zip(lines, tops), start=1):
+            r1 = int(round((1 - lo) * h))
+            r0 = int(round((1 - (lo + 0.35 * (hi - lo))) * h))
+            share = bal[max(r0, 0):max(r1, r0 + 1)].mean(axis=1) if r1 > r0 else np.zeros(1)
+            running = bool(share.max(initial=0) > 0.5)
+            seed[f"balcony{i}"] = seed[f"running{i}"] = running
+            if running:
+                fracs.append(float((share > 0.5).sum()) / max(r1 - r0, 1) * 0.35)
+        if fracs:
+            seed["balconyFrac"] = float(np.clip(np.median(fracs), 0.02, 0.35))
     return seed
 
 
