@@ -91,11 +91,12 @@ def build_parser() -> argparse.ArgumentParser:
                                    "energy → hill climbing or evolutionary search → shape tree, "
                                    "labels, fitted rules and 3D model in OUTDIR.")
     g.add_argument("photo", help="facade photo")
-    g.add_argument("--grammar", help="parse grammar: built-in name (grid, generic) or .cga file (default grid)")
+    g.add_argument("--grammar", help="parse grammar: grid, haussmann, generic or a .cga file "
+                                     "(default: haussmann with the ecp7 classifier, else grid)")
     g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
     g.add_argument("--method", default="evolution", choices=("hill", "evolution"),
                    help="search: evolution (default, §5.2) or hill (Alg. 4.1)")
-    g.add_argument("--budget", type=int, default=1500, help="derivations (default 1500)")
+    g.add_argument("--budget", type=int, default=1000, help="derivations (default 1000)")
     g.add_argument("--rectified", action="store_true", help="the photo is already rectified")
     g.add_argument("--width-m", type=float, help="facade width in metres (scales the model)")
     g.add_argument("--seed", type=int, default=0)

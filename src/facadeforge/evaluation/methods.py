@@ -346,36 +346,35 @@ register_method("mrf", "label_set",
 
 class GrammarMethod:
     """Grammar-driven parsing (``simon2011`` ch. 4–5, :func:`facadeforge.parsing.parse.parse`):
-    the shipped classifier of the dataset's label set, the ``grid`` parse grammar seeded from
-    the classifier's window grid and fitted by ``search`` within ``budget`` derivations; labels
-    are the derived layout mapped back to the photo (the classifier's labels outside the
-    rectified facade).  CMP photos are rectified already, as ``--rectified`` says on the command
-    line."""
+    the shipped classifier of the dataset's label set, the default parse grammar for it
+    (``haussmann`` for ``ecp7`` street photos, ``grid`` otherwise) seeded from the classifier's
+    window grid and fitted by ``search`` within ``budget`` derivations; labels are the derived
+    layout mapped back to the photo (the classifier's labels outside the rectified facade).  CMP
+    photos are rectified already, as ``--rectified`` says on the command line."""
 
     RECTIFIED_DATASETS = frozenset({"cmp"})
 
-    def __init__(self, search: str = "hill", budget: int = 1500, grammar: str = "grid") -> None:
+    def __init__(self, search: str = "hill", budget: int = 1000) -> None:
         self.search = search
         self.budget = budget
-        self.grammar = grammar
 
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
         from ..classify import default_classifier
         from ..parsing.parse import parse
 
-        result = parse(sample.image(), grammar=self.grammar,
-                       classifier=default_classifier(label_set.name), method=self.search,
-                       budget=self.budget, model=False,
+        result = parse(sample.image(), classifier=default_classifier(label_set.name),
+                       method=self.search, budget=self.budget, model=False,
                        rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)
         return Prediction(labels=result.labels_input())
 
 
 register_method("grammar-hill", "canonical",
-                description="simon2011 §4.2: grid parse grammar fitted by hill climbing "
-                            "(1500 derivations) to the auto-context classifier")(GrammarMethod())
+                description="simon2011 §4.2: parse grammar (haussmann/grid) fitted by hill "
+                            "climbing (1000 derivations) to the auto-context classifier"
+                )(GrammarMethod())
 register_method("grammar-evo", "canonical",
-                description="simon2011 §5.2: grid parse grammar fitted by the evolutionary "
-                            "search (1500 derivations)")(GrammarMethod("evolution"))
+                description="simon2011 §5.2: parse grammar (haussmann/grid) fitted by the "
+                            "evolutionary search (1000 derivations)")(GrammarMethod("evolution"))
 register_method("grammar", "canonical",
-                description="grammar parsing, best default: grid grammar, evolutionary search, "
-                            "1500 derivations")(GrammarMethod("evolution"))
+                description="grammar parsing, best default = grammar-evo: evolutionary search, "
+                            "1000 derivations")(GrammarMethod("evolution"))

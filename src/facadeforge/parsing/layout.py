@@ -173,11 +173,14 @@ class SplitLayout:
         self._memo = {}
         self._pieces = {}
         self._count = 0
-        boxes, labels = self._rule(self.start, (), width, height, None, 0)
-        return Layout(boxes, tuple(labels), float(width), float(height))
+        leaves = self._rule(self.start, (), width, height, None, 0)
+        boxes = np.array([lf[:4] for lf in leaves], float).reshape(-1, 4)
+        return Layout(boxes, tuple(lf[4] for lf in leaves), float(width), float(height))
 
+    # Leaves travel as tuples (x0, y0, x1, y1, label) relative to the shape's own corner: far
+    # cheaper than small numpy arrays in this recursion.
     def _rule(self, name: str, args: tuple, sx: float, sy: float, label: str | None, depth: int
-              ) -> tuple[np.ndarray, list[str]]:
+              ) -> list[tuple]:
         rdef = self.rule_defs.get((name, len(args)))
         if rdef is None:  # a leaf: an undefined successor is a terminal shape
             return self._leaf(name, label, sx, sy)
@@ -202,7 +205,7 @@ class SplitLayout:
         if self._count > MAX_LEAVES:
             raise ParseGrammarError(f"the parse grammar makes more than {MAX_LEAVES} leaves")
         lab = label or str(label_for_name(name) or "other")
-        return np.array([[0.0, 0.0, sx, sy]]), [lab]
+        return [(0.0, 0.0, sx, sy, lab)]
 
     def _ops(self, ops, env: _Env, name: str, sx: float, sy: float, label, depth, rdef):
         for i, op in enumerate(ops):
@@ -213,7 +216,7 @@ class SplitLayout:
             if isinstance(op, A.Successor) and op.name in _APPEARANCE_OPS:
                 continue
             if isinstance(op, A.Nil):
-                return np.zeros((0, 4)), []
+                return []
             if isinstance(op, A.Leaf) or (isinstance(op, A.Successor) and last
                                            and op.name not in OPERATIONS):
                 args = tuple(env.evaluator(a) for a in getattr(op, "args", ()))
@@ -237,7 +240,7 @@ class SplitLayout:
             raise ParseGrammarError(f"parse grammar, line {op.line}: only split(x) and split(y) "
                                     "are supported")
         total = sx if axis_name == "x" else sy
-        boxes, labels = [], []
+        out: list[tuple] = []
         # The pieces depend on the split's size expressions: attributes (fixed during one
         # derivation), rule parameters, and the scope sizes they read.  Cache them per split,
         # keyed by what they can depend on, so twenty floors of one width share one x split.
@@ -253,21 +256,17 @@ class SplitLayout:
             pieces = call_pieces(call, total)
             if key is not None:
                 self._pieces[key] = pieces
+        horizontal = axis_name == "x"
         for branch, start, size in pieces:
-            w, h = (size, sy) if axis_name == "x" else (sx, size)
+            w, h = (size, sy) if horizontal else (sx, size)
             sub_env = _Env(self, env.locals, w, h)
-            b, lab = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
+            leaves = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
                                _Line(branch.line))
-            if len(b):
-                b = b.copy()
-                if axis_name == "x":
-                    b[:, [0, 2]] += start
-                else:
-                    b[:, [1, 3]] += start
-                boxes.append(b)
-                labels += lab
-        return (np.concatenate(boxes) if boxes else np.zeros((0, 4))), labels
-
+            if horizontal:
+                out += [(x0 + start, y0, x1 + start, y1, lab) for x0, y0, x1, y1, lab in leaves]
+            else:
+                out += [(x0, y0 + start, x1, y1 + start, lab) for x0, y0, x1, y1, lab in leaves]
+        return out
 
     def _reads(self, op: A.BodyOp) -> frozenset[str]:
         """Scope sizes the split's size expressions read (both if they call functions)."""

@@ -5,7 +5,7 @@ Stages (``report.json`` times each):
 1. **load** the photo (any format Pillow reads; gray, RGBA and 16-bit are converted);
 2. **classify**: the pixel classifier's probabilities in the photo frame (§4.2.1) — a model
    file (``--classifier``) or the shipped auto-context model (``cmp6`` for rectified photos,
-   ``ecp7``, trained on street photos, otherwise);
+   ``ecp7``, trained on Parisian street photos, otherwise);
 3. **rectify** (unless ``--rectified``): vanishing points → homography (Müller 2007 App. A, as
    ``reconstruct`` does); the probabilities are warped into the rectified frame;
 4. **search**: the parse grammar's parameters minimising the §4.2.2 energy (hill climbing or the
@@ -125,14 +125,16 @@ def write_fitted_rules(source: str, attrs: Mapping[str, Any]) -> str:
 
 
 def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
-          method: str = "evolution", budget: int = 1500, rectified: bool = False,
+          method: str = "evolution", budget: int = 1000, rectified: bool = False,
           width_m: float | None = None, seed: int = 0, model: bool = True) -> Parse:
     """Parse a facade photo with a grammar (module docstring).
 
     Parameters
     ----------
     photo : path or (H, W[, C]) array
-    grammar : built-in name (``generic``) or ``.cga`` path, optional
+    grammar : built-in name (``grid``, ``haussmann``, ``generic``) or ``.cga`` path, optional
+        Default: ``haussmann`` with an ``ecp7`` classifier (Parisian street photos, the
+        thesis's pairing), ``grid`` otherwise.
     classifier : PixelClassifier or path to a model file, optional
         Default: the shipped model (``cmp6`` if ``rectified`` else ``ecp7``).
     method : {"hill", "evolution"}
@@ -153,12 +155,14 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         raise InputError(f"--budget {budget}: give a positive number of derivations")
     rgb, name = _as_rgb(photo)
     _check_size(rgb, name)
-    gpath = grammar_path(grammar)
-    rules = load_rules(gpath)
     clf = classifier if isinstance(classifier, PixelClassifier) else (
         load_classifier(classifier) if classifier is not None else
         _default_classifier(rectified))
     label_set = get_label_set(clf.label_set)
+    if grammar is None:
+        grammar = "haussmann" if label_set.name == "ecp7" else "grid"
+    gpath = grammar_path(grammar)
+    rules = load_rules(gpath)
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
