@@ -91,8 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "energy → hill climbing or evolutionary search → shape tree, "
                                    "labels, fitted rules and 3D model in OUTDIR.")
     g.add_argument("photo", help="facade photo")
-    g.add_argument("--grammar", help="parse grammar: grid, haussmann, generic or a .cga file "
-                                     "(default: haussmann with the ecp7 classifier, else grid)")
+    g.add_argument("--grammar", help="parse grammar: grid (default), haussmann, generic or a "
+                                     ".cga file")
     g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
     g.add_argument("--method", default="evolution", choices=("hill", "evolution"),
                    help="search: evolution (default, §5.2) or hill (Alg. 4.1)")

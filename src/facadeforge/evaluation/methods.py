@@ -346,9 +346,8 @@ register_method("mrf", "label_set",
 
 class GrammarMethod:
     """Grammar-driven parsing (``simon2011`` ch. 4–5, :func:`facadeforge.parsing.parse.parse`):
-    the shipped classifier of the dataset's label set, the default parse grammar for it
-    (``haussmann`` for ``ecp7`` street photos, ``grid`` otherwise) seeded from the classifier's
-    window grid and fitted by ``search`` within ``budget`` derivations; labels are the derived
+    the shipped classifier of the dataset's label set, the default parse grammar (``grid``)
+    seeded from the classifier's window grid and fitted by ``search`` within ``budget`` derivations; labels are the derived
     layout mapped back to the photo (the classifier's labels outside the rectified facade).  CMP
     photos are rectified already, as ``--rectified`` says on the command line."""
 
@@ -369,11 +368,11 @@ class GrammarMethod:
 
 
 register_method("grammar-hill", "canonical",
-                description="simon2011 §4.2: parse grammar (haussmann/grid) fitted by hill "
+                description="simon2011 §4.2: grid parse grammar fitted by hill "
                             "climbing (1000 derivations) to the auto-context classifier"
                 )(GrammarMethod())
 register_method("grammar-evo", "canonical",
-                description="simon2011 §5.2: parse grammar (haussmann/grid) fitted by the "
+                description="simon2011 §5.2: grid parse grammar fitted by the "
                             "evolutionary search (1000 derivations)")(GrammarMethod("evolution"))
 register_method("grammar", "canonical",
                 description="grammar parsing, best default = grammar-evo: evolutionary search, "

@@ -136,6 +136,14 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
                 fracs.append(float((share > 0.5).sum()) / max(r1 - r0, 1) * 0.35)
         if fracs:
             seed["balconyFrac"] = float(np.clip(np.median(fracs), 0.02, 0.35))
+        # balcony guards: the share of a window's rows that are mostly balcony (at its foot)
+        shares = []
+        for x0, y0, x1, y1 in boxes.astype(int):
+            lo = min(h, y1 + max(1, (y1 - y0) // 3))
+            rows_bal = bal[y0:lo, x0:x1].mean(axis=1) > 0.5
+            shares.append(rows_bal.sum() / max(y1 - y0, 1))
+        guard = float(np.median(shares)) if shares else 0.0
+        seed["guardFrac"] = float(np.clip(guard, 0, 0.5)) if guard > 0.05 else 0.0
     return seed
 
 
