@@ -10,6 +10,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from .errors import InputError
+
 __all__ = ["write_outdir"]
 
 
@@ -18,6 +20,8 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None]) -> list[
     ``out`` (sub-folders kept); returns the written paths.  The staging folder is removed
     whatever happens."""
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output folder {out} is an existing file; choose a folder name")
     out.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
     try:

@@ -113,3 +113,27 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and ".npz" in err
     assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("damage", ["feature", "cycle", "tests", "classes"])
+def test_tampered_model_files_are_refused(tmp_path, damage):
+    """A model file is untrusted: arrays that would crash or hang the compiled traversal are
+    rejected when loading, with a one-line error."""
+    clf = train_classifier([FakeSample("a", 0), FakeSample("b", 1)], ECP7, kind="forest",
+                           trees=2, per_image=300)
+    good = save_classifier(clf, tmp_path / "good.npz")
+    with np.load(good, allow_pickle=False) as z:
+        arrays = {k: z[k].copy() for k in z.files}
+    inner = arrays["t_feature"] >= 0
+    if damage == "feature":
+        arrays["t_feature"][inner] = 30000
+    elif damage == "cycle":
+        arrays["t_left"][inner] = 0
+    elif damage == "tests":
+        arrays["tests"][:, 0] = 5000
+    else:
+        arrays["t_value"] = arrays["t_value"][:, :3]
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, **arrays)
+    with pytest.raises(ClassifierFileError, match="damaged or inconsistent"):
+        load_classifier(bad)

@@ -44,10 +44,11 @@ def test_window_boxes_and_grid_seed():
 
 def test_seeded_fit_recovers_uneven_columns():
     lab, cols, rows = _grid_labels()
-    from facadeforge.parsing.init import INITIALISERS
+    from facadeforge.parsing.init import initialiser_for
 
     rules = load_rules(grammar_path("grid"))
-    seeded = fit_grammar(_prob(lab), CMP6, rules, budget=300, initialiser=INITIALISERS["grid"])
+    assert initialiser_for(load_rules(grammar_path("generic"))) is None
+    seeded = fit_grammar(_prob(lab), CMP6, rules, budget=300, initialiser=initialiser_for(rules))
     plain = fit_grammar(_prob(lab), CMP6, rules, budget=300)
     agree = (seeded.labels == lab).mean()
     # the grid grammar cannot place the top window exactly (shared sill fraction, taller top

@@ -67,3 +67,24 @@ def test_cli_errors(photo, tmp_path, capsys):
     assert "built-in grammar" in capsys.readouterr().err
     assert main(["parse", str(photo), "--budget", "0", "-o", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
+
+
+def test_parse_with_a_scribble_gmm(photo, tmp_path):
+    """A GMM knows only the scribbled classes; parse spreads them onto the label set."""
+    from facadeforge.classify.gmm import train_gmm
+    from facadeforge.datasets import get_label_set
+
+    ecp7 = get_label_set("ecp7")
+    img = np.array(Image.open(photo).convert("RGB"))
+    strokes = np.full(img.shape[:2], 255, np.uint8)
+    strokes[35:55, 25:40] = ecp7.index("window")
+    strokes[5:20, 5:200] = ecp7.index("wall")
+    strokes[260:290, 20:200] = ecp7.index("shop")
+    gmm = train_gmm(img, strokes, label_set="ecp7")
+    assert len(gmm.classes) == 3
+    p = parse(str(photo), classifier=gmm, rectified=True, budget=200, model=False)
+    labels = p.labels_input()
+    from facadeforge.datasets import CANONICAL_INDEX
+
+    assert (labels == CANONICAL_INDEX["window"]).any()
+    assert not (labels == CANONICAL_INDEX["balcony"]).any()  # a class the GMM never saw

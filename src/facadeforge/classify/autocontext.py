@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .features import (
+    APPEARANCE_NAMES,
     analysis_image,
     appearance_features,
     context_features,
@@ -29,7 +30,7 @@ from .features import (
     patch_tests,
     resize_proba,
 )
-from .forest import TreeEnsemble
+from .forest import TreeEnsemble, check_tests
 from .model import PixelClassifier, register_kind
 
 __all__ = ["AutoContextClassifier", "stage_features"]
@@ -93,5 +94,11 @@ class AutoContextClassifier(PixelClassifier):
     @classmethod
     def from_arrays(cls, arrays, classes, label_set, meta) -> AutoContextClassifier:
         n = int(arrays["num_stages"])
-        stages = [TreeEnsemble.from_arrays(arrays, f"s{s}_") for s in range(n)]
-        return cls(stages, arrays["tests"], classes, label_set, meta)
+        if not 1 <= n <= 16:
+            raise ValueError(f"{n} auto-context stages in the model file")
+        tests = check_tests(arrays["tests"])
+        stages = [TreeEnsemble.from_arrays(arrays, f"s{s}_", len(classes)) for s in range(n)]
+        k = len(classes)
+        for s, trees in enumerate(stages):
+            trees.check_features(len(APPEARANCE_NAMES) + (len(tests) if s == 0 else 11 * k))
+        return cls(stages, tests, classes, label_set, meta)

@@ -28,6 +28,18 @@ from .model import PixelClassifier, register_kind
 __all__ = ["ForestClassifier", "TreeEnsemble", "grow_forest"]
 
 
+def check_tests(tests: np.ndarray) -> np.ndarray:
+    """Patch tests read from a model file: ``(n, 5)`` integers, offsets within ±64 px, channels
+    0–2 (a model file is untrusted input)."""
+    t = np.asarray(tests)
+    ok = (t.ndim == 2 and t.shape[1] == 5 and np.issubdtype(t.dtype, np.integer)
+          and (np.abs(t[:, :2]) <= 64).all() and ((np.abs(t[:, 2:4]) <= 64) | (t[:, 2:4] == 127)
+                                                  ).all() and np.isin(t[:, 4], (0, 1, 2)).all())
+    if not ok:
+        raise ValueError("patch tests in the model file are malformed")
+    return t.astype(np.int16)
+
+
 @numba.njit(cache=True, nogil=True)
 def _leaves(X, feature, threshold, left, right, roots):  # pragma: no cover - compiled
     """``(T, n)`` leaf index of every row of ``X`` in every tree."""
@@ -93,6 +105,7 @@ class TreeEnsemble:
     def predict_proba(self, X: np.ndarray) -> np.ndarray:
         """``(n, K)`` float32 mean leaf distribution of the trees (eq. 4.10) for rows of ``X``."""
         X = np.ascontiguousarray(X, np.float32)
+        self.check_features(X.shape[1])
         leaves = _leaves(X, self.feature, self.threshold, self.left, self.right, self.roots)
         out = np.zeros((X.shape[0], self.num_classes), np.float32)
         for t in range(len(self.roots)):
@@ -107,18 +120,42 @@ class TreeEnsemble:
                 f"{prefix}depth": np.asarray(self.depth)}
 
     @classmethod
-    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str) -> TreeEnsemble:
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], prefix: str,
+                    num_classes: int | None = None) -> TreeEnsemble:
+        """Rebuild from :meth:`to_arrays` output, checking that the arrays describe trees: a
+        model file is untrusted input, and the compiled traversal does no bounds checks."""
         a = {k: np.asarray(arrays[f"{prefix}{k}"]) for k in
              ("feature", "threshold", "left", "right", "value", "roots", "depth")}
         n = len(a["feature"])
-        ok = (a["threshold"].shape == (n,) and a["left"].shape == (n,) and a["right"].shape == (n,)
-              and a["value"].ndim == 2 and a["value"].shape[0] == n
-              and ((a["left"] < n) & (a["right"] < n)).all() and (a["roots"] < n).all())
-        if not ok:
-            raise ValueError(f"tree arrays {prefix!r} are inconsistent")
+        shapes = (a["feature"].shape == (n,) and a["threshold"].shape == (n,)
+                  and a["left"].shape == (n,) and a["right"].shape == (n,)
+                  and a["value"].ndim == 2 and a["value"].shape[0] == n and n > 0
+                  and a["roots"].ndim == 1 and a["depth"].ndim == 0
+                  and all(np.issubdtype(a[k].dtype, np.integer)
+                          for k in ("feature", "left", "right", "roots")))
+        if not shapes:
+            raise ValueError(f"tree arrays {prefix!r} have inconsistent shapes or types")
+        inner = a["feature"] >= 0
+        node = np.arange(n)
+        # sklearn numbers children after their parent: requiring it rules out cycles
+        links = (inner <= ((a["left"] > node) & (a["left"] < n) & (a["right"] > node)
+                           & (a["right"] < n))).all()
+        roots = ((a["roots"] >= 0) & (a["roots"] < n)).all() and len(a["roots"]) > 0
+        finite = np.isfinite(a["threshold"][inner]).all() and np.isfinite(
+            a["value"].astype(np.float32)).all()
+        classes = num_classes is None or a["value"].shape[1] == num_classes
+        if not (links and roots and finite and classes and 0 <= int(a["depth"]) < 10_000):
+            raise ValueError(f"tree arrays {prefix!r} do not describe decision trees")
         return cls(a["feature"].astype(np.int16), a["threshold"].astype(np.float32),
                    a["left"].astype(np.int32), a["right"].astype(np.int32),
                    a["value"].astype(np.float16), a["roots"].astype(np.int32), int(a["depth"]))
+
+    def check_features(self, num_features: int) -> None:
+        """Raise unless every split reads a feature below ``num_features``."""
+        if int(self.feature.max(initial=-1)) >= num_features:
+            raise ValueError(f"the trees read feature {int(self.feature.max())} but only "
+                             f"{num_features} are computed; the model file does not match this "
+                             "facadeforge")
 
 
 def grow_forest(X: np.ndarray, y: np.ndarray, num_classes: int, *, trees: int = 10,
@@ -167,5 +204,7 @@ class ForestClassifier(PixelClassifier):
 
     @classmethod
     def from_arrays(cls, arrays, classes, label_set, meta) -> ForestClassifier:
-        return cls(TreeEnsemble.from_arrays(arrays, "t_"), arrays["tests"], classes, label_set,
-                   meta)
+        tests = check_tests(arrays["tests"])
+        trees = TreeEnsemble.from_arrays(arrays, "t_", len(classes))
+        trees.check_features(len(tests))
+        return cls(trees, tests, classes, label_set, meta)

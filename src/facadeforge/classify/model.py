@@ -157,8 +157,14 @@ def load_classifier(path: str | Path) -> PixelClassifier:
     if kind not in CLASSIFIER_KINDS:
         raise ClassifierFileError(f"classifier {path}: unknown kind {kind!r}; this facadeforge "
                                   f"reads {', '.join(sorted(CLASSIFIER_KINDS))}")
-    return CLASSIFIER_KINDS[kind].from_arrays(arrays, tuple(meta["classes"]),
-                                              meta["label_set"], meta.get("meta", {}))
+    try:
+        classes = tuple(str(c) for c in meta["classes"])
+        return CLASSIFIER_KINDS[kind].from_arrays(arrays, classes, str(meta["label_set"]),
+                                                  meta.get("meta", {}))
+    except (KeyError, ValueError, TypeError, IndexError) as exc:
+        raise ClassifierFileError(f"classifier {path}: damaged or inconsistent model file "
+                                  f"({exc}); train it again with 'facadeforge "
+                                  "train-classifier'") from None
 
 
 def _load_kinds() -> None:

@@ -34,6 +34,7 @@ Run cost
 from __future__ import annotations
 
 import math
+import sys
 import time
 import tracemalloc
 from collections.abc import Callable, Iterable, Sequence
@@ -738,6 +739,16 @@ class RunCost(NamedTuple):
     peak_memory_bytes: int
 
 
+def _peak_rss_bytes() -> int:
+    """Peak resident set size of this process (0 where the platform does not report it)."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return 0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(peak) if sys.platform == "darwin" else int(peak) * 1024  # macOS reports bytes
+
+
 def measure(fn: Callable[..., Any], *args, trace_memory: bool = True, **kwargs) -> RunCost:
     """Call ``fn(*args, **kwargs)`` and report its wall time and peak memory.
 
@@ -767,12 +778,10 @@ def measure(fn: Callable[..., Any], *args, trace_memory: bool = True, **kwargs) 
     but its peak is reset, so an enclosing measurement may under-report its own peak.
     """
     if not trace_memory:
-        import resource
-
         t0 = time.perf_counter()
         result = fn(*args, **kwargs)
         seconds = time.perf_counter() - t0
-        return RunCost(result, seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024)
+        return RunCost(result, seconds, _peak_rss_bytes())
     was_tracing = tracemalloc.is_tracing()
     if not was_tracing:
         tracemalloc.start()

@@ -9,12 +9,13 @@ their horizontal extent) and rows (by their vertical extent), and the grid's lin
 sill height, roof line and ground floor follow.  The search then refines this seed like any other
 (it replaces the expert seed; random layouts are still drawn and compete with it).
 
-An initialiser is keyed by the built-in grammar it knows the attribute names of
-(:data:`INITIALISERS`); other grammars start from their attribute defaults.
+:func:`initialiser_for` picks the seed by the attributes a grammar declares (the grid
+placeholders of ``grid.cga`` and ``haussmann.cga``); other grammars start from their defaults.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -23,7 +24,7 @@ import numpy as np
 
 from ..datasets import LabelSet
 
-__all__ = ["INITIALISERS", "grid_seed", "window_boxes"]
+__all__ = ["GRID_ATTRIBUTES", "grid_seed", "initialiser_for", "window_boxes"]
 
 
 def window_boxes(prob: np.ndarray, label_set: LabelSet, min_area: int = 6) -> np.ndarray:
@@ -147,9 +148,21 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     return seed
 
 
-#: Seed functions by built-in grammar name: ``f(prob, label_set) -> attrs or None``.
-INITIALISERS: dict[str, Callable[[np.ndarray, LabelSet], dict[str, Any] | None]] = {
-    "grid": grid_seed,
-    "haussmann": lambda prob, label_set: grid_seed(prob, label_set, max_floors=7,
-                                                   max_columns=10),
-}
+#: Attributes a grammar must declare for :func:`grid_seed` to apply (grid.cga, haussmann.cga).
+GRID_ATTRIBUTES = frozenset({"groundTop", "nFloors", "roofLine", "nColumns", "column1",
+                             "windowWidth", "windowHeight", "sillHeight"})
+
+
+def initialiser_for(rules) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | None] | None:
+    """The seed function for a loaded parse grammar, chosen by the attributes it declares (so a
+    renamed or edited copy of a built-in grammar is seeded too), or ``None``."""
+    names = set(rules.ruleset.main.attrs)
+    if not GRID_ATTRIBUTES <= names:
+        return None
+    columns = sum(1 for n in names if re.fullmatch(r"column\d+", n))
+    floors = 1 + sum(1 for n in names if re.fullmatch(r"floor\d+", n))
+
+    def seed(prob: np.ndarray, label_set: LabelSet) -> dict[str, Any] | None:
+        return grid_seed(prob, label_set, max_floors=floors, max_columns=columns)
+
+    return seed

@@ -82,6 +82,18 @@ def _default_classifier(rectified: bool):
     return default_classifier("cmp6" if rectified else "ecp7")
 
 
+def _in_label_set(prob: np.ndarray, classes: tuple[str, ...], label_set) -> np.ndarray:
+    """Probabilities over ``classes`` (e.g. the few a scribble GMM was trained on) spread onto
+    the label set's channels; classes the classifier lacks get a small floor probability."""
+    if tuple(classes) == tuple(label_set.classes):
+        return prob
+    out = np.full((*prob.shape[:2], label_set.num_classes), 1e-3, np.float32)
+    for ch, name in enumerate(classes):
+        out[:, :, label_set.index(name)] += prob[:, :, ch]
+    out /= out.sum(axis=2, keepdims=True)
+    return out
+
+
 def _warp_prob(prob: np.ndarray, H: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Probabilities warped by pixel homography ``H`` into an image of ``shape``; pixels from
     outside the photo get a uniform distribution."""
@@ -166,7 +178,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    prob = clf.predict_proba(rgb)
+    prob = _in_label_set(clf.predict_proba(rgb), clf.classes, label_set)
     fallback = label_set.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
     timings["classify"] = time.perf_counter() - t
 
@@ -186,10 +198,10 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
 
     t = time.perf_counter()
     fixed = {"facadeWidth": float(width_m)} if width_m is not None else None
-    from .init import INITIALISERS
+    from .init import initialiser_for
 
     fit = fit_grammar(rect_prob, label_set, rules, method=method, budget=budget, seed=seed,
-                      fixed=fixed, initialiser=INITIALISERS.get(Path(gpath).stem))
+                      fixed=fixed, initialiser=initialiser_for(rules))
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
