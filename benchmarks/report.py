@@ -88,6 +88,16 @@ def parsing_table() -> str:
             for name, acc in THESIS_ECP.items():
                 rows.append(f"| {name} | " + " | ".join(str(a) for a in acc)
                             + f" | {sum(acc) / len(acc):.1f} |")
+        forest = res / "classifiers.json"
+        if forest.exists():
+            f = json.loads(forest.read_text())["results"].get(dataset)
+            if f:
+                r = f["forest (§4.3.1)"]
+                acc = r["per_class_accuracy"]
+                classes = tuple(acc)
+                rows.append(f"| forest §4.3.1, ours ({dataset} val, {f['val_images']}) | "
+                            + " | ".join(f"{100 * acc[c]:.0f}" for c in classes)
+                            + f" | {100 * r['class_avg_accuracy']:.1f} |")
         for method in ("classifier", "mrf", "grammar-hill", "grammar"):
             path = res / f"bench_{method}_{dataset}.json"
             if not path.exists():
