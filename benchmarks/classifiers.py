@@ -9,7 +9,6 @@ one.  Writes ``benchmarks/results/classifiers.json``.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,18 +35,16 @@ def score(clf, samples) -> dict:
 
 
 def main() -> int:
-    sys.path.insert(0, str(ROOT / "src"))
     from facadeforge.classify import default_classifier
     from facadeforge.classify.train import train_classifier
-    from facadeforge.evaluation.bench import provenance, select_samples
+    from facadeforge.evaluation.bench import provenance, save_result, select_samples
 
     results = {}
     for dataset in ("ruemonge", "cmp"):
         if not (DATA / dataset).is_dir():
             print(f"skipping {dataset}: {DATA / dataset} is absent", file=sys.stderr)
             continue
-        train, _, _ = select_samples(dataset, DATA / dataset, "train")
-        val, _, _ = select_samples(dataset, DATA / dataset, "val")
+        val, train, _ = select_samples(dataset, DATA / dataset, "val")
         ls = val[0].label_set
         t = time.perf_counter()
         forest = train_classifier(train, ls, kind="forest")
@@ -59,8 +56,8 @@ def main() -> int:
         }
         print(dataset, {k: v["class_avg_accuracy"] for k, v in results[dataset].items()
                         if isinstance(v, dict)})
-    out = ROOT / "benchmarks" / "results" / "classifiers.json"
-    out.write_text(json.dumps({"results": results, **provenance()}, indent=1))
+    save_result({"results": results, **provenance()},
+                ROOT / "benchmarks" / "results" / "classifiers.json")
     return 0
 
 

@@ -13,7 +13,6 @@ its final hill-climbing energy) is averaged over facades — the comparison of F
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -85,8 +84,7 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=10)
     ap.add_argument("--budget", type=int, default=1500)
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT / "src"))
-    from facadeforge.evaluation.bench import provenance
+    from facadeforge.evaluation.bench import provenance, save_result
 
     results = {}
     for dataset in ("cmp", "ruemonge"):
@@ -96,9 +94,8 @@ def main(argv=None) -> int:
         results[dataset] = curves(dataset, args.n, args.budget)
         print(dataset, {k: (v["final_energy_per_pixel"], v["search_seconds"])
                         for k, v in results[dataset].items()})
-    out = ROOT / "benchmarks" / "results" / "parsing_curves.json"
-    out.write_text(json.dumps({"facades_per_dataset": args.n, "budget": args.budget,
-                               "results": results, **provenance()}, indent=1))
+    save_result({"facades_per_dataset": args.n, "budget": args.budget, "results": results,
+                 **provenance()}, ROOT / "benchmarks" / "results" / "parsing_curves.json")
     if results:
         plot(results, args.budget, ROOT / "docs" / "images" / "energy_curves.png")
     return 0

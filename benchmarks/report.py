@@ -112,6 +112,14 @@ def parsing_table() -> str:
             out.append(f"{dataset} ({label_set}), per-class accuracy %:\n\n"
                        f"| method | {' | '.join(classes)} | class-avg |\n"
                        f"|---|{'---|' * (len(classes) + 1)}\n" + "\n".join(rows))
+    for name, what in (("classifiers.json", "`forest §4.3.1, ours` rows"),
+                       ("parsing_curves.json", "energy curves below")):
+        path = res / name
+        if path.exists():
+            r = json.loads(path.read_text())
+            m = r["machine"]
+            out.append(f"{what}: measured {r['date'][:10]} at commit `{r['commit']}` on "
+                       f"{m['cores']} cores ({m['cpu']}), Python {m['python']}.")
     return "\n\n".join(out) if out else "_no result yet_"
 
 

@@ -529,17 +529,11 @@ def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:
 
 
 def _write_json(path: Path, obj) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2, default=_json_default))
-    os.replace(tmp, path)
+    """``obj`` as JSON at ``path``, atomically (NaN and infinities become null)."""
+    from .exchange._common import Staging, jsonable
 
-
-def _json_default(o):
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+    with Staging() as stage:
+        stage.write_text(path, json.dumps(jsonable(obj), indent=2))
 
 
 def _structure_png(rec: Reconstruction) -> np.ndarray:
@@ -573,6 +567,7 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
     from PIL import Image
 
     from .exchange import export
+    from .exchange._common import jsonable
     from .exchange.raster import write_label_png
     from .outdir import write_outdir
 
@@ -583,8 +578,8 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
         Image.fromarray(_structure_png(rec)).save(stage / "structure.png", compress_level=1)
         write_label_png(rec.labels, stage / "labels.png")
         write_label_png(rec.labels_input(), stage / "labels_input.png")
-        (stage / "shape_tree.json").write_text(json.dumps(rec.tree.to_dict(), indent=1,
-                                                          default=_json_default))
+        (stage / "shape_tree.json").write_text(json.dumps(jsonable(rec.tree.to_dict()),
+                                                          indent=1))
         if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
             shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)
         else:

@@ -216,7 +216,7 @@ def test_perspective_warps_labels_with_the_stored_homography(tilted: Path):
         expect = np.where(inside, rectified[np.clip(sy, 0, h - 1), np.clip(sx, 0, w - 1)],
                           LABEL_INDEX["background"])
         assert np.array_equal(raw[rows, cols], expect)
-        assert (~inside).any() or inside.all()
+        assert inside.any()  # the sample reaches the facade, so the comparison above means something
         # object boxes follow the warp: window boxes still cover every window pixel
         mask = raw == LABEL_INDEX["window"]
         covered = np.zeros_like(mask)

@@ -38,24 +38,25 @@ H, W = 30, 40
 
 # ------------------------------------------------------------------------------- fixtures
 def _cmp_xml(objects) -> str:
-    # the real format: bare <object> elements, \r line breaks, normalised left/right, top/bottom
+    # the real format: bare <object> elements, \r line breaks; <x> holds the normalised top and
+    # bottom (rows), <y> the left and right (columns)
     return "".join(
-        f"<object>\r<points>\r<x>\r{x0}\r</x>\r<x>\r{x1}\r</x>\r<y>\r{y0}\r</y>\r<y>\r{y1}\r</y>\r"
+        f"<object>\r<points>\r<x>\r{r0}\r</x>\r<x>\r{r1}\r</x>\r<y>\r{c0}\r</y>\r<y>\r{c1}\r</y>\r"
         f"</points>\r<label>\r{k}\r</label>\r<labelname>\r{name}\r</labelname>\r<flag>\r1\r"
-        f"</flag>\r</object>\r" for (x0, x1, y0, y1), k, name in objects)
+        f"</flag>\r</object>\r" for (r0, r1, c0, c1), k, name in objects)
 
 
 def _facade(n: int) -> tuple[np.ndarray, list]:
     """(H, W) CMP ids of facade ``n`` and its XML objects: sky row, windows, door, shop."""
     ids = np.full((H, W), 2, np.uint8)          # facade
     ids[:3] = 1                                  # background
-    objects = [((0.0, 1.0, 0.1, 1.0), 2, "facade")]
+    objects = [((0.1, 1.0, 0.0, 1.0), 2, "facade")]   # (rows, columns), normalised
     shift = n % 3
     for row in range(2):
         for col in range(3):
             x0, y0 = 4 + 12 * col + shift, 6 + 8 * row
             ids[y0:y0 + 5, x0:x0 + 6] = 3        # window 6 x 5 px
-            objects.append(((x0 / W, (x0 + 6) / W, y0 / H, (y0 + 5) / H), 3, "window"))
+            objects.append(((y0 / H, (y0 + 5) / H, x0 / W, (x0 + 6) / W), 3, "window"))
     ids[22:, 4:10] = 4                            # door
     ids[24:, 20 + shift:36] = 12                  # shop
     return ids, objects
@@ -180,6 +181,16 @@ def test_oracle_scores_perfectly(cmp_dir: Path, tmp_path: Path, register):
     assert r["window_f1"] == 1.0 and r["window_tp"] == 48 and r["window_fp"] == 0
     assert r["windows_from"] == {"method": 8, "label_components": 0}
     assert all(p["miou"] == 1.0 for p in r["per_image"])
+
+
+def test_label_oracle_windows_match_the_xml_boxes(cmp_dir: Path, tmp_path: Path, register):
+    """Windows from the true label map's components (not from the XML boxes) match the XML
+    window boxes: the boxes are read in the right axis order (<x> = rows)."""
+    register("labels-only", lambda s, ls: Prediction(labels=s.labels()))
+    r = run_bench("labels-only", "cmp", cmp_dir, split="all", out=tmp_path / "l.json",
+                  progress=False)
+    assert r["windows_from"] == {"method": 0, "label_components": 8}
+    assert r["window_f1"] == 1.0 and r["window_tp"] == 48
 
 
 def test_rectified_frame_is_warped_back(cmp_dir: Path, tmp_path: Path, register):

@@ -142,9 +142,8 @@ def test_invalid_arguments():
         evolve(two_objectives, PARAMS, budget=10, weights=[-1.0, 1.0])
 
 
-def test_evolution_recovers_a_known_layout(monkeypatch, known_layout):
+def test_evolution_recovers_a_known_layout(known_layout):
     generic, prob, truth = known_layout
-    monkeypatch.setattr(fit_module, "SEARCH_METHODS", {"evolution": evolve})
     fit = fit_module.fit_grammar(prob, ECP7, generic, method="evolution", budget=2500, seed=1)
     assert fit.search.method == "evolution" and fit.search.derivations == 2500
     assert all(b <= a for a, b in zip(fit.search.curve, fit.search.curve[1:]))

@@ -42,17 +42,20 @@ def analysis_image(rgb: np.ndarray, side: int = ANALYSIS_SIDE) -> np.ndarray:
     return cv2.resize(rgb, size, interpolation=interp)
 
 
-def resize_proba(prob: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """``(h, w, K)`` probabilities resized (bilinear) to ``shape`` = (H, W), renormalised."""
+def resize_proba(prob: np.ndarray, shape: tuple[int, int], *,
+                 interpolation: int = cv2.INTER_LINEAR, normalise: bool = True) -> np.ndarray:
+    """``(h, w, K)`` probabilities resized to ``shape`` = (H, W) float32 (bilinear by default;
+    ``cv2.INTER_AREA`` to shrink), rows renormalised to sum to one unless ``normalise=False``."""
     H, W = shape
     k = prob.shape[2]
     out = np.empty((H, W, k), np.float32)
     for c0 in range(0, k, 4):  # cv2.resize handles at most 4 channels reliably
         c1 = min(k, c0 + 4)
-        chunk = cv2.resize(np.ascontiguousarray(prob[:, :, c0:c1]), (W, H),
-                           interpolation=cv2.INTER_LINEAR)
+        chunk = cv2.resize(np.ascontiguousarray(prob[:, :, c0:c1], np.float32), (W, H),
+                           interpolation=interpolation)
         out[:, :, c0:c1] = chunk.reshape(H, W, c1 - c0)
-    out /= np.maximum(out.sum(axis=2, keepdims=True), 1e-12)
+    if normalise:
+        out /= np.maximum(out.sum(axis=2, keepdims=True), 1e-12)
     return out
 
 
@@ -144,15 +147,6 @@ def appearance_features(rgb: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------------- context
-def context_names(k: int) -> tuple[str, ...]:
-    names = [f"p{c}" for c in range(k)]
-    for r in CONTEXT_OFFSETS:
-        for d in ("up", "down", "left", "right"):
-            names += [f"p{c}_{d}{r}" for c in range(k)]
-    names += [f"p{c}_row" for c in range(k)] + [f"p{c}_col" for c in range(k)]
-    return tuple(names)
-
-
 def context_features(prob: np.ndarray) -> np.ndarray:
     """``(h, w, 11 K)`` auto-context features of a previous stage's ``(h, w, K)`` probabilities."""
     h, w, k = prob.shape

@@ -104,6 +104,9 @@ class Method:
     description: str = ""
 
 
+#: Datasets whose photos are rectified already (methods skip rectification, as ``--rectified``).
+RECTIFIED_DATASETS = frozenset({"cmp"})
+
 #: Registered methods by name (``facadeforge bench --method NAME``).
 METHODS: dict[str, Method] = {}
 
@@ -293,13 +296,11 @@ class StructureMethod:
     to the photo through the rectifying homography.  Photos of rectified datasets (CMP) skip
     rectification, as ``--rectified`` does on the command line."""
 
-    RECTIFIED_DATASETS = frozenset({"cmp"})
-
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
         from ..reconstruction import reconstruct
 
         rec = reconstruct(sample.image(), model=False,
-                          rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)
+                          rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS)
         windows = np.array(rec.windows(), np.float64).reshape(-1, 4)
         floors = rec.report["floors"]
         return Prediction(labels=rec.labels, homography=rec.inverse, windows=windows,
@@ -351,8 +352,6 @@ class GrammarMethod:
     layout mapped back to the photo (the classifier's labels outside the rectified facade).  CMP
     photos are rectified already, as ``--rectified`` says on the command line."""
 
-    RECTIFIED_DATASETS = frozenset({"cmp"})
-
     def __init__(self, search: str = "hill", budget: int = 1000) -> None:
         self.search = search
         self.budget = budget
@@ -363,7 +362,7 @@ class GrammarMethod:
 
         result = parse(sample.image(), classifier=default_classifier(label_set.name),
                        method=self.search, budget=self.budget, model=False,
-                       rectified=sample.meta.get("dataset") in self.RECTIFIED_DATASETS)
+                       rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS)
         return Prediction(labels=result.labels_input())
 
 

@@ -51,6 +51,7 @@ class SegmentationEnergy:
         integral[:, 1:, 1:] = cost.transpose(2, 0, 1).cumsum(axis=1).cumsum(axis=2)
         self.integral = integral
         self._wall = label_set.index("wall")
+        self._wall_total = self.box_cost(self._wall, 0, 0, h, w)
         self._channels: dict[str, int] = {}
 
     def channel(self, label: str) -> int:
@@ -76,7 +77,7 @@ class SegmentationEnergy:
     def __call__(self, layout: Layout) -> float:
         """Energy (eq. 4.7) of ``layout``; uncovered pixels are charged as wall."""
         if not len(layout.labels):
-            return self.box_cost(self._wall, 0, 0, *self.shape)
+            return self._wall_total
         px = self.pixel_boxes(layout)
         ch = np.fromiter((self.channel(lab) for lab in layout.labels), np.int64,
                          len(layout.labels))
@@ -88,7 +89,7 @@ class SegmentationEnergy:
         wall_covered = S[W, r1, c1] - S[W, r0, c1] - S[W, r1, c0] + S[W, r0, c0]
         # Split leaves never overlap, so the uncovered rest costs the facade's wall total minus
         # the wall cost of the covered boxes.
-        rest = self.box_cost(W, 0, 0, *self.shape) - float(wall_covered[ok].sum())
+        rest = self._wall_total - float(wall_covered[ok].sum())
         return float(costs[ok].sum()) + max(rest, 0.0)
 
     def box_cost(self, channel: int, r0: int, c0: int, r1: int, c1: int) -> float:

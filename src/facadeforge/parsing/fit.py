@@ -17,6 +17,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..classify.features import resize_proba
 from ..datasets import LabelSet
 from ..errors import InputError
 from .energy import SegmentationEnergy
@@ -62,18 +63,13 @@ class FitResult:
 
 
 def _shrink(prob: np.ndarray, side: int) -> np.ndarray:
+    """Probabilities area-averaged to a long side of at most ``side`` pixels (float32)."""
     h, w = prob.shape[:2]
     s = min(1.0, side / max(h, w))
     if s >= 1.0:
         return prob.astype(np.float32)
-    size = (max(2, round(w * s)), max(2, round(h * s)))
-    k = prob.shape[2]
-    out = np.empty((size[1], size[0], k), np.float32)
-    for c0 in range(0, k, 4):
-        c1 = min(k, c0 + 4)
-        out[:, :, c0:c1] = cv2.resize(np.ascontiguousarray(prob[:, :, c0:c1], np.float32), size,
-                                      interpolation=cv2.INTER_AREA).reshape(size[1], size[0], -1)
-    return out
+    return resize_proba(prob, (max(2, round(h * s)), max(2, round(w * s))),
+                        interpolation=cv2.INTER_AREA, normalise=False)
 
 
 def search_method(name: str):
@@ -108,8 +104,7 @@ def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "
         raise ParseGrammarError("a parse grammar needs attr facadeWidth (the width in metres "
                                 "the photo spans)")
     if "facadeWidth" not in fixed and all(p.name != "facadeWidth" for p in params):
-        fixed["facadeWidth"] = float(layout.derive(1.0, 1.0).width and  # evaluates defaults
-                                     layout.attr_value("facadeWidth"))
+        fixed["facadeWidth"] = float(layout.attr_value("facadeWidth"))
     aspect = small.shape[0] / small.shape[1]
 
     def size_of(attrs: Mapping[str, Any]) -> tuple[float, float]:

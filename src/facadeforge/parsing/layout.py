@@ -193,7 +193,7 @@ class SplitLayout:
             return hit
         env = _Env(self, {p.name: v for p, v in zip(rdef.params, args)}, sx, sy)
         try:
-            out = self._ops(rdef.body, env, name, sx, sy, label, depth, rdef)
+            out = self._ops(rdef.body, env, name, sx, sy, label, depth, rdef.line)
         except CGARuntimeError as exc:
             raise ParseGrammarError(f"parse grammar, rule '{name}' (line {rdef.line}): {exc}"
                                     ) from None
@@ -207,7 +207,7 @@ class SplitLayout:
         lab = label or str(label_for_name(name) or "other")
         return [(0.0, 0.0, sx, sy, lab)]
 
-    def _ops(self, ops, env: _Env, name: str, sx: float, sy: float, label, depth, rdef):
+    def _ops(self, ops, env: _Env, name: str, sx: float, sy: float, label, depth, line: int):
         for i, op in enumerate(ops):
             last = i == len(ops) - 1
             if isinstance(op, A.Successor) and op.name == "label":
@@ -224,12 +224,12 @@ class SplitLayout:
             if isinstance(op, A.CaseOps):
                 for cond, body in op.branches:
                     if to_bool(env.evaluator(cond)):
-                        return self._ops(body, env, name, sx, sy, label, depth, rdef)
-                return self._ops(op.otherwise, env, name, sx, sy, label, depth, rdef)
+                        return self._ops(body, env, name, sx, sy, label, depth, line)
+                return self._ops(op.otherwise, env, name, sx, sy, label, depth, line)
             if isinstance(op, A.BodyOp) and op.name == "split" and last:
                 return self._split(op, env, sx, sy, label, depth)
             what = getattr(op, "name", type(op).__name__)
-            raise ParseGrammarError(f"parse grammar, rule '{name}' (line {rdef.line}): "
+            raise ParseGrammarError(f"parse grammar, rule '{name}' (line {line}): "
                                     f"'{what}' is not supported in a 2D parse grammar (use "
                                     "split, case, label and successor rules)")
         return self._leaf(name, label, sx, sy)
@@ -261,7 +261,7 @@ class SplitLayout:
             w, h = (size, sy) if horizontal else (sx, size)
             sub_env = _Env(self, env.locals, w, h)
             leaves = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
-                               _Line(branch.line))
+                               branch.line)
             if horizontal:
                 out += [(x0 + start, y0, x1 + start, y1, lab) for x0, y0, x1, y1, lab in leaves]
             else:
@@ -291,8 +291,3 @@ class SplitLayout:
                     stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
             hit = self._reads_cache[id(op)] = frozenset(names & {"scope.sx", "scope.sy"})
         return hit
-
-
-@dataclass(frozen=True)
-class _Line:
-    line: int

@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 from maxflow import fastmin
 
+from ..classify.features import resize_proba
 from ..errors import InputError
 
 __all__ = ["potts_energy", "potts_labels"]
@@ -103,19 +104,6 @@ def _unary(prob: np.ndarray, eps: float) -> np.ndarray:
     return np.ascontiguousarray(-np.log(np.clip(prob, eps, 1.0)), dtype=np.float64)
 
 
-def _area_resize(prob: np.ndarray, h: int, w: int) -> np.ndarray:
-    """Area-average an (H, W, K) map to (h, w, K), four channels per cv2 call."""
-    src = prob.astype(np.float32)
-    k = src.shape[2]
-    out = np.empty((h, w, k), np.float32)
-    for c0 in range(0, k, 4):  # cv2.resize refuses many channels; 4 is always safe
-        c1 = min(c0 + 4, k)
-        chunk = cv2.resize(np.ascontiguousarray(src[:, :, c0:c1]), (w, h),
-                           interpolation=cv2.INTER_AREA)
-        out[:, :, c0:c1] = chunk.reshape(h, w, c1 - c0)
-    return out.astype(np.float64)
-
-
 def _coarse_shape(h: int, w: int, max_pixels: int) -> tuple[int, int]:
     s = math.sqrt(max_pixels / (h * w))
     ch = min(h, max(1, int(h * s)))
@@ -154,7 +142,8 @@ def potts_labels(prob: np.ndarray, smoothness: float = 1.0, *, max_cycles: int =
 
     if h * w > max_pixels:
         ch, cw = _coarse_shape(h, w, int(max_pixels))
-        work = _area_resize(arr, ch, cw)
+        work = resize_proba(arr, (ch, cw), interpolation=cv2.INTER_AREA,
+                            normalise=False).astype(np.float64)
         lam_work = lam * math.sqrt((ch * cw) / (h * w))
     else:
         ch, cw, work, lam_work = h, w, arr, lam

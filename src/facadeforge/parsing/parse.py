@@ -62,13 +62,9 @@ class Parse:
     def labels_input(self) -> np.ndarray:
         """Canonical labels in the photo frame: the derivation inside the rectified facade, the
         classifier's argmax outside it."""
-        import cv2
+        from ..evaluation.bench import warp_to_image
 
-        h, w = self.photo.shape[:2]
-        half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
-        hcv = np.linalg.inv(half) @ self.inverse @ half
-        warped = cv2.warpPerspective(self.labels, hcv, (w, h), flags=cv2.INTER_NEAREST,
-                                     borderMode=cv2.BORDER_CONSTANT, borderValue=IGNORE)
+        warped = warp_to_image(self.labels, self.inverse, self.photo.shape[:2])
         return np.where(warped == IGNORE, self.fallback, warped).astype(np.uint8)
 
     def save(self, out_dir: str | os.PathLike) -> list[Path]:
@@ -171,8 +167,6 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         load_classifier(classifier) if classifier is not None else
         _default_classifier(rectified))
     label_set = get_label_set(clf.label_set)
-    if grammar is None:
-        grammar = "grid"
     gpath = grammar_path(grammar)
     rules = load_rules(gpath)
     timings["load"] = time.perf_counter() - t
