@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from facadeforge.evaluation.metrics import match_boxes
 from facadeforge.exchange import load
 from facadeforge.reconstruction import load_depths, reconstruct
 
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 OUT_FILES = ("rectified.png", "structure.png", "labels.png", "labels_input.png",
              "shape_tree.json", "rules.cga", "model.glb", "model.obj", "model.city.json",
              "report.json")
@@ -36,6 +38,16 @@ def result(synthetic, tmp_path_factory):
     photo, meta, _ = synthetic
     out = tmp_path_factory.mktemp("rec")
     rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0], out_dir=out)
+    return rec, out
+
+
+@pytest.fixture(scope="module")
+def paper_result(synthetic, tmp_path_factory):
+    """The paper's edge-only path (no classifier)."""
+    photo, meta, _ = synthetic
+    out = tmp_path_factory.mktemp("rec_edges")
+    rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0], out_dir=out,
+                      classifier=False)
     return rec, out
 
 
@@ -61,10 +73,54 @@ def test_label_maps_in_both_frames(result, synthetic):
     assert np.asarray(Image.open(out / "labels_input.png")).shape[:2] == photo.shape[:2]
 
 
-def test_windows_found_on_synthetic_facade(result, synthetic):
+def test_windows_found_on_synthetic_facade(result, paper_result, synthetic):
     rec, _ = result
+    assert rec.report["detection"]["source"] == "classifier"
+    score = match_boxes(synthetic[2], rec.windows())
+    # the CMP classifier on a rendered facade: measured 0.39 (9 tp, 14 fp, 14 fn); shutters
+    # count as window in CMP's labels, so several boxes hold a window and its shutters
+    assert score.f1 >= 0.3, (score.precision, score.recall)
+    rec, _ = paper_result
+    assert rec.report["detection"]["source"] == "edges"
     score = match_boxes(synthetic[2], rec.windows())
     assert score.f1 >= 0.3, (score.precision, score.recall)   # measured 0.36 (7 tp, 9 fp, 16 fn)
+
+
+@pytest.mark.skipif(not (DATA / "cmp").is_dir(), reason=f"shared CMP data not found at {DATA}")
+def test_windows_found_on_a_cmp_facade():
+    """A real facade (CMP val, not seen by the shipped classifier): the classifier path finds
+    most windows; the paper's edge path far fewer (the gap the README's benchmark measures)."""
+    from facadeforge.datasets import load_cmp
+
+    (sample,) = [s for s in load_cmp(DATA / "cmp") if s.id == "cmp_b0187"]
+    truth = [o.as_array() for o in sample.objects() if o.label == "window"]
+    rec = reconstruct(sample.image(), rectified=True, model=False)
+    score = match_boxes(truth, rec.windows())
+    assert score.f1 >= 0.6, (score.precision, score.recall)
+    assert {"window", "door"} <= set(rec.report["elements"])
+    edges = reconstruct(sample.image(), rectified=True, model=False, classifier=False)
+    assert match_boxes(truth, edges.windows()).f1 < score.f1
+
+
+def test_classifier_without_element_classes_is_refused():
+    from facadeforge.classify import PixelClassifier
+
+    class SkyOnly(PixelClassifier):
+        kind = "sky-only"
+
+        def predict_proba(self, image):
+            return np.ones((*image.shape[:2], 2), np.float32) / 2
+
+        def to_arrays(self):
+            return {}
+
+        @classmethod
+        def from_arrays(cls, arrays, classes, label_set, meta):
+            return cls(classes, label_set, meta)
+
+    with pytest.raises(InputError, match="none of the classes"):
+        reconstruct(_facade_like(), rectified=True, model=False,
+                    classifier=SkyOnly(("wall", "sky"), "scribbles", {}))
 
 
 def test_shape_tree_json_round_trips(result):
@@ -74,15 +130,17 @@ def test_shape_tree_json_round_trips(result):
     assert tree.dump() == rec.tree.dump()
 
 
-def test_rules_derive_back_into_the_layout(result):
-    """§5: the extracted rules re-derive the analysed layout: the same elements, each within 3 %
-    of the facade size (sizes are averaged per cluster, so real trees do not come back exactly;
-    tests/grammar/test_extract.py checks 1 % on trees with ±2 % noise)."""
-    rec, out = result
+@pytest.mark.parametrize("path, within", [("classifier", 0.01), ("edges", 0.03)])
+def test_rules_derive_back_into_the_layout(result, paper_result, path, within):
+    """§5: the extracted rules re-derive the analysed layout: the same elements, each within 1 %
+    of the facade size on the classifier path (clusters are split by geometry within 0.5 %),
+    3 % on the paper's path (sizes are averaged per appearance cluster, so real trees do not
+    come back exactly; tests/grammar/test_extract.py checks 1 % on trees with ±2 % noise)."""
+    rec, out = result if path == "classifier" else paper_result
     w, h = rec.tree.scope.size[:2]
     model = derive_facade(out / "rules.cga", w, h, assets=out)
     assert not model.warnings
-    tol = 0.03 * max(w, h)
+    tol = within * max(w, h)
     want = [s for s in rec.tree.leaves() if s.label != "wall"]
     got = [s for s in model.root.leaves() if s.label != "wall"]
     assert want and len(got) == len(want)

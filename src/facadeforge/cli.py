@@ -24,7 +24,8 @@ EXAMPLES = {
     "reconstruct": """examples:
   facadeforge reconstruct photo.jpg -o out/
   facadeforge reconstruct facade.png --rectified --width-m 18.5 -o out/
-  facadeforge reconstruct photo.jpg --depths depths.json -o out/     # {"window": -0.3, "balcony": 1.2}""",
+  facadeforge reconstruct photo.jpg --depths depths.json -o out/     # {"window": -0.3, "balcony": 1.2}
+  facadeforge reconstruct facade.png --rectified --no-classifier -o out/   # the paper's edge-only path""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -82,6 +83,11 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--height-m", type=float, help="facade height in metres")
     c.add_argument("--depths", help="JSON {label or cluster: depth in metres}, negative = recessed")
     c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")
+    k = c.add_mutually_exclusive_group()
+    k.add_argument("--classifier", help="pixel classifier .npz whose windows, doors and shops "
+                   "structure the facade (default: the shipped cmp6 model)")
+    k.add_argument("--no-classifier", action="store_true",
+                   help="elements from image edges only (Müller 2007 §2–3, no classifier)")
     c.add_argument("-o", "--output", required=True, help="output folder")
 
     from .classify.train import add_parser as add_train
@@ -156,9 +162,13 @@ def _summary(rec, out) -> str:
     f = r["facade"]
     els = ", ".join(f"{n} {k}{'' if n == 1 else 's'}" for k, n in sorted(r["elements"].items())
                     ) or "no elements"
+    d = r["detection"]
+    src = (f"the {d['classifier']['label_set']} {d['classifier']['kind']} classifier"
+           if d["source"] == "classifier" else "image edges")
     t = r["timings"]
     lines = [f"facade {f['width_m']:.1f} m × {f['height_m']:.1f} m (scale: {f['scale_source']}): "
-             f"{r['floors']} floors, {r['tiles']} tiles in {r['tile_clusters']} clusters, {els}",
+             f"{r['floors']} floors, {r['tiles']} tiles in {r['tile_clusters']} clusters, {els} "
+             f"(elements from {src})",
              "timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items()),
              ("needs review: " + "; ".join(r["flags"])) if r["needs_review"] else "no review flags",
              *(f"note: {n}" for n in r.get("notes", [])),
@@ -172,6 +182,7 @@ def cmd_reconstruct(args) -> int:
 
     rec = reconstruct(args.photo, rectified=args.rectified, width_m=args.width_m,
                       height_m=args.height_m, depths=args.depths, out_dir=args.output,
+                      classifier=False if args.no_classifier else args.classifier,
                       seed=args.seed)
     print(_summary(rec, args.output))
     return 0

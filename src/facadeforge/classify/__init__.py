@@ -25,7 +25,8 @@ from .model import (
 )
 
 __all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "ClassifierFileError", "PixelClassifier",
-           "default_classifier", "load_classifier", "save_classifier", "shipped_model_path"]
+           "default_classifier", "load_classifier", "resolve_classifier", "save_classifier",
+           "shipped_model_path"]
 
 #: Folder of the shipped models.
 MODEL_DIR = Path(__file__).resolve().parent.parent / "data" / "classifiers"
@@ -49,3 +50,13 @@ def default_classifier(label_set: str) -> PixelClassifier:
                              "train-classifier' and pass it with --classifier")
         _LOADED[label_set] = load_classifier(path)
     return _LOADED[label_set]
+
+
+def resolve_classifier(classifier, default_label_set: str) -> PixelClassifier:
+    """A classifier given as a model, a model file path, or ``None`` (the shipped model of
+    ``default_label_set``)."""
+    if isinstance(classifier, PixelClassifier):
+        return classifier
+    if classifier is None:
+        return default_classifier(default_label_set)
+    return load_classifier(classifier)

@@ -142,6 +142,9 @@ class Region:
         by synchronisation may be weaker.  A confidence input.
     role : str
         On leaves: ``"wall"`` or ``"element"`` (see the module docstring); ``""`` on inner nodes.
+    label : str
+        Canonical label of an element leaf when it is known (elements a classifier detected,
+        :mod:`.element_layout`); ``""`` when element matching (§4) decides.
     """
 
     box: tuple[int, int, int, int]
@@ -149,6 +152,7 @@ class Region:
     children: list[Region] = field(default_factory=list)
     strength: float = 0.0
     role: str = ""
+    label: str = ""
 
 
 def leaves(region: Region) -> list[Region]:

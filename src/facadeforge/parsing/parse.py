@@ -72,12 +72,6 @@ class Parse:
         return _save(self, Path(out_dir))
 
 
-def _default_classifier(rectified: bool):
-    from ..classify import default_classifier
-
-    return default_classifier("cmp6" if rectified else "ecp7")
-
-
 def _in_label_set(prob: np.ndarray, classes: tuple[str, ...], label_set) -> np.ndarray:
     """Probabilities over ``classes`` (e.g. the few a scribble GMM was trained on) spread onto
     the label set's channels; classes the classifier lacks get a small floor probability."""
@@ -151,7 +145,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     width_m : float, optional
         Facade width in metres (scales the model; default the grammar's ``facadeWidth``).
     """
-    from ..classify import PixelClassifier, load_classifier
+    from ..classify import resolve_classifier
     from ..engine import derive_facade, load_rules
     from ..exchange.raster import label_map
     from ..reconstruction import _analysis_copy, _as_rgb, _check_size, _check_sizes
@@ -163,9 +157,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         raise InputError(f"--budget {budget}: give a positive number of derivations")
     rgb, name = _as_rgb(photo)
     _check_size(rgb, name)
-    clf = classifier if isinstance(classifier, PixelClassifier) else (
-        load_classifier(classifier) if classifier is not None else
-        _default_classifier(rectified))
+    clf = resolve_classifier(classifier, "cmp6" if rectified else "ecp7")
     label_set = get_label_set(clf.label_set)
     gpath = grammar_path(grammar)
     rules = load_rules(gpath)

@@ -1,0 +1,175 @@
+"""Element boxes from class probabilities (imaging.detect) and the layout around them
+(imaging.element_layout)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from facadeforge import InputError
+from facadeforge.imaging.detect import Element, detect_elements, valley_split, xy_cut
+from facadeforge.imaging.element_layout import element_layout, element_region, refine_clusters
+from facadeforge.imaging.refine import SPLIT_TYPES, leaves
+
+CLASSES = ("background", "wall", "window", "door", "balcony", "shop")
+
+
+def _prob(h: int, w: int, boxes: dict[str, list], p: float = 0.9) -> np.ndarray:
+    """Probabilities: wall everywhere, ``p`` of the given class inside each box."""
+    prob = np.full((h, w, len(CLASSES)), (1 - 0.9) / (len(CLASSES) - 1), np.float32)
+    prob[:, :, 1] = 0.9
+    for label, bs in boxes.items():
+        c = CLASSES.index(label)
+        for x0, y0, x1, y1, *q in bs:
+            v = q[0] if q else p
+            prob[y0:y1, x0:x1] = (1 - v) / (len(CLASSES) - 1)
+            prob[y0:y1, x0:x1, c] = v
+    return prob
+
+
+def test_xy_cut_separates_windows_joined_by_a_thin_bridge():
+    m = np.zeros((60, 100), bool)
+    m[10:40, 10:30] = True
+    m[10:40, 50:70] = True
+    m[24:26, 30:50] = True                     # a 2-px bridge: one connected component
+    assert xy_cut(m, tol=0.2) == [(10, 10, 30, 40), (50, 10, 70, 40)]
+    # rows first: two window rows, each tightened to its mask
+    m2 = np.zeros((100, 40), bool)
+    m2[5:30, 5:15] = m2[60:90, 20:35] = True
+    assert xy_cut(m2) == [(5, 5, 15, 30), (20, 60, 35, 90)]
+    assert xy_cut(np.zeros((10, 10), bool)) == []
+
+
+def test_valley_split_cuts_at_a_faint_pier():
+    prob = np.zeros((50, 90), np.float32)
+    prob[10:40, 10:40] = 0.9
+    prob[10:40, 50:80] = 0.9
+    prob[10:40, 40:50] = 0.45                  # the pier the classifier half sees
+    mask = prob > 0.4                          # argmax says window across the pier
+    (box,) = xy_cut(mask)
+    assert box == (10, 10, 80, 40)
+    parts = valley_split(prob, mask, box, dip=0.7)
+    assert len(parts) == 2
+    (a, b) = parts
+    assert a[2] <= b[0] and 40 <= a[2] <= 50 and a[0] == 10 and b[2] == 80
+    # no valley below the threshold: left whole
+    assert valley_split(prob, mask, box, dip=0.4) == [box]
+
+
+def test_detect_elements_drops_fragments_and_weak_boxes():
+    windows = [(10 + 40 * k, 20, 35 + 40 * k, 60) for k in range(4)]
+    prob = _prob(200, 200, {"window": [*windows,
+                                       (180, 150, 184, 154),           # a fragment
+                                       (10, 120, 40, 160, 0.42)],      # weak evidence
+                            "door": [(60, 130, 90, 195)]})
+    els = detect_elements(prob, CLASSES)
+    assert [e.box for e in els if e.label == "window"] == windows
+    assert [e.box for e in els if e.label == "door"] == [(60, 130, 90, 195)]
+    assert all(0.85 < e.score <= 0.9 + 1e-6 for e in els)
+    # with the weak one kept (min_score 0.4), it is found too
+    weak = detect_elements(prob, CLASSES, min_score=0.4)
+    assert (10, 120, 40, 160) in [e.box for e in weak]
+    # labels missing from the classifier are skipped; wrong channel counts are refused
+    assert detect_elements(prob[:, :, :3] / prob[:, :, :3].sum(2, keepdims=True),
+                           CLASSES[:3])[0].label == "window"
+    with pytest.raises(InputError, match="channel per class"):
+        detect_elements(prob, CLASSES[:4])
+
+
+def test_overlapping_boxes_of_two_classes_keep_the_stronger():
+    prob = _prob(100, 100, {"window": [(10, 10, 40, 50)], "shop": [(30, 40, 90, 95, 0.95)]})
+    # the window's box and the shop's box overlap only through their bounding boxes
+    prob[40:50, 30:40, 2] = 0.0
+    els = detect_elements(prob, CLASSES)
+    boxes = [e.box for e in els]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert min(a[2], b[2]) <= max(a[0], b[0]) or min(a[3], b[3]) <= max(a[1], b[1])
+    assert "shop" in [e.label for e in els]
+
+
+def _grid(rows=3, cols=4, jitter=0, seed=0):
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(rows):
+        for j in range(cols):
+            dx, dy = rng.integers(-jitter, jitter + 1, 2) if jitter else (0, 0)
+            x0, y0 = 20 + 50 * j + dx, 15 + 60 * i + dy
+            out.append(Element("window", (int(x0), int(y0), int(x0 + 25), int(y0 + 35)), 0.9))
+    return out
+
+
+@pytest.mark.parametrize("jitter", [0, 6])
+def test_layout_lines_run_through_wall_and_keep_every_element(jitter):
+    h, w = 200, 230
+    els = _grid(jitter=jitter, seed=jitter) + [Element("door", (100, 185, 120, 200), 0.8)]
+    gray = np.random.default_rng(1).uniform(0.4, 0.6, (h, w))
+    lay = element_layout(els, gray, np.zeros((h, w)), px_per_m=20.0)
+    # floors partition the rows, tiles each floor's columns
+    assert lay.floors[0][0] == 0 and lay.floors[-1][1] == h
+    assert all(a[1] == b[0] for a, b in zip(lay.floors, lay.floors[1:]))
+    for row in lay.tiles:
+        assert row[0][0] == 0 and row[-1][1] == w
+        assert all(a[1] == b[0] for a, b in zip(row, row[1:]))
+    # no line crosses an element
+    for y0, _ in lay.floors[1:]:
+        assert not any(e.box[1] < y0 < e.box[3] for e in els)
+    found = []
+    for i, row in enumerate(lay.regions):
+        for j, region in enumerate(row):
+            if region is None:
+                continue
+            x0, x1 = lay.tiles[i][j]
+            y0, y1 = lay.floors[i]
+            assert region.box == (x0, y0, x1, y1)
+            for leaf in leaves(region):
+                if leaf.role == "element":
+                    found.append((leaf.label, leaf.box))
+            for node in _walk(region):
+                assert node.split in SPLIT_TYPES
+                if node.children:                   # children tile their parent
+                    area = sum((c.box[2] - c.box[0]) * (c.box[3] - c.box[1])
+                               for c in node.children)
+                    assert area == (node.box[2] - node.box[0]) * (node.box[3] - node.box[1])
+    assert sorted(found) == sorted((e.label, e.box) for e in els)
+    assert len(lay.confidences["floors"]) == len(lay.floors) - 1
+    assert all(c == 1.0 for c in lay.confidences["floors"])     # zero occupancy on every line
+
+
+def _walk(region):
+    yield region
+    for c in region.children:
+        yield from _walk(c)
+
+
+def test_region_of_touching_stacked_elements_keeps_both():
+    top = Element("window", (10, 5, 30, 20), 0.7)
+    low = Element("window", (12, 20, 28, 50), 0.9)      # touches the one above, no gap
+    root = element_region((0, 0, 40, 60), [top, low])
+    assert root.split == "top"
+    assert sorted(leaf.box for leaf in leaves(root) if leaf.role == "element") == [
+        top.box, low.box]
+    one = element_region((0, 0, 40, 60), [Element("door", (0, 10, 40, 60), 0.8)])
+    assert one.split == "top" and [c.role for c in one.children] == ["wall", "element"]
+    assert one.children[1].label == "door"
+
+
+def test_refine_clusters_splits_appearance_clusters_by_geometry():
+    gray = np.full((80, 230), 0.5)
+
+    def ids(elements, tol):
+        lay = element_layout(elements, gray, np.zeros(gray.shape), px_per_m=20.0)
+        assert [len(r) for r in lay.tiles] == [4]
+        floor_c, tile_c = refine_clusters(lay, [0], [[0, 0, 0, 0]], tol=tol)
+        assert floor_c == [0]
+        return tile_c[0]
+
+    els = _grid(rows=1, cols=4)
+    same = ids(els, tol=2.0)
+    assert same[1] == same[2]                   # two inner tiles, identical: one rule
+    m = els[2]
+    els[2] = Element("window", (m.box[0], m.box[1] + 8, m.box[2], m.box[3] + 8), 0.9)
+    moved = ids(els, tol=2.0)
+    assert moved[1] != moved[2]                 # the moved element gets its own rule
+    assert ids(els, tol=50.0)[1] == ids(els, tol=50.0)[2]
+    assert sorted(set(moved)) == list(range(len(set(moved))))
