@@ -291,16 +291,22 @@ register_method("rowcol-prior", "label_set",
 
 
 class StructureMethod:
-    """Müller et al. 2007 end to end (:func:`facadeforge.reconstruct`, no 3D model): windows are
-    the shape tree's window leaves, labels its rasterised leaves (canonical labels), mapped back
-    to the photo through the rectifying homography.  Photos of rectified datasets (CMP) skip
-    rectification, as ``--rectified`` does on the command line."""
+    """Müller et al. 2007 end to end (:func:`facadeforge.reconstruct`, no 3D model, its default
+    path: elements detected by the shipped ``cmp6`` classifier structure the shape tree): windows
+    are the shape tree's window leaves, labels its rasterised leaves (canonical labels), mapped
+    back to the photo through the rectifying homography.  Photos of rectified datasets (CMP)
+    skip rectification, as ``--rectified`` does on the command line.  ``structure-edges`` is
+    the paper's edge-only path (``--no-classifier``)."""
+
+    def __init__(self, classifier: bool = True) -> None:
+        self.classifier = classifier
 
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
         from ..reconstruction import reconstruct
 
         rec = reconstruct(sample.image(), model=False,
-                          rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS)
+                          rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS,
+                          classifier=None if self.classifier else False)
         windows = np.array(rec.windows(), np.float64).reshape(-1, 4)
         floors = rec.report["floors"]
         return Prediction(labels=rec.labels, homography=rec.inverse, windows=windows,
@@ -308,8 +314,13 @@ class StructureMethod:
 
 
 register_method("structure", "canonical",
-                description="Müller 2007: repetition detection, tile refinement, element "
-                            "matching → shape tree")(StructureMethod())
+                description="Müller 2007 with classifier-detected elements: floors, tiles and "
+                            "refinements around them, element matching → shape tree"
+                )(StructureMethod())
+register_method("structure-edges", "canonical",
+                description="Müller 2007 as published: repetition detection, edge-based tile "
+                            "refinement, element matching → shape tree"
+                )(StructureMethod(classifier=False))
 
 
 class ClassifierMethod:

@@ -1,0 +1,72 @@
+"""Element detection from the classifier's probabilities, step by step (the ablation behind
+:mod:`facadeforge.imaging.detect`): window precision / recall / F1 (IoU ≥ 0.5) on the CMP val
+split for the connected components of the argmax map (what the ``classifier`` bench method
+scores) and for steps 1–4 of :func:`~facadeforge.imaging.detect.detect_elements`.  The shipped
+``cmp6`` model has not seen these facades.  Writes ``benchmarks/results/detect_cmp.json``.
+
+    .venv/bin/python benchmarks/detect.py
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+
+STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
+         3: "3. + fragments dropped (area < 0.3 median)", 4: "4. + weak evidence dropped "
+         "(mean p < 0.5) = detect_elements"}
+
+
+def main() -> int:
+    from facadeforge.classify import default_classifier
+    from facadeforge.datasets.folder import objects_from_labels
+    from facadeforge.evaluation.bench import provenance, save_result, select_samples
+    from facadeforge.evaluation.metrics import match_boxes
+    from facadeforge.imaging.detect import detect_elements
+
+    if not (DATA / "cmp").is_dir():
+        print(f"skipping: {DATA / 'cmp'} is absent", file=sys.stderr)
+        return 0
+    val, _, _ = select_samples("cmp", DATA / "cmp", "val")
+    ls = val[0].label_set
+    clf = default_classifier(ls.name)
+    totals: dict[str, object] = {}
+    seconds = {k: 0.0 for k in STEPS}
+    for s in val:
+        prob = clf.predict_proba(s.image())
+        truth = np.array([o.as_array() for o in s.objects() if o.label == "window"]
+                         ).reshape(-1, 4)
+        comps = objects_from_labels(np.argmax(prob, axis=2).astype(np.uint8), ls,
+                                    classes=("window",))
+        found = {"components of the argmax map (bench method classifier)":
+                 np.array([o.as_array() for o in comps]).reshape(-1, 4)}
+        for k, name in STEPS.items():
+            t = time.perf_counter()
+            els = detect_elements(prob, ls.classes, steps=k)
+            seconds[k] += time.perf_counter() - t
+            found[name] = np.array([e.box for e in els if e.label == "window"],
+                                   float).reshape(-1, 4)
+        for name, boxes in found.items():
+            sc = match_boxes(truth, boxes)
+            totals[name] = sc if name not in totals else totals[name] + sc
+    rows = {name: {"precision": round(sc.precision, 4), "recall": round(sc.recall, 4),
+                   "f1": round(sc.f1, 4), "tp": sc.tp, "fp": sc.fp, "fn": sc.fn}
+            for name, sc in totals.items()}
+    for k, name in STEPS.items():
+        rows[name]["ms_per_image"] = round(1000 * seconds[k] / len(val), 1)
+    for name, r in rows.items():
+        print(f"{name:70s} P {r['precision']:.3f} R {r['recall']:.3f} F1 {r['f1']:.3f}")
+    save_result({"dataset": "cmp", "split": "val", "images": len(val), "classifier":
+                 "shipped autocontext-cmp6", "window_detection": rows, **provenance()},
+                ROOT / "benchmarks" / "results" / "detect_cmp.json")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,76 @@
+"""Regenerate ``docs/images/reconstruct.jpg``: ``facadeforge reconstruct`` on a CMP validation
+facade (``--rectified``) and an unrectified RueMonge validation photo — the photo with the
+found elements (input frame), ``structure.png``, ``labels.png`` and the derived model.  Both
+photos are from the development val splits (the shipped classifier has not seen them).
+
+    .venv/bin/python docs/pictures.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+PHOTOS = (("cmp", "cmp_b0187", True), ("ruemonge", "IMG_5722", False))
+ROW_HEIGHT = 420
+
+
+def _fit(img: np.ndarray, height: int = ROW_HEIGHT) -> np.ndarray:
+    import cv2
+
+    s = height / img.shape[0]
+    return cv2.resize(img, (max(1, round(img.shape[1] * s)), height), interpolation=cv2.INTER_AREA)
+
+
+def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
+    import cv2
+
+    from facadeforge import render
+    from facadeforge.evaluation.bench import box_to_image, select_samples
+    from facadeforge.exchange.raster import PALETTE
+    from facadeforge.reconstruction import _structure_png, reconstruct
+
+    val, _, _ = select_samples(dataset, DATA / dataset, "val")
+    (sample,) = [s for s in val if s.id == sample_id]
+    photo = sample.image()
+    rec = reconstruct(photo, rectified=rectified)
+    found = photo.copy()
+    thick = max(2, round(max(photo.shape[:2]) / 300))
+    boxes = box_to_image(np.array(rec.windows(), float).reshape(-1, 4), rec.inverse,
+                         photo.shape[:2])
+    for x0, y0, x1, y1 in boxes.astype(int):
+        cv2.rectangle(found, (x0, y0), (x1, y1), (40, 120, 255), thick)
+    labels = PALETTE[rec.labels]
+    model = np.asarray(render(rec.model, None, size=(900, 900), azimuth=30.0,
+                              elevation=12.0).convert("RGB"))
+    tiles = [_fit(found), _fit(_structure_png(rec)), _fit(labels), _fit(model)]
+    return np.concatenate([np.pad(t, ((0, 0), (0, 6), (0, 0)), constant_values=255)
+                           for t in tiles], axis=1)
+
+
+def main() -> int:
+    from PIL import Image
+
+    rows = []
+    for dataset, sample_id, rectified in PHOTOS:
+        if not (DATA / dataset).is_dir():
+            print(f"skipping {dataset}: {DATA / dataset} is absent", file=sys.stderr)
+            continue
+        rows.append(row(dataset, sample_id, rectified))
+    if not rows:
+        return 0
+    width = max(r.shape[1] for r in rows)
+    rows = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0)), constant_values=255)
+            for r in rows]
+    out = ROOT / "docs" / "images" / "reconstruct.jpg"
+    Image.fromarray(np.concatenate(rows, axis=0)).save(out, quality=85)
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
