@@ -23,7 +23,7 @@ demo: env
 	$(VENV)/bin/facadeforge demo -o demo-out
 
 lint: env
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks docs
 
 test: env lint
 	$(VENV)/bin/python -m pytest

@@ -45,7 +45,7 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     for x0, y0, x1, y1 in boxes.astype(int):
         cv2.rectangle(found, (x0, y0), (x1, y1), (40, 120, 255), thick)
     labels = PALETTE[rec.labels]
-    model = np.asarray(render(rec.model, None, size=(900, 900), azimuth=30.0,
+    model = np.asarray(render(rec.model, None, size=(900, 900), azimuth=25.0,
                               elevation=12.0).convert("RGB"))
     tiles = [_fit(found), _fit(_structure_png(rec)), _fit(labels), _fit(model)]
     return np.concatenate([np.pad(t, ((0, 0), (0, 6), (0, 0)), constant_values=255)

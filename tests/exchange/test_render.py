@@ -45,6 +45,48 @@ def test_textures_use_their_mean_colour(house: Model, texture_png: str):
     render_preview(house, size=(64, 48))
 
 
+@pytest.mark.parametrize("perspective", [True, False])
+def test_textures_are_sampled_per_pixel_at_their_uvs(tmp_path: Path, perspective: bool):
+    """A facade quad seen from the front and from the side: its texture's left half (red) and
+    right half (blue) land on the quad's left and right halves, and a texture repeated twice
+    by UVs beyond 1 shows four stripes."""
+    from facadeforge.geometry.mesh import Mesh
+    from facadeforge.model import Part
+
+    arr = np.zeros((16, 16, 3), np.uint8)
+    arr[:, :8] = (220, 30, 30)
+    arr[:, 8:] = (30, 30, 220)
+    tex = tmp_path / "halves.png"
+    Image.fromarray(arr).save(tex)
+
+    def quad(umax: float) -> Model:
+        mesh = Mesh(np.array([[0, 0, 0], [4, 0, 0], [4, 3, 0], [0, 3, 0]], float), [[0, 1, 2, 3]],
+                    uvs=[np.array([[0, 0], [umax, 0], [umax, 1], [0, 1]], float)])
+        return Model([Part(mesh, "wall", Material("photo", (1, 1, 1), texture=str(tex)))])
+
+    for azimuth in (0.0, 40.0):
+        img = np.asarray(render_preview(quad(1.0), size=(200, 150), azimuth=azimuth,
+                                        elevation=0.0, shadow=False, outlines=False,
+                                        perspective=perspective), float)
+        red = (img[..., 0] > 2 * img[..., 2]) & (img[..., 0] > 60)
+        blue = (img[..., 2] > 2 * img[..., 0]) & (img[..., 2] > 60)
+        assert red.sum() > 1000 and blue.sum() > 1000
+        assert np.nonzero(red)[1].mean() < np.nonzero(blue)[1].mean()
+        # perspective-correct: under a side view the halves meet where the quad's middle
+        # projects, not at the middle of its screen extent
+        cols = np.nonzero(red | blue)[1]
+        boundary = np.nonzero(red)[1].max()
+        assert abs(boundary - np.nonzero(blue)[1].min()) <= 3
+        if azimuth == 0.0:
+            assert abs(boundary - (cols.min() + cols.max()) / 2) <= 3
+    img = np.asarray(render_preview(quad(2.0), size=(200, 150), azimuth=0.0, elevation=0.0,
+                                    shadow=False, outlines=False), float)
+    row = img[75]
+    colour = np.where(row[:, 0] > 2 * row[:, 2], 1, np.where(row[:, 2] > 2 * row[:, 0], 2, 0))
+    stripes = [c for i, c in enumerate(colour) if c and (i == 0 or c != colour[i - 1])]
+    assert stripes == [1, 2, 1, 2]
+
+
 def test_saves_png(tmp_path: Path, house: Model):
     img = render_preview([house], tmp_path / "p.png", size=(160, 120), azimuth=30,
                          elevation=10, perspective=False)

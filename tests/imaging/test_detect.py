@@ -173,3 +173,10 @@ def test_refine_clusters_splits_appearance_clusters_by_geometry():
     assert moved[1] != moved[2]                 # the moved element gets its own rule
     assert ids(els, tol=50.0)[1] == ids(els, tol=50.0)[2]
     assert sorted(set(moved)) == list(range(len(set(moved))))
+
+
+def test_element_threshold_is_the_benchmarks_object_threshold():
+    from facadeforge.datasets.folder import MIN_OBJECT_FRACTION
+    from facadeforge.imaging.detect import MIN_ELEMENT_FRACTION
+
+    assert MIN_ELEMENT_FRACTION == MIN_OBJECT_FRACTION

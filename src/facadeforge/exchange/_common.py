@@ -275,5 +275,34 @@ def _mean_color_cached(path: str, mtime: int) -> np.ndarray | None:
     return (px[:, :3] * weight[:, None]).sum(axis=0) / weight.sum()
 
 
+def texture_pixels(path: str | os.PathLike | None, max_side: int = 1024) -> np.ndarray | None:
+    """A texture as (H, W, 3) float32 RGB in 0–1 (alpha dropped), at most ``max_side`` pixels
+    on its longer side; ``None`` if unreadable.  Cached on path and modification time."""
+    if not path:
+        return None
+    try:
+        mtime = os.stat(path).st_mtime_ns
+    except OSError:
+        return None
+    return _texture_cached(str(path), mtime, int(max_side))
+
+
+@lru_cache(maxsize=32)
+def _texture_cached(path: str, mtime: int, max_side: int) -> np.ndarray | None:
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            im.draft("RGB", (max_side, max_side))
+            rgb = im.convert("RGB")
+            if max(rgb.size) > max_side:
+                rgb.thumbnail((max_side, max_side), Image.Resampling.BILINEAR)
+            out = np.asarray(rgb, np.float32) / 255.0
+    except Exception:
+        return None
+    out.flags.writeable = False
+    return out
+
+
 def image_extension(mime: str) -> str:
     return ".jpg" if mime == "image/jpeg" else ".png"

@@ -2,7 +2,8 @@
 
 Faces are triangulated and rasterised with a numpy depth buffer (:mod:`._zbuffer`, no Python
 loop over triangles or pixels), shaded flat with a sun (Lambert) plus sky ambient, in their
-material colours (a texture is approximated by its mean colour, computed once per file).
+material colours; textured faces are sampled per pixel at their perspective-correct UVs (nearest
+texel, UVs wrap), so a reconstructed facade shows its photo.
 Translucent materials are blended over the nearest opaque surface.  Thin darker outlines follow
 face boundaries, a soft ground disc receives the sun shadow of the models, and the sky is a
 gradient.  The picture is computed at ``supersample`` times the size and reduced, which
@@ -20,7 +21,15 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from ..model.model import Model
-from ._common import Staging, as_models, face_corners, mean_texture_color, triangulate_corners
+from ._common import (
+    Staging,
+    as_models,
+    corner_uvs,
+    face_corners,
+    mean_texture_color,
+    texture_pixels,
+    triangulate_corners,
+)
 from ._zbuffer import rasterize
 from .errors import ExportError
 
@@ -37,8 +46,11 @@ class _Faces:
     """The scene flattened.
 
     ``corners`` (C, 3) lists face corners face after face, ``offsets`` (F + 1,) where each face
-    starts, ``rgba`` (F, 4) its colour in 0–1; ``tris`` (T, 3) are triangles as corner indices
-    and ``tri_face`` (T,) the face of each.
+    starts, ``rgba`` (F, 4) its colour in 0–1 (a textured face: times its texture's mean);
+    ``tris`` (T, 3) are triangles as corner indices and ``tri_face`` (T,) the face of each.
+    ``uvs`` (C, 2) are the corners' texture coordinates, ``texture`` (F,) the index of each
+    face's image in ``images`` (-1: untextured) and ``base`` (F, 3) the material colour the
+    texture is multiplied with.
     """
 
     corners: np.ndarray
@@ -47,6 +59,10 @@ class _Faces:
     tris: np.ndarray
     tri_face: np.ndarray
     closed: np.ndarray  # (F,) face of a closed, opaque part: its back side is never seen
+    uvs: np.ndarray | None = None
+    texture: np.ndarray | None = None
+    base: np.ndarray | None = None
+    images: tuple = ()
 
     @property
     def count(self) -> int:
@@ -156,6 +172,9 @@ def render_file(model_path: str | os.PathLike, out_png: str | os.PathLike,
 
 def _scene_faces(models: list[Model]) -> _Faces:
     corners, offsets, colors, tris, owners, closed = [], [0], [], [], [], []
+    uvs, tex_ids, bases = [], [], []
+    images: list[np.ndarray] = []
+    image_of: dict[str, int] = {}
     n_faces = 0
     for part in (p for m in models for p in m.parts):
         flat, starts = face_corners(part.mesh)
@@ -168,20 +187,31 @@ def _scene_faces(models: list[Model]) -> _Faces:
         tri, face_of = triangulate_corners(part.mesh)
         face_renumber = np.cumsum(good) - 1 + n_faces
         rgba = _part_rgba(part.material)
+        n_good = int(good.sum())
         corners.append(part.mesh.vertices[flat[keep]])
         offsets.extend((np.cumsum(sizes[good]) + offsets[-1]).tolist())
-        colors.append(np.tile(rgba, (int(good.sum()), 1)))
+        colors.append(np.tile(rgba, (n_good, 1)))
         tris.append(renumber[tri])
         owners.append(face_renumber[face_of])
         solid = rgba[3] >= 0.999 and part.mesh.is_closed()
-        closed.append(np.full(int(good.sum()), solid))
-        n_faces += int(good.sum())
+        closed.append(np.full(n_good, solid))
+        part_uvs, has_uvs = corner_uvs(part.mesh)
+        uvs.append(part_uvs[keep])
+        tex = part.material.texture if has_uvs else None
+        if tex and str(tex) not in image_of and (img := texture_pixels(tex)) is not None:
+            image_of[str(tex)] = len(images)
+            images.append(img)
+        tex_ids.append(np.full(n_good, image_of.get(str(tex), -1) if tex else -1))
+        bases.append(np.tile(np.clip(np.asarray(part.material.color, float), 0, 1), (n_good, 1)))
+        n_faces += n_good
     if not corners:
         empty = np.zeros(0, np.int64)
         return _Faces(np.zeros((0, 3)), np.zeros(1, np.int64), np.zeros((0, 4)),
                       empty.reshape(0, 3), empty, np.zeros(0, bool))
     return _Faces(np.concatenate(corners), np.asarray(offsets, np.int64), np.concatenate(colors),
-                  np.concatenate(tris), np.concatenate(owners), np.concatenate(closed))
+                  np.concatenate(tris), np.concatenate(owners), np.concatenate(closed),
+                  uvs=np.concatenate(uvs), texture=np.concatenate(tex_ids),
+                  base=np.concatenate(bases), images=tuple(images))
 
 
 def _part_rgba(material) -> np.ndarray:
@@ -226,11 +256,14 @@ def _normals(faces: _Faces) -> np.ndarray:
     return n / np.where(length > 0, length, 1.0)
 
 
-def _shade(faces: _Faces, normals: np.ndarray, facing: np.ndarray,
-           sun: np.ndarray) -> np.ndarray:
-    """RGB colours (F, 3) in 0–1: sky ambient plus Lambert sun, both sides of a face lit."""
+def _light(normals: np.ndarray, facing: np.ndarray, sun: np.ndarray) -> np.ndarray:
+    """Light factor (F,) per face: sky ambient plus Lambert sun, both sides of a face lit."""
     n = np.where(facing[:, None], normals, -normals)
-    light = 0.5 + 0.1 * n[:, 1] + 0.5 * np.clip(n @ sun, 0.0, None)
+    return 0.5 + 0.1 * n[:, 1] + 0.5 * np.clip(n @ sun, 0.0, None)
+
+
+def _shade(faces: _Faces, light: np.ndarray) -> np.ndarray:
+    """Flat RGB colours (F, 3) in 0–1."""
     return np.clip(faces.rgba[:, :3] * light[:, None], 0.0, 1.0)
 
 
@@ -290,22 +323,78 @@ def _draw_scene(image: Image.Image, faces: _Faces, view: _View, ss: int,
     xy = (view.screen * ss)[tris]
     sub = _Faces(faces.corners, faces.offsets, faces.rgba, tris, faces.tri_face[view.tris],
                  faces.closed)
-    face_ids = _visible_faces(sub, xy, view.near[tris], image.size)
-    shade = _shade(faces, view.normals, view.facing, view.sun)
-    return _compose(image, faces, shade, face_ids, outlines)
+    near = view.near[tris]
+    opaque, clear, zbuf, opaque_tri = _visible_faces(sub, xy, near, image.size)
+    light = _light(view.normals, view.facing, view.sun)
+    shade = _shade(faces, light)
+    width, height = image.size
+    out = np.array(image, np.uint8).reshape(-1, 3)
+    hit = np.nonzero(opaque >= 0)[0]
+    out[hit] = (shade * 255 + 0.5).astype(np.uint8)[opaque[hit]]
+    if faces.images:
+        _texture(out, width, faces, light, opaque, opaque_tri, tris, xy, near)
+    _blend_glass(out, faces, shade, clear)
+    if outlines:
+        top = np.where(clear >= 0, clear, opaque).reshape(height, width)
+        edge = _edges(top, shade, zbuf.reshape(height, width))
+        out[edge] = (out[edge] * 0.72).astype(np.uint8)
+    return Image.fromarray(out.reshape(height, width, 3))
 
 
-def _visible_faces(faces: _Faces, xy: np.ndarray, near: np.ndarray,
-                   size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per pixel: the nearest opaque face, the nearest translucent face in front of it and the
-    nearness of the opaque one."""
+def _visible_faces(faces: _Faces, xy: np.ndarray, near: np.ndarray, size: tuple[int, int]
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per pixel: the nearest opaque face, the nearest translucent face in front of it, the
+    nearness of the opaque one and its triangle (index into ``faces.tris``; -1: none)."""
     alpha = faces.rgba[faces.tri_face, 3]
     solid = np.nonzero(alpha >= 0.999)[0]
     glass = np.nonzero((alpha < 0.999) & (alpha > 0.0))[0]
     zbuf, opaque = rasterize(xy[solid], near[solid], size)
     _, clear = rasterize(xy[glass], near[glass], size, in_front_of=zbuf)
+    opaque_tri = np.where(opaque >= 0, solid[np.maximum(opaque, 0)], -1)
     return (_face_of(opaque, faces.tri_face[solid]), _face_of(clear, faces.tri_face[glass]),
-            zbuf)
+            zbuf, opaque_tri)
+
+
+def _texture(out: np.ndarray, width: int, faces: _Faces, light: np.ndarray,
+             opaque: np.ndarray, opaque_tri: np.ndarray, tris: np.ndarray, xy: np.ndarray,
+             near: np.ndarray) -> None:
+    """Repaint the pixels of textured opaque faces with their texels:
+    perspective-correct barycentric UVs (``near`` is 1/z under perspective, so weighting the
+    screen-space barycentrics by it interpolates UVs linearly in 3D), nearest texel, wrapped;
+    times the material colour and half the face's light."""
+    pix = np.nonzero(opaque >= 0)[0]
+    if not len(pix):
+        return
+    face = opaque[pix]
+    tex = faces.texture[face]
+    sel = tex >= 0
+    pix, face, tex = pix[sel], face[sel], tex[sel]
+    if not len(pix):
+        return
+    t = opaque_tri[pix]
+    px = (pix % width) + 0.5
+    py = (pix // width) + 0.5
+    a, b, c = xy[t, 0], xy[t, 1], xy[t, 2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+    l1 = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (py - a[:, 1]) * (c[:, 0] - a[:, 0])) / det
+    l2 = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (b[:, 1] - a[:, 1]) * (px - a[:, 0])) / det
+    lam = np.clip(np.column_stack([1.0 - l1 - l2, l1, l2]), 0.0, 1.0)
+    wgt = lam * np.abs(near[t])
+    wgt /= np.maximum(wgt.sum(axis=1, keepdims=True), 1e-12)
+    uv = np.einsum("nk,nkd->nd", wgt, faces.uvs[tris[t]])
+    uv -= np.floor(uv)
+    colour = np.empty((len(pix), 3), np.float32)
+    for k in np.unique(tex):
+        m = tex == k
+        img = faces.images[k]
+        h, wi = img.shape[:2]
+        col = np.minimum((uv[m, 0] * wi).astype(np.int64), wi - 1)
+        row = np.minimum(((1.0 - uv[m, 1]) * h).astype(np.int64), h - 1)
+        colour[m] = img[row, col]
+    # a photo texture carries its own light: the sun only modulates it, by half as much
+    colour *= faces.base[face] * (0.5 + 0.5 * light[face])[:, None]
+    out[pix] = (np.clip(colour, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
 
 
 def _face_of(tri_ids: np.ndarray, tri_face: np.ndarray) -> np.ndarray:
@@ -316,24 +405,13 @@ def _face_of(tri_ids: np.ndarray, tri_face: np.ndarray) -> np.ndarray:
     return out
 
 
-def _compose(image: Image.Image, faces: _Faces, shade: np.ndarray,
-             face_ids: tuple[np.ndarray, np.ndarray, np.ndarray], outlines: bool) -> Image.Image:
-    """Colour the pixels: opaque faces, translucent faces blended over them, outlines."""
-    width, height = image.size
-    opaque, clear, zbuf = face_ids
-    out = np.array(image, np.uint8).reshape(-1, 3)
-    hit = np.nonzero(opaque >= 0)[0]
-    out[hit] = (shade * 255 + 0.5).astype(np.uint8)[opaque[hit]]
+def _blend_glass(out: np.ndarray, faces: _Faces, shade: np.ndarray, clear: np.ndarray) -> None:
+    """Blend the nearest translucent face of each pixel over the flat (W*H, 3) buffer."""
     seen = np.nonzero(clear >= 0)[0]
     if len(seen):
         a = faces.rgba[clear[seen], 3:4].astype(np.float32)
         mixed = a * shade[clear[seen]].astype(np.float32) * 255 + (1 - a) * out[seen]
         out[seen] = (mixed + 0.5).astype(np.uint8)
-    if outlines:
-        top = np.where(clear >= 0, clear, opaque).reshape(height, width)
-        edge = _edges(top, shade, zbuf.reshape(height, width))
-        out[edge] = (out[edge] * 0.72).astype(np.uint8)
-    return Image.fromarray(out.reshape(height, width, 3))
 
 
 def _edges(ids: np.ndarray, shade: np.ndarray, near: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ Why this exists
        This catches piers between side-by-side windows that the classifier sees only faintly.
        (Row valleys too cut windows at their transoms, and scored lower.)
     3. **Size**: boxes smaller than ``rel_area`` × the median box of their class, or below
-       :data:`~facadeforge.datasets.folder.MIN_OBJECT_FRACTION` of the image, are fragments.
+       :data:`MIN_ELEMENT_FRACTION` of the image, are fragments.
     4. **Evidence**: boxes whose mean class probability is below ``min_score`` are dropped.
 
     Tried on the same split and not kept (no gain): extending windows down through balconies
@@ -41,13 +41,16 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ..datasets.folder import MIN_OBJECT_FRACTION
 from ..errors import InputError
 
-__all__ = ["DETECTED_LABELS", "Element", "detect_elements", "valley_split", "xy_cut"]
+__all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "valley_split",
+           "xy_cut"]
 
 #: Canonical labels detected as elements (others, such as balconies, overlap them).
 DETECTED_LABELS: tuple[str, ...] = ("window", "door", "shop")
+#: Boxes smaller than this fraction of the image are noise (the benchmark's object threshold,
+#: :data:`facadeforge.datasets.folder.MIN_OBJECT_FRACTION`, so no scored object is lost).
+MIN_ELEMENT_FRACTION: float = 1e-4
 #: Depth limit of both recursive cuts (a facade has far fewer than 2**12 elements in a row).
 MAX_CUT_DEPTH: int = 12
 
@@ -201,7 +204,7 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
     h, w = p.shape[:2]
     argmax = np.argmax(p, axis=2)
     min_px = max(2, int(0.005 * max(h, w)))
-    min_area = MIN_OBJECT_FRACTION * h * w
+    min_area = MIN_ELEMENT_FRACTION * h * w
     found: list[Element] = []
     for label in labels:
         if label not in classes:
