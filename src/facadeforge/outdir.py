@@ -4,6 +4,7 @@ result next to an older complete one."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -12,7 +13,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-__all__ = ["write_outdir"]
+__all__ = ["write_json", "write_outdir"]
 
 
 def write_outdir(out: str | os.PathLike, write: Callable[[Path], None]) -> list[Path]:
@@ -36,3 +37,11 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None]) -> list[
         return written
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+
+
+def write_json(path: str | os.PathLike, obj) -> None:
+    """``obj`` as indented JSON at ``path``, atomically (NaN and infinities become null)."""
+    from .exchange._common import Staging, jsonable
+
+    with Staging() as stage:
+        stage.write_text(path, json.dumps(jsonable(obj), indent=2))

@@ -3,7 +3,7 @@
 ``reconstruct(photo)`` runs, in order (each stage timed in ``report["timings"]``):
 
 1. ``load`` — read and normalise the photo (gray/RGBA/16-bit → RGB); huge photos are analysed
-   at :data:`MAX_ANALYSIS_SIDE` and mapped back;
+   at :data:`~facadeforge.photo.MAX_ANALYSIS_SIDE` and mapped back;
 2. ``rectify`` — vanishing points → homography (App. A), skipped with ``rectified=True``;
 3. ``symmetry`` / ``splits`` — MI repetition detection and floor/tile split lines (§2);
 4. ``classify`` / ``detect`` — better than the paper: the shipped pixel classifier
@@ -43,14 +43,11 @@ import numpy as np
 from .errors import InputError
 from .model.model import Model
 from .model.shape import Shape
+from .photo import MAX_ANALYSIS_SIDE, MIN_SIDE, analysis_copy, as_rgb, check_facade_size, check_size
 
 __all__ = ["DEFAULT_DEPTHS", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE", "Reconstruction",
            "load_depths", "reconstruct", "review_flags"]
 
-#: Photos with a longer side are analysed at this size (the homography maps back).
-MAX_ANALYSIS_SIDE: int = 1600
-#: Smallest photo side we analyse (a floor needs a few rows of pixels).
-MIN_SIDE: int = 64
 #: Default depth per class in metres: negative = recessed behind the wall plane (§5 rule 15).
 DEFAULT_DEPTHS: dict[str, float] = {"window": -0.25, "door": -0.35, "shop": -0.3,
                                     "balcony": 0.9, "sill": 0.08, "cornice": 0.3, "wall": 0.0}
@@ -116,27 +113,6 @@ class Reconstruction:
 
 
 # ================================================================================ input
-def _as_rgb(photo) -> tuple[np.ndarray, str]:
-    """(H, W, 3) uint8 and a name for messages, from a path or any image array."""
-    if isinstance(photo, (str, os.PathLike)):
-        from .datasets.folder import read_image
-
-        return read_image(photo), str(photo)
-    from .imaging.rectify import to_rgb8
-
-    a = np.asarray(photo)
-    if a.dtype == object:
-        raise InputError("photo array holds Python objects; pass a numeric (H, W[, C]) array")
-    return to_rgb8(a), "<array>"
-
-
-def _check_size(rgb: np.ndarray, name: str) -> None:
-    h, w = rgb.shape[:2]
-    if min(h, w) < MIN_SIDE:
-        raise InputError(f"photo {name} is only {w}x{h} px; facade analysis needs at least "
-                         f"{MIN_SIDE} px per side (use a larger or less cropped photo)")
-
-
 def load_depths(path: str | os.PathLike | None) -> dict[str, float]:
     """Per-class depths: :data:`DEFAULT_DEPTHS` updated from a JSON object ``{label: metres}``
     (keys may also be cluster ids such as ``"T3"``)."""
@@ -162,26 +138,6 @@ def load_depths(path: str | os.PathLike | None) -> dict[str, float]:
 
 
 # ================================================================================ stages
-def _analysis_copy(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Downscale huge photos; returns the copy and the input→copy pixel homography."""
-    h, w = rgb.shape[:2]
-    f = min(1.0, MAX_ANALYSIS_SIDE / max(h, w))
-    if f >= 1.0:
-        return rgb, np.eye(3)
-    import cv2
-
-    size = (max(1, round(w * f)), max(1, round(h * f)))
-    small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
-    sx, sy = size[0] / w, size[1] / h
-    return small, np.diag([sx, sy, 1.0])
-
-
-def _check_sizes(width_m, height_m) -> None:
-    for name, v in (("--width-m", width_m), ("--height-m", height_m)):
-        if v is not None and not (np.isfinite(v) and 1.0 <= v <= 1000.0):
-            raise InputError(f"{name} {v} is not a facade size; give metres between 1 and 1000")
-
-
 def _scale(width_m, height_m, shape) -> tuple[float, float] | None:
     """Metres per pixel ``(mx, my)`` of the rectified image, or ``None`` (floor prior)."""
     h, w = shape[:2]
@@ -453,12 +409,12 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     """
     timings: dict[str, float] = {}
     t = time.perf_counter()
-    _check_sizes(width_m, height_m)
-    rgb, name = _as_rgb(photo)
-    _check_size(rgb, name)
+    check_facade_size(width_m, height_m)
+    rgb, name = as_rgb(photo)
+    check_size(rgb, name)
     depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
                                                                             **depths}
-    work, to_work = _analysis_copy(rgb)
+    work, to_work = analysis_copy(rgb)
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -578,7 +534,9 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         timings["export"] = time.perf_counter() - t
     report["timings"]["total"] = sum(v for k, v in timings.items() if k != "total")
     if out_dir is not None:   # the report carries the final timings
-        _write_json(Path(out_dir) / "report.json", report)
+        from .outdir import write_json
+
+        write_json(Path(out_dir) / "report.json", report)
     return rec
 
 
@@ -606,14 +564,6 @@ def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:
     m = derive_facade(work / "rules.cga", w_m, h_m, assets=work, name="facade")
     weakref.finalize(rec, shutil.rmtree, work, True)   # texture files live as long as the result
     return m, work
-
-
-def _write_json(path: Path, obj) -> None:
-    """``obj`` as JSON at ``path``, atomically (NaN and infinities become null)."""
-    from .exchange._common import Staging, jsonable
-
-    with Staging() as stage:
-        stage.write_text(path, json.dumps(jsonable(obj), indent=2))
 
 
 def _structure_png(rec: Reconstruction) -> np.ndarray:
@@ -649,7 +599,7 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
     from .exchange import export
     from .exchange._common import jsonable
     from .exchange.raster import write_label_png
-    from .outdir import write_outdir
+    from .outdir import write_json, write_outdir
 
     def write(stage: Path) -> None:
         # photo-sized RGB PNGs: zlib level 1 writes them ~4x faster than the
@@ -667,6 +617,6 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
         if rec.model is not None:
             for suffix in ("glb", "obj", "city.json"):
                 export(rec.model, stage / f"model.{suffix}")
-        _write_json(stage / "report.json", rec.report)
+        write_json(stage / "report.json", rec.report)
 
     return write_outdir(out, write)

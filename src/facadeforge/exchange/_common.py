@@ -244,18 +244,23 @@ def read_texture(path: str | os.PathLike | None) -> tuple[bytes, str] | None:
         return None
 
 
+def _file_version(path: str | os.PathLike | None) -> tuple[str, int] | None:
+    """``(path, modification time)``, the cache key of a file's contents; ``None`` if absent."""
+    if not path:
+        return None
+    try:
+        return str(path), os.stat(path).st_mtime_ns
+    except OSError:
+        return None
+
+
 def mean_texture_color(path: str | os.PathLike | None) -> np.ndarray | None:
     """Mean RGB colour (3,) in 0–1 of a texture image, alpha-weighted; ``None`` if unreadable.
 
     Computed once per file version (cached on path and modification time).
     """
-    if not path:
-        return None
-    try:
-        mtime = os.stat(path).st_mtime_ns
-    except OSError:
-        return None
-    return _mean_color_cached(str(path), mtime)
+    version = _file_version(path)
+    return None if version is None else _mean_color_cached(*version)
 
 
 @lru_cache(maxsize=256)
@@ -278,13 +283,8 @@ def _mean_color_cached(path: str, mtime: int) -> np.ndarray | None:
 def texture_pixels(path: str | os.PathLike | None, max_side: int = 1024) -> np.ndarray | None:
     """A texture as (H, W, 3) float32 RGB in 0–1 (alpha dropped), at most ``max_side`` pixels
     on its longer side; ``None`` if unreadable.  Cached on path and modification time."""
-    if not path:
-        return None
-    try:
-        mtime = os.stat(path).st_mtime_ns
-    except OSError:
-        return None
-    return _texture_cached(str(path), mtime, int(max_side))
+    version = _file_version(path)
+    return None if version is None else _texture_cached(*version, int(max_side))
 
 
 @lru_cache(maxsize=32)

@@ -148,15 +148,15 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     from ..classify import resolve_classifier
     from ..engine import derive_facade, load_rules
     from ..exchange.raster import label_map
-    from ..reconstruction import _analysis_copy, _as_rgb, _check_size, _check_sizes
+    from ..photo import analysis_copy, as_rgb, check_facade_size, check_size
 
     timings: dict[str, float] = {}
     t = time.perf_counter()
-    _check_sizes(width_m, None)
+    check_facade_size(width_m, None)
     if not isinstance(budget, int) or budget < 1:
         raise InputError(f"--budget {budget}: give a positive number of derivations")
-    rgb, name = _as_rgb(photo)
-    _check_size(rgb, name)
+    rgb, name = as_rgb(photo)
+    check_size(rgb, name)
     clf = resolve_classifier(classifier, "cmp6" if rectified else "ecp7")
     label_set = get_label_set(clf.label_set)
     gpath = grammar_path(grammar)
@@ -169,7 +169,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     timings["classify"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    work, to_work = _analysis_copy(rgb)
+    work, to_work = analysis_copy(rgb)
     rect_note = "photo given as rectified"
     if rectified:
         rect_img, H = work, to_work
@@ -242,8 +242,7 @@ def _save(p: Parse, out: Path) -> list[Path]:
 
     from ..exchange import export
     from ..exchange.raster import write_label_png
-    from ..outdir import write_outdir
-    from ..reconstruction import _write_json
+    from ..outdir import write_json, write_outdir
 
     def write(stage: Path) -> None:
         Image.fromarray(p.rectified).save(stage / "rectified.png", compress_level=1)
@@ -256,6 +255,6 @@ def _save(p: Parse, out: Path) -> list[Path]:
         if p.model is not None:
             for suffix in ("glb", "obj", "city.json"):
                 export(p.model, stage / f"model.{suffix}")
-        _write_json(stage / "report.json", p.report)
+        write_json(stage / "report.json", p.report)
 
     return write_outdir(out, write)
