@@ -242,3 +242,26 @@ def test_cli_reconstruct(synthetic, tmp_path, capsys):
 def test_bad_width_is_an_error(synthetic):
     with pytest.raises(InputError, match="--width-m"):
         reconstruct(synthetic[0], rectified=True, width_m=-3)
+
+
+def test_texture_completes_what_the_photo_does_not_cover():
+    """§4 texture averaging with a coverage mask: a tile half outside the photo (black) takes
+    its repetition's pixels there, and pixels no repetition covers the nearest valid colour."""
+    from facadeforge.imaging.shape_tree import PixelFrame, build_shape_tree
+    from facadeforge.reconstruction import cluster_averaged_texture
+
+    rgb = np.zeros((40, 80, 3), np.uint8)
+    rgb[:, :40] = (200, 50, 50)                 # tile 0: red, fully seen
+    rgb[:, 40:60] = (200, 50, 50)               # tile 1: red, its right half outside the photo
+    rgb[:, 60:] = 0
+    valid = np.ones((40, 80), bool)
+    valid[:, 60:] = False
+    tree = build_shape_tree(PixelFrame(80, 40, (10.0, 10.0)), [(0, 40)], [[(0, 40), (40, 80)]],
+                            [0], [[0, 0]])
+    out = cluster_averaged_texture(rgb, tree, valid)
+    assert (out[:, 60:] == (200, 50, 50)).all()          # completed from the repetition
+    naive = cluster_averaged_texture(rgb, tree)
+    assert naive[:, 60:].mean() < out[:, 60:].mean()     # without the mask black leaks in
+    # a single tile (no repetition): its uncovered part is extended from the nearest pixels
+    lone = build_shape_tree(PixelFrame(80, 40, (10.0, 10.0)), [(0, 40)], [[(0, 80)]], [0], [[0]])
+    assert (cluster_averaged_texture(rgb, lone, valid)[:, 60:] == (200, 50, 50)).all()

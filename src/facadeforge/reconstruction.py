@@ -286,13 +286,22 @@ def _leaf_info(chosen: Mapping[int, str], depths: Mapping[str, float]):
     return info
 
 
-def cluster_averaged_texture(rgb: np.ndarray, tree: Shape) -> np.ndarray:
+def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
+                             valid: np.ndarray | None = None) -> np.ndarray:
     """The rectified photo with every tile replaced by the mean of its cluster (§4: the IF keeps
     the intensities of all repetitions, so each tile is textured with their average —
-    occluders and noise present in few tiles fade)."""
+    occluders and noise present in few tiles fade).
+
+    ``valid`` (H, W) bool marks the pixels the photo covers (a rectified street photo leaves
+    wedges outside it): the means weigh valid pixels only, so a tile partly outside the photo
+    is completed from its repetitions, and the pixels no repetition covers take the colour of
+    the nearest valid pixel.
+    """
     import cv2
 
     out = rgb.copy()
+    ok = np.ones(rgb.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    filled = ok.copy()
     groups: dict[str, list[list[int]]] = {}
     for node in tree.walk():
         if node.symbol == "Tile":
@@ -305,13 +314,39 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape) -> np.ndarray:
         if ws < 2 or hs < 2:
             continue
         acc = np.zeros((hs, ws, 3), np.float64)
+        wsum = np.zeros((hs, ws, 1), np.float64)
         for x0, y0, x1, y1 in members:
-            acc += cv2.resize(rgb[y0:y1, x0:x1], (ws, hs), interpolation=cv2.INTER_AREA)
-        mean = (acc / len(members)).astype(np.float32)
+            wt = cv2.resize(ok[y0:y1, x0:x1].astype(np.float32), (ws, hs),
+                            interpolation=cv2.INTER_AREA)[:, :, None]
+            acc += cv2.resize(rgb[y0:y1, x0:x1], (ws, hs), interpolation=cv2.INTER_AREA) * wt
+            wsum += wt
+        seen = wsum[:, :, 0] > 1e-3
+        mean = (acc / np.maximum(wsum, 1e-3)).astype(np.float32)
         for x0, y0, x1, y1 in members:
-            out[y0:y1, x0:x1] = np.clip(cv2.resize(mean, (x1 - x0, y1 - y0),
-                                                   interpolation=cv2.INTER_LINEAR), 0, 255)
+            size = (x1 - x0, y1 - y0)
+            out[y0:y1, x0:x1] = np.clip(cv2.resize(mean, size, interpolation=cv2.INTER_LINEAR),
+                                        0, 255)
+            filled[y0:y1, x0:x1] |= cv2.resize(seen.astype(np.uint8), size,
+                                               interpolation=cv2.INTER_NEAREST).astype(bool)
+    if not filled.all() and filled.any():
+        from scipy.ndimage import distance_transform_edt
+
+        _, (iy, ix) = distance_transform_edt(~filled, return_indices=True)
+        out = out[iy, ix]
     return out
+
+
+def _covered(photo_shape, homography: np.ndarray, shape) -> np.ndarray | None:
+    """(H, W) bool: the rectified pixels the input photo covers (``None``: all of them)."""
+    if np.allclose(homography, np.diag(np.diag(homography))):
+        return None                 # identity or a plain downscale: the photo covers the frame
+    import cv2
+
+    half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
+    hcv = np.linalg.inv(half) @ homography @ half
+    ones = np.ones(photo_shape[:2], np.uint8)
+    return cv2.warpPerspective(ones, hcv, (shape[1], shape[0]), flags=cv2.INTER_NEAREST,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
 
 
 def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str,
@@ -493,7 +528,8 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     rules = extract_rules(tree, texture="texture.jpg", depths=depth_map)
     timings["rules"] = time.perf_counter() - t
 
-    texture = cluster_averaged_texture(rect_img, tree)
+    texture = cluster_averaged_texture(rect_img, tree, _covered(rgb.shape, homography,
+                                                                rect_img.shape))
     flags = review_flags(structure, tree, rect_ok, rect_reason, structure.confidences["floors"])
     notes = [] if mpp else ["scale from the floor-height prior: give --width-m for true metres"]
     if clf is not None and layout is None:
