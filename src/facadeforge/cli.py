@@ -57,6 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--footprint", help="GeoJSON (Polygon/FeatureCollection) or OBJ initial shapes")
     src.add_argument("--lot", help="a rectangular lot WIDTHxDEPTH in metres, e.g. 24x14")
     d.add_argument("--start", help="start rule (default: @StartRule, else the first rule)")
+    d.add_argument("--style", help="CGA style of the rule file (default: Default)")
     d.add_argument("--rule", help="main rule file inside an .rpk")
     d.add_argument("--attr", action="append", type=_parse_attr, default=[], metavar="NAME=VALUE",
                    help="override an attribute (repeatable); imported ones as alias.name=value")
@@ -130,6 +131,7 @@ def cmd_derive(args) -> int:
 
     t0 = time.perf_counter()
     models = engine.derive(args.rules, args.footprint, lot_size=args.lot, start=args.start,
+                           style=args.style,
                            attrs=dict(args.attr), assets=args.assets, seed=args.seed,
                            strict=args.strict, rule=args.rule, workers=args.workers,
                            keep_tree=suffix_of(args.output) in ("png", "svg"))

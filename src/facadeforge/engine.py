@@ -33,7 +33,8 @@ class Rules:
     package: object = None  # RulePackage when loaded from an .rpk
 
 
-def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None = None) -> Rules:
+def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None = None,
+               style: str | None = None) -> Rules:
     """Load a ``.cga`` file, a ``.rpk`` rule package or CGA text.
 
     Parameters
@@ -46,6 +47,8 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
         Asset folder; relative asset paths resolve against it (and the rule file's folder).
     start : str, optional
         Start rule (default: ``@StartRule``, else the first rule).
+    style : str, optional
+        CGA style of the main rule file (``style Name`` sections; default ``Default``).
     """
     package = None
     text_source = isinstance(rules, str) and ("\n" in rules or "-->" in rules) and Path(rules).suffix not in (".cga", ".rpk")
@@ -108,7 +111,7 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
             raise OSError(f"'{name}' lies outside the rule folder")
         return target.read_text(encoding="utf-8", errors="replace"), str(target)
 
-    main = link(main_text, main_path, read)
+    main = link(main_text, main_path, read, style=style)
     ruleset = RuleSet(main, start, roots[0] if roots else None)
     from .grammar.check import check_rules
 
@@ -166,7 +169,7 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
     """Derive the rules on one footprint (``keep_tree=False`` drops the shape tree)."""
     t0 = time.perf_counter()
     merged = {**{k: v for k, v in fp.attributes.items() if not k.startswith("_")}, **(attrs or {})}
-    known = {a.name for a in rules.ruleset.main.ast.attrs}
+    known = set(rules.ruleset.main.attrs)
     overrides = {k: v for k, v in merged.items() if k in known or "." in k or k in (attrs or {})}
     for k in (attrs or {}):
         if "." not in k and k not in known:
@@ -204,7 +207,7 @@ def _worker_init(spec):
 
     _WORKER["blas"] = threadpool_limits(1)
     _WORKER["rules"] = load_rules(spec["rules"], rule=spec["rule"], assets=spec["assets"],
-                                  start=spec["start"])
+                                  start=spec["start"], style=spec["style"])
     _WORKER["spec"] = spec
 
 
@@ -218,7 +221,8 @@ def _worker_run(fp: Footprint) -> Model:
 def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | None = None,
            attrs: dict | None = None, assets=None, seed: int = 0, strict: bool = False,
            rule: str | None = None, workers: int | None = None,
-           limits: Limits | None = None, keep_tree: bool = True) -> list[Model]:
+           limits: Limits | None = None, keep_tree: bool = True,
+           style: str | None = None) -> list[Model]:
     """Derive CGA rules on footprints.
 
     Parameters
@@ -231,6 +235,8 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
         Processes for many footprints (default: all cores when there are 4 or more footprints).
     keep_tree : bool
         Keep each model's shape tree (``Model.root``); exporting needs only the geometry.
+    style : str, optional
+        CGA style of the main rule file (default ``Default``).
 
     Returns
     -------
@@ -246,11 +252,12 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
     else:
         fps = list(footprints)
     loaded = rules if isinstance(rules, Rules) else load_rules(rules, rule=rule, assets=assets,
-                                                                 start=start)
+                                                                 start=start, style=style)
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
-                "assets": str(assets) if assets else None, "start": start, "attrs": attrs,
+                "assets": str(assets) if assets else None, "start": start, "style": style,
+                "attrs": attrs,
                 "seed": seed, "strict": strict, "limits": limits, "keep_tree": keep_tree}
         chunks = max(1, len(fps) // (n_workers * 4))
         with ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,)) as pool:

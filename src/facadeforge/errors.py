@@ -25,7 +25,7 @@ class RuleError(FacadeForgeError):
 
     def __init__(self, message: str, path: str = "", line: int = 0, column: int = 0):
         self.path, self.line, self.column = path, line, column
-        where = f"{path}:{line}:{column}: " if path or line else ""
+        where = f"{path}:{line}:{column}: " if line else f"{path}: " if path else ""
         super().__init__(where + message)
 
 

@@ -123,7 +123,7 @@ def attribute_space(rules) -> dict[str, tuple]:
     from ..grammar import ast as A
 
     space: dict[str, tuple] = {}
-    for a in rules.ruleset.main.ast.attrs:
+    for a in rules.ruleset.main.attrs.values():
         if a.const:
             continue
         for ann in a.annotations:

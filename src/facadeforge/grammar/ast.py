@@ -195,6 +195,19 @@ class Import(Node):
 
 
 @dataclass(frozen=True)
+class StyleDef(Node):
+    """``style Name [extends Base]`` and the attributes, functions and rules declared after it
+    (until the next ``style``): they replace the base style's same-named declarations."""
+
+    name: str
+    extends: str | None = None
+    attrs: tuple = ()
+    functions: tuple = ()
+    rules: tuple = ()
+    annotations: tuple = ()
+
+
+@dataclass(frozen=True)
 class RuleFile(Node):
     path: str
     version: str | None
@@ -202,3 +215,4 @@ class RuleFile(Node):
     attrs: tuple
     functions: tuple
     rules: tuple
+    styles: tuple = ()  # StyleDef, in file order; the declarations above are the Default style

@@ -173,9 +173,9 @@ def check_rules(ruleset: RuleSet) -> None:
     """Raise ``RuleError`` for the first unknown name in any linked module."""
     for mod in ruleset.main.all_modules():
         c = _Checker(mod)
-        for a in mod.ast.attrs:
+        for a in mod.attrs.values():          # the declarations of the module's style
             c.expr(a.value, set())
-        for f in mod.ast.functions:
+        for f in (f for by_arity in mod.functions.values() for f in by_arity.values()):
             c.expr(f.body, {p.name for p in f.params})
-        for r in mod.ast.rules:
+        for r in (r for by_arity in mod.rules.values() for r in by_arity.values()):
             c.ops(r.body, {p.name for p in r.params})

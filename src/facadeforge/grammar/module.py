@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..errors import RuleError, RuleSyntaxError
 from . import ast as A
-from .parser import parse_rules
+from .parser import DEFAULT_STYLE, parse_rules
 
 MAX_IMPORT_DEPTH = 32
 
@@ -43,21 +43,27 @@ class Module:
         ``""`` for the main file, else the import alias chain (``"facade"``, ``"facade.win"``).
     """
 
-    def __init__(self, rule_file: A.RuleFile, name: str = ""):
+    def __init__(self, rule_file: A.RuleFile, name: str = "", style: str | None = None):
         self.ast = rule_file
         self.path = rule_file.path
         self.name = name
+        self.style = style or DEFAULT_STYLE
         self.imports: dict[str, Module] = {}
-        self.attrs: dict[str, A.AttrDef] = {a.name: a for a in rule_file.attrs}
+        self.attrs: dict[str, A.AttrDef] = {}
         self.functions: dict[str, dict[int, A.FuncDef]] = {}
-        for f in rule_file.functions:
-            self.functions.setdefault(f.name, {})[len(f.params)] = f
         self.rules: dict[str, dict[int, A.RuleDef]] = {}
-        for r in rule_file.rules:
-            self.rules.setdefault(r.name, {})[len(r.params)] = r
+        # CityEngine styles: the chosen style's declarations replace those of the style it
+        # extends (by default the Default style), by name (attributes) or name and arity
+        for attrs, functions, rules in _style_chain(rule_file, self.style):
+            self.attrs.update({a.name: a for a in attrs})
+            for f in functions:
+                self.functions.setdefault(f.name, {})[len(f.params)] = f
+            for r in rules:
+                self.rules.setdefault(r.name, {})[len(r.params)] = r
         # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
         self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
-        self.start_rules = [r.name for r in rule_file.rules
+        self.start_rules = [r.name for by_arity in self.rules.values()
+                            for r in by_arity.values()
                             if any(a.name == "StartRule" for a in r.annotations)]
 
     # -- lookups -----------------------------------------------------------------------------
@@ -132,8 +138,8 @@ class RuleSet:
         if start_rule is None:
             if main.start_rules:
                 start_rule = main.start_rules[0]
-            elif main.ast.rules:
-                start_rule = main.ast.rules[0].name
+            elif main.rules:
+                start_rule = next(iter(main.rules))
             else:
                 raise RuleError("the rule file defines no rules", main.path)
         elif not main.has_rule_name(start_rule):
@@ -155,9 +161,37 @@ def _did_you_mean(name: str, candidates) -> str:
     return f"; did you mean '{close[0]}'?" if close else ""
 
 
-def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | None = None) -> Module:
-    """Parse ``text`` and, through ``read(importer_path, import_path) -> (text, path)``, its imports."""
-    main = Module(parse_rules(text, path))
+def _style_chain(rule_file: A.RuleFile, style: str) -> list[tuple[tuple, tuple, tuple]]:
+    """``(attrs, functions, rules)`` of the Default style and of each style from the one
+    ``style`` extends down to ``style`` itself, base first."""
+    by_name = {sd.name: sd for sd in rule_file.styles}
+    chain: list[A.StyleDef] = []
+    name: str | None = style
+    while name is not None and name != DEFAULT_STYLE:
+        sd = by_name.get(name)
+        if sd is None:
+            known = ", ".join([DEFAULT_STYLE, *by_name])
+            if not chain:
+                raise RuleError(f"unknown style '{name}'; {Path(rule_file.path).name} defines "
+                                f"{known}", rule_file.path)
+            raise RuleError(f"style '{chain[-1].name}' extends unknown style '{name}'; "
+                            f"defined: {known}", rule_file.path, chain[-1].line, chain[-1].column)
+        if sd in chain:
+            raise RuleError(f"style '{name}' extends itself (through "
+                            f"{' → '.join(s.name for s in chain)})", rule_file.path, sd.line,
+                            sd.column)
+        chain.append(sd)
+        name = sd.extends
+    return ([(rule_file.attrs, rule_file.functions, rule_file.rules)]
+            + [(sd.attrs, sd.functions, sd.rules) for sd in reversed(chain)])
+
+
+def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | None = None, *,
+         style: str | None = None) -> Module:
+    """Parse ``text`` and, through ``read(importer_path, import_path) -> (text, path)``, its
+    imports; ``style`` selects a style of the main file (imported files use their Default
+    style, as in CityEngine)."""
+    main = Module(parse_rules(text, path), style=style)
     pending = [(main, 0)]
     cache: dict[str, Module] = {os.path.normpath(path): main}
     while pending:

@@ -59,7 +59,7 @@ def parameters_of(rules, *, required: bool = True) -> list[Parameter]:
     ``required``: raise when there are none."""
     ruleset = getattr(rules, "ruleset", rules)
     params = []
-    for adef in ruleset.main.ast.attrs:
+    for adef in ruleset.main.attrs.values():
         ann = {a.name: a for a in adef.annotations}
         if adef.const or not ({"Range", "Enum"} & ann.keys()):
             continue

@@ -19,6 +19,8 @@ from ..errors import RuleSyntaxError
 from . import ast as A
 
 MAX_SOURCE_BYTES = 8 * 1024 * 1024  # a rule file larger than this is not a rule file
+#: The style of the declarations before any ``style`` line (CityEngine's name for it).
+DEFAULT_STYLE = "Default"
 
 
 @functools.lru_cache(maxsize=1)
@@ -243,7 +245,7 @@ class _ToAst(Transformer):
         return A.RuleDef(str(c[0]), params or (), c[-1], **_pos(meta))
 
     def style_def(self, meta, c):
-        return None
+        return A.StyleDef(str(c[0]), str(c[1]) if len(c) > 1 else None, **_pos(meta))
 
     def annotated(self, meta, c):
         *anns, decl = c
@@ -332,7 +334,8 @@ def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:
         raise RuleSyntaxError(_describe(e), path, line, col, src) from None
     except (VisitError, LarkError, RecursionError, ValueError) as e:
         raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
-    version, imports, attrs, funcs, rules = None, [], [], [], []
+    version, imports = None, []
+    sections: list[tuple[A.StyleDef | None, list, list, list]] = [(None, [], [], [])]
     for item in items:
         if item is None:
             continue
@@ -340,13 +343,24 @@ def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:
             version = item[1]
         elif isinstance(item, A.Import):
             imports.append(item)
+        elif isinstance(item, A.StyleDef):
+            if any(sd is not None and sd.name == item.name for sd, *_ in sections) \
+                    or item.name == DEFAULT_STYLE:
+                raise RuleSyntaxError(f"style '{item.name}' is declared twice", path,
+                                      item.line, item.column)
+            sections.append((item, [], [], []))
         elif isinstance(item, A.AttrDef):
-            attrs.append(item)
+            sections[-1][1].append(item)
         elif isinstance(item, A.FuncDef):
-            funcs.append(item)
+            sections[-1][2].append(item)
         elif isinstance(item, A.RuleDef):
-            rules.append(item)
-    return A.RuleFile(path, version, tuple(imports), tuple(attrs), tuple(funcs), tuple(rules))
+            sections[-1][3].append(item)
+    _, attrs, funcs, rules = sections[0]
+    styles = tuple(A.StyleDef(sd.name, sd.extends, tuple(a), tuple(f), tuple(r),
+                              line=sd.line, column=sd.column)
+                   for sd, a, f, r in sections[1:])
+    return A.RuleFile(path, version, tuple(imports), tuple(attrs), tuple(funcs), tuple(rules),
+                      styles)
 
 
 _TOKEN_WORDS = {

@@ -142,7 +142,8 @@ class SplitLayout:
             raise ParseGrammarError(f"start rule '{self.start}' is not defined (without "
                                     "parameters) in the parse grammar")
         self.attr_defs: dict[str, A.AttrDef] = dict(module.attrs)
-        self.functions = {f.name: f for f in module.ast.functions}
+        self.functions = {f.name: f for by_arity in module.functions.values()
+                          for f in by_arity.values()}
         self._overrides: dict[str, Any] = {}
         self._attr_cache: dict[str, Any] = {}
         self._memo: dict[tuple, tuple[np.ndarray, list[str]]] = {}
