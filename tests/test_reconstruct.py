@@ -98,6 +98,11 @@ def test_windows_found_on_a_cmp_facade():
     score = match_boxes(truth, rec.windows())
     assert score.f1 >= 0.6, (score.precision, score.recall)
     assert {"window", "door"} <= set(rec.report["elements"])
+    # the scale comes from the storeys laid around the windows (3.2 m each): about 10 m for
+    # this three-storey facade (stage 1's halved MI period made it 46 m)
+    f = rec.report["facade"]
+    assert f["floor_period_m"] == pytest.approx(3.2, abs=0.01)
+    assert 7 < f["height_m"] < 16, f
     edges = reconstruct(sample.image(), rectified=True, model=False, classifier=False)
     assert match_boxes(truth, edges.windows()).f1 < score.f1
 
@@ -265,3 +270,16 @@ def test_texture_completes_what_the_photo_does_not_cover():
     # a single tile (no repetition): its uncovered part is extended from the nearest pixels
     lone = build_shape_tree(PixelFrame(80, 40, (10.0, 10.0)), [(0, 40)], [[(0, 80)]], [0], [[0]])
     assert (cluster_averaged_texture(rgb, lone, valid)[:, 60:] == (200, 50, 50)).all()
+
+
+def test_covered_pixels_of_a_rectified_frame():
+    from facadeforge.reconstruction import _covered
+
+    assert _covered((100, 120), np.eye(3), (100, 120)) is None          # the photo itself
+    assert _covered((100, 120), np.diag([0.5, 0.5, 1]), (50, 60)) is None   # a downscale
+    shift = np.array([[1, 0, 10], [0, 1, 0], [0, 0, 1.0]])
+    cov = _covered((100, 100), shift, (100, 130))
+    assert cov[:, 10:110].all() and not cov[:, :10].any() and not cov[:, 110:].any()
+    keystone = np.array([[1, 0.2, 0], [0, 1, 0], [0, 0.002, 1.0]])    # a perspective warp
+    cov = _covered((100, 100), keystone, (100, 120))
+    assert 0.3 < cov.mean() < 0.95 and cov[5, 5]

@@ -316,10 +316,9 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
         acc = np.zeros((hs, ws, 3), np.float64)
         wsum = np.zeros((hs, ws, 1), np.float64)
         for x0, y0, x1, y1 in members:
-            wt = cv2.resize(ok[y0:y1, x0:x1].astype(np.float32), (ws, hs),
-                            interpolation=cv2.INTER_AREA)[:, :, None]
-            acc += cv2.resize(rgb[y0:y1, x0:x1], (ws, hs), interpolation=cv2.INTER_AREA) * wt
-            wsum += wt
+            m = ok[y0:y1, x0:x1].astype(np.float32)[:, :, None]
+            acc += cv2.resize(rgb[y0:y1, x0:x1] * m, (ws, hs), interpolation=cv2.INTER_AREA)
+            wsum += cv2.resize(m, (ws, hs), interpolation=cv2.INTER_AREA).reshape(hs, ws, 1)
         seen = wsum[:, :, 0] > 1e-3
         mean = (acc / np.maximum(wsum, 1e-3)).astype(np.float32)
         for x0, y0, x1, y1 in members:
@@ -338,15 +337,14 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
 
 def _covered(photo_shape, homography: np.ndarray, shape) -> np.ndarray | None:
     """(H, W) bool: the rectified pixels the input photo covers (``None``: all of them)."""
-    if np.allclose(homography, np.diag(np.diag(homography))):
-        return None                 # identity or a plain downscale: the photo covers the frame
     import cv2
 
     half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
     hcv = np.linalg.inv(half) @ homography @ half
     ones = np.ones(photo_shape[:2], np.uint8)
-    return cv2.warpPerspective(ones, hcv, (shape[1], shape[0]), flags=cv2.INTER_NEAREST,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    covered = cv2.warpPerspective(ones, hcv, (shape[1], shape[0]), flags=cv2.INTER_NEAREST,
+                                  borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    return None if covered.all() else covered
 
 
 def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str,
@@ -450,6 +448,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
                                                                             **depths}
     work, to_work = analysis_copy(rgb)
+    clf = _classifier(classifier)          # a bad model file fails before any analysis
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -468,7 +467,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     homography = H @ to_work
     timings["rectify"] = time.perf_counter() - t
 
-    from .imaging.splits import floor_and_tile_split, to_gray
+    from .imaging.splits import FLOOR_PRIOR_M, floor_and_tile_split, to_gray
 
     gray = to_gray(rect_img)
     mpp = _scale(width_m, height_m, rect_img.shape)
@@ -478,15 +477,22 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     px_per_m = (1.0 / mpp[0], 1.0 / mpp[1]) if mpp else (structure.px_per_m, structure.px_per_m)
 
     t = time.perf_counter()
-    clf = _classifier(classifier)
     prob = clf.predict_proba(rect_img) if clf is not None else None
     timings["classify"] = time.perf_counter() - t
 
     t = time.perf_counter()
     layout, detection = _detect(prob, clf, gray, px_per_m)
     if layout is not None:
-        structure = dataclasses.replace(structure, floors=layout.floors, tiles=layout.tiles,
-                                        confidences=layout.confidences)
+        # the floors laid around the elements replace stage 1's, and so does the floor period
+        # they measure (stage 1's MI period is often a half or double storey on real photos)
+        period = layout.floor_period_px or structure.floor_period_px
+        structure = dataclasses.replace(
+            structure, floors=layout.floors, tiles=layout.tiles,
+            confidences=layout.confidences, floor_period_px=period,
+            floor_lines=[b for _, b in layout.floors[:-1]],
+            px_per_m=period / FLOOR_PRIOR_M if period > 0 else structure.px_per_m)
+        if not mpp:
+            px_per_m = (structure.px_per_m, structure.px_per_m)
     timings["detect"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -77,15 +77,14 @@ def test_detect_elements_drops_fragments_and_weak_boxes():
 
 
 def test_overlapping_boxes_of_two_classes_keep_the_stronger():
+    # the shop is painted over the window's lower right corner: the window's mask loses the
+    # corner but its box still overlaps the shop's box; the shop (score × area) wins
     prob = _prob(100, 100, {"window": [(10, 10, 40, 50)], "shop": [(30, 40, 90, 95, 0.95)]})
-    # the window's box and the shop's box overlap only through their bounding boxes
-    prob[40:50, 30:40, 2] = 0.0
     els = detect_elements(prob, CLASSES)
-    boxes = [e.box for e in els]
-    for i, a in enumerate(boxes):
-        for b in boxes[i + 1:]:
-            assert min(a[2], b[2]) <= max(a[0], b[0]) or min(a[3], b[3]) <= max(a[1], b[1])
-    assert "shop" in [e.label for e in els]
+    assert [(e.label, e.box) for e in els] == [("shop", (30, 40, 90, 95))]
+    # apart, both are kept
+    prob = _prob(100, 100, {"window": [(10, 10, 25, 35)], "shop": [(30, 40, 90, 95, 0.95)]})
+    assert [e.label for e in detect_elements(prob, CLASSES)] == ["window", "shop"]
 
 
 def _grid(rows=3, cols=4, jitter=0, seed=0):
@@ -127,10 +126,14 @@ def test_layout_lines_run_through_wall_and_keep_every_element(jitter):
                     found.append((leaf.label, leaf.box))
             for node in _walk(region):
                 assert node.split in SPLIT_TYPES
-                if node.children:                   # children tile their parent
-                    area = sum((c.box[2] - c.box[0]) * (c.box[3] - c.box[1])
-                               for c in node.children)
-                    assert area == (node.box[2] - node.box[0]) * (node.box[3] - node.box[1])
+                if node.children:                   # children tile their parent along one axis
+                    k = 1 if node.split in ("top", "bottom", "dual-y") else 0
+                    kids = node.children
+                    assert kids[0].box[k] == node.box[k] and kids[-1].box[k + 2] == node.box[k + 2]
+                    assert all(a.box[k + 2] == b.box[k] for a, b in zip(kids, kids[1:]))
+                    o = 1 - k
+                    assert all(c.box[o] == node.box[o] and c.box[o + 2] == node.box[o + 2]
+                               and c.box[k + 2] > c.box[k] for c in kids)
     assert sorted(found) == sorted((e.label, e.box) for e in els)
     assert len(lay.confidences["floors"]) == len(lay.floors) - 1
     assert all(c == 1.0 for c in lay.confidences["floors"])     # zero occupancy on every line
@@ -180,3 +183,16 @@ def test_element_threshold_is_the_benchmarks_object_threshold():
     from facadeforge.imaging.detect import MIN_ELEMENT_FRACTION
 
     assert MIN_ELEMENT_FRACTION == MIN_OBJECT_FRACTION
+
+
+def test_layout_of_no_elements_is_one_wall_tile():
+    lay = element_layout([], np.full((50, 80), 0.5), np.zeros((50, 80)), px_per_m=20.0)
+    assert lay.floors == [(0, 50)] and lay.tiles == [[(0, 80)]] and lay.regions == [[None]]
+    assert lay.floor_period_px == 0.0
+
+
+def test_layout_floor_period_is_the_storey_between_two_lines():
+    els = _grid(rows=4, cols=2)                    # window rows every 60 px
+    lay = element_layout(els, np.full((260, 130), 0.5), np.zeros((260, 130)), px_per_m=20.0)
+    assert len(lay.floors) == 4
+    assert lay.floor_period_px == pytest.approx(60, abs=2)

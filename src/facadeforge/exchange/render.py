@@ -35,6 +35,8 @@ from .errors import ExportError
 
 __all__ = ["render_file", "render_preview"]
 
+#: Textured pixels processed per chunk (about 200 bytes of temporaries each).
+_TEXEL_CHUNK = 1_000_000
 _SKY_TOP = np.array([158.0, 194.0, 230.0])
 _SKY_HORIZON = np.array([236.0, 241.0, 246.0])
 _GROUND = (226, 226, 218)
@@ -332,7 +334,8 @@ def _draw_scene(image: Image.Image, faces: _Faces, view: _View, ss: int,
     hit = np.nonzero(opaque >= 0)[0]
     out[hit] = (shade * 255 + 0.5).astype(np.uint8)[opaque[hit]]
     if faces.images:
-        _texture(out, width, faces, light, opaque, opaque_tri, tris, xy, near)
+        _texture(out, width, faces, light, opaque, opaque_tri, tris, xy,
+                 near if view.cam.perspective else None)
     _blend_glass(out, faces, shade, clear)
     if outlines:
         top = np.where(clear >= 0, clear, opaque).reshape(height, width)
@@ -357,44 +360,45 @@ def _visible_faces(faces: _Faces, xy: np.ndarray, near: np.ndarray, size: tuple[
 
 def _texture(out: np.ndarray, width: int, faces: _Faces, light: np.ndarray,
              opaque: np.ndarray, opaque_tri: np.ndarray, tris: np.ndarray, xy: np.ndarray,
-             near: np.ndarray) -> None:
-    """Repaint the pixels of textured opaque faces with their texels:
-    perspective-correct barycentric UVs (``near`` is 1/z under perspective, so weighting the
-    screen-space barycentrics by it interpolates UVs linearly in 3D), nearest texel, wrapped;
-    times the material colour and half the face's light."""
-    pix = np.nonzero(opaque >= 0)[0]
-    if not len(pix):
-        return
-    face = opaque[pix]
-    tex = faces.texture[face]
-    sel = tex >= 0
-    pix, face, tex = pix[sel], face[sel], tex[sel]
-    if not len(pix):
-        return
-    t = opaque_tri[pix]
-    px = (pix % width) + 0.5
-    py = (pix // width) + 0.5
-    a, b, c = xy[t, 0], xy[t, 1], xy[t, 2]
-    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    det = np.where(np.abs(det) > 1e-12, det, 1e-12)
-    l1 = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (py - a[:, 1]) * (c[:, 0] - a[:, 0])) / det
-    l2 = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (b[:, 1] - a[:, 1]) * (px - a[:, 0])) / det
-    lam = np.clip(np.column_stack([1.0 - l1 - l2, l1, l2]), 0.0, 1.0)
-    wgt = lam * np.abs(near[t])
-    wgt /= np.maximum(wgt.sum(axis=1, keepdims=True), 1e-12)
-    uv = np.einsum("nk,nkd->nd", wgt, faces.uvs[tris[t]])
-    uv -= np.floor(uv)
-    colour = np.empty((len(pix), 3), np.float32)
-    for k in np.unique(tex):
-        m = tex == k
-        img = faces.images[k]
-        h, wi = img.shape[:2]
-        col = np.minimum((uv[m, 0] * wi).astype(np.int64), wi - 1)
-        row = np.minimum(((1.0 - uv[m, 1]) * h).astype(np.int64), h - 1)
-        colour[m] = img[row, col]
-    # a photo texture carries its own light: the sun only modulates it, by half as much
-    colour *= faces.base[face] * (0.5 + 0.5 * light[face])[:, None]
-    out[pix] = (np.clip(colour, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
+             near: np.ndarray | None) -> None:
+    """Repaint the pixels of textured opaque faces with their texels: barycentric UVs of the
+    pixel centre, perspective-correct under perspective (``near`` = 1/z: weighting the
+    screen-space barycentrics by it interpolates UVs linearly in 3D; ``None`` for an
+    orthographic view, where screen space is affine to 3D), nearest texel, wrapped; times the
+    material colour and half the face's light.  Pixels are processed in chunks (memory stays
+    bounded on large supersampled renders)."""
+    pix_all = np.nonzero(opaque >= 0)[0]
+    pix_all = pix_all[faces.texture[opaque[pix_all]] >= 0]
+    for start in range(0, len(pix_all), _TEXEL_CHUNK):
+        pix = pix_all[start:start + _TEXEL_CHUNK]
+        face = opaque[pix]
+        tex = faces.texture[face]
+        t = opaque_tri[pix]
+        px = (pix % width) + 0.5
+        py = (pix // width) + 0.5
+        a, b, c = xy[t, 0], xy[t, 1], xy[t, 2]
+        det = ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+               - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+        det = np.where(np.abs(det) > 1e-12, det, 1e-12)
+        l1 = ((px - a[:, 0]) * (c[:, 1] - a[:, 1]) - (py - a[:, 1]) * (c[:, 0] - a[:, 0])) / det
+        l2 = ((b[:, 0] - a[:, 0]) * (py - a[:, 1]) - (b[:, 1] - a[:, 1]) * (px - a[:, 0])) / det
+        wgt = np.clip(np.column_stack([1.0 - l1 - l2, l1, l2]), 0.0, 1.0)
+        if near is not None:
+            wgt *= near[t]
+        wgt /= np.maximum(wgt.sum(axis=1, keepdims=True), 1e-12)
+        uv = np.einsum("nk,nkd->nd", wgt, faces.uvs[tris[t]])
+        uv -= np.floor(uv)
+        colour = np.empty((len(pix), 3), np.float32)
+        for k in np.unique(tex):
+            m = tex == k
+            img = faces.images[k]
+            h, w = img.shape[:2]
+            col = np.minimum((uv[m, 0] * w).astype(np.int64), w - 1)
+            row = np.minimum(((1.0 - uv[m, 1]) * h).astype(np.int64), h - 1)
+            colour[m] = img[row, col]
+        # a photo texture carries its own light: the sun only modulates it, by half as much
+        colour *= faces.base[face] * (0.5 + 0.5 * light[face])[:, None]
+        out[pix] = (np.clip(colour, 0.0, 1.0) * 255 + 0.5).astype(np.uint8)
 
 
 def _face_of(tri_ids: np.ndarray, tri_face: np.ndarray) -> np.ndarray:

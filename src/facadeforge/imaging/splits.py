@@ -313,19 +313,12 @@ def _line_confidence(f: np.ndarray, lines: np.ndarray, radius: float,
     return out
 
 
-def _with_evidence(interest: np.ndarray, occupied: np.ndarray, weight: float) -> np.ndarray:
-    f = np.asarray(interest, np.float64)
-    rng = float(f.max() - f.min()) or 1.0
-    return (f - f.min()) / rng + weight * occupied / max(float(occupied.max()), 1e-6)
-
-
 def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int = 16,
                          floor_range_m: tuple[float, float] = FLOOR_RANGE_M,
                          tile_range_m: tuple[float, float] = TILE_RANGE_M,
                          work_height: int = WORK_HEIGHT_PX,
                          tiles: bool = True, regular: bool = True, sigma_m: float = 1.0,
-                         sigma_cap: bool = True, evidence: np.ndarray | None = None,
-                         evidence_weight: float = 1.0) -> FacadeStructure:
+                         sigma_cap: bool = True) -> FacadeStructure:
     """Floors and tiles of a rectified facade photo (§2.2 + §2.4).
 
     1. Vertical symmetry profile (:func:`symmetry_profile`) on a working copy scaled to about
@@ -381,10 +374,6 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
     if period > 0 and sigma_cap:
         sigma_y = min(sigma_y, period / 6.0)
     ver_y, _ = interest_functions(hor, ver, sigma_px=sigma_y)
-    if evidence is not None:
-        ev = np.asarray(evidence, np.float64)
-        ver_y = _with_evidence(ver_y, gaussian_filter1d(ev.mean(axis=1), sigma_y / 2,
-                                                        mode="nearest"), evidence_weight)
     gap_lo, gap_hi = floor_range_m[0] * px_per_m_y, floor_range_m[1] * px_per_m_y
     extent = _repetitive_extent(profile, f, H) if period > 0 else (0, H - 1)
     fl = np.zeros(0, np.int64)
@@ -428,9 +417,6 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
             # lies wall, the quietest column — split there (all edge energy, smoothed).
             quiet = gaussian_filter1d((hor[y0:y1] + ver[y0:y1]).sum(axis=0), sig_x,
                                       mode="nearest")
-            if evidence is not None:
-                quiet = _with_evidence(quiet, gaussian_filter1d(
-                    ev[y0:y1].mean(axis=0), sig_x / 2, mode="nearest"), evidence_weight)
             xl = periodic_lines(quiet, tile_period)
             xl = xl[(xl > 0.15 * tile_period) & (xl < W - 0.15 * tile_period)]
         if xl.size == 0:
