@@ -57,8 +57,8 @@ UPPER_KINDS: frozenset[str] = frozenset({"window"})
 #: Fewest classifier-detected elements laid out as the facade's structure (fewer: the paper's
 #: edge-based path, which also handles facades the classifier does not recognise).
 MIN_ELEMENTS: int = 2
-#: Geometric tolerance of a cluster on the classifier path, as a fraction of the larger image
-#: side: members of one rule differ by at most this much in size and element position.
+#: Geometric tolerance of a cluster, as a fraction of the larger image side: members of one
+#: rule differ by at most this much in size and element position.
 CLUSTER_TOLERANCE: float = 0.005
 #: Label set of the shipped classifier used by default (trained on rectified CMP facades: the
 #: frame reconstruct analyses in).
@@ -497,11 +497,6 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
 
     t = time.perf_counter()
     floor_c, tile_c, boxes, owner = _clusters(gray, structure)
-    if layout is not None:
-        from .imaging.element_layout import refine_clusters
-
-        floor_c, tile_c = refine_clusters(layout, floor_c, tile_c,
-                                          tol=CLUSTER_TOLERANCE * max(gray.shape))
     timings["cluster"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -509,6 +504,12 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         regions = layout.regions
     else:
         regions = _refine(gray, structure, tile_c, owner, boxes) if refine else None
+    # appearance clusters split by geometry: the rules (one per cluster, sizes averaged) then
+    # derive every element back within CLUSTER_TOLERANCE of where it was found
+    from .imaging.element_layout import refine_clusters
+
+    floor_c, tile_c = refine_clusters(structure.floors, structure.tiles, regions, floor_c, tile_c,
+                                      tol=CLUSTER_TOLERANCE * max(gray.shape))
     timings["refine"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -163,7 +163,8 @@ def test_refine_clusters_splits_appearance_clusters_by_geometry():
     def ids(elements, tol):
         lay = element_layout(elements, gray, np.zeros(gray.shape), px_per_m=20.0)
         assert [len(r) for r in lay.tiles] == [4]
-        floor_c, tile_c = refine_clusters(lay, [0], [[0, 0, 0, 0]], tol=tol)
+        floor_c, tile_c = refine_clusters(lay.floors, lay.tiles, lay.regions, [0],
+                                          [[0, 0, 0, 0]], tol=tol)
         assert floor_c == [0]
         return tile_c[0]
 

@@ -213,9 +213,10 @@ def _element_leaves(region: Region | None) -> list[Region]:
     return [r for r in leaves(region) if r.role == "element"]
 
 
-def refine_clusters(layout: ElementLayout, floor_clusters: Sequence[int],
-                    tile_clusters: Sequence[Sequence[int]], tol: float
-                    ) -> tuple[list[int], list[list[int]]]:
+def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[tuple[int, int]]],
+                    regions: Sequence[Sequence[Region | None]] | None,
+                    floor_clusters: Sequence[int], tile_clusters: Sequence[Sequence[int]],
+                    tol: float) -> tuple[list[int], list[list[int]]]:
     """Appearance clusters (§2.3) split further by geometry, so that the rules extracted from
     the tree (§5: one rule per cluster, sizes averaged over its members) derive every member
     within about ``tol`` pixels of where it was found.
@@ -227,13 +228,15 @@ def refine_clusters(layout: ElementLayout, floor_clusters: Sequence[int],
     every window edge moved to the median of its 1-D cluster of edges) lowered window F1 on
     CMP val from 0.683 to 0.676.
 
-    Returns new dense floor and tile cluster ids (0, 1, … in order of first appearance).
+    ``floors``, ``tiles`` and ``regions`` are an :class:`ElementLayout`'s (or stage 1's with
+    the §3 refinements: element leaves are those with ``role == "element"``).  Returns new
+    dense floor and tile cluster ids (0, 1, … in order of first appearance).
     """
     keys, sigs, where = [], [], []
-    for i, row in enumerate(layout.tiles):
-        y0, y1 = layout.floors[i]
+    for i, row in enumerate(tiles):
+        y0, y1 = floors[i]
         for j, (x0, x1) in enumerate(row):
-            els = _element_leaves(layout.regions[i][j])
+            els = _element_leaves(regions[i][j] if regions is not None else None)
             keys.append((int(tile_clusters[i][j]), tuple(e.label for e in els)))
             sig = [x1 - x0, y1 - y0]
             for e in els:
@@ -241,16 +244,16 @@ def refine_clusters(layout: ElementLayout, floor_clusters: Sequence[int],
                 sig += [ex0 - x0, ey0 - y0, ex1 - ex0, ey1 - ey0]
             sigs.append(np.asarray(sig, np.float64))
             where.append((i, j))
-    new_tiles = [[0] * len(row) for row in layout.tiles]
+    new_tiles = [[0] * len(row) for row in tiles]
     ids: dict[tuple, int] = {}
     for key in dict.fromkeys(keys):                       # keys in order of first appearance
         idx = [k for k, kk in enumerate(keys) if kk == key]
         for k, g in zip(idx, _leader_groups([sigs[k] for k in idx], tol)):
             i, j = where[k]
             new_tiles[i][j] = ids.setdefault((key, g), len(ids))
-    fkeys = [(int(floor_clusters[i]), tuple(new_tiles[i])) for i in range(len(layout.floors))]
-    heights = [np.array([b - a], np.float64) for a, b in layout.floors]
-    new_floors = [0] * len(layout.floors)
+    fkeys = [(int(floor_clusters[i]), tuple(new_tiles[i])) for i in range(len(floors))]
+    heights = [np.array([b - a], np.float64) for a, b in floors]
+    new_floors = [0] * len(floors)
     fids: dict[tuple, int] = {}
     for key in dict.fromkeys(fkeys):
         idx = [k for k, kk in enumerate(fkeys) if kk == key]
