@@ -9,7 +9,7 @@ from ..errors import RuleError
 from . import ast as A
 from .functions import FUNCTIONS
 from .module import BUILTIN_NAMES, Module, RuleSet
-from .ops import OPERATIONS
+from .ops import OPERATIONS, operation_of
 
 # names that are selector keywords wherever an operation takes a selector
 _KEYWORDS = {
@@ -108,8 +108,8 @@ class _Checker:
         for op in ops:
             t = type(op)
             if t is A.Successor:
-                spec = OPERATIONS.get(op.name) if op.has_parens else None
-                if spec is not None and not self.m.has_rule_name(op.name):
+                spec = operation_of(op, self.m)
+                if spec is not None:
                     if not spec.min_args <= len(op.args) <= spec.max_args:
                         want = (spec.min_args if spec.min_args == spec.max_args
                                 else f"{spec.min_args} to {spec.max_args}")

@@ -103,10 +103,10 @@ class Purity:
             if t is A.Successor or t is A.Leaf:
                 name = op.name
                 args = getattr(op, "args", ())
-                from .ops import OPERATIONS
+                from .ops import operation_of
 
-                spec = OPERATIONS.get(name) if getattr(op, "has_parens", False) else None
-                if spec is not None and not m.has_rule_name(name):
+                spec = operation_of(op, m)
+                if spec is not None:
                     if name in IMPURE_OPS:
                         info.pure = False
                     if name == "setupProjection" and len(args) > 1 and isinstance(args[1], A.Name) \

@@ -24,7 +24,7 @@ from .expressions import Evaluator
 from .functions import FUNCTIONS
 from .instancing import Purity, Recording, instance_key
 from .module import Module, RuleSet
-from .ops import OPERATIONS, OpCall, load_all
+from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
 from .state import ShapeState
 from .values import CGARuntimeError, to_bool, to_float, to_str
@@ -509,12 +509,12 @@ class _RunContext:
     def run(self, ops: tuple, state: ShapeState, env: Env, origin) -> bool:
         """Run ``ops`` on ``state``; returns whether the shape was consumed (replaced)."""
         consumed = False
-        for i, op in enumerate(ops):
+        for op in ops:
             t = type(op)
             try:
                 if t is A.Successor:
-                    spec = OPERATIONS.get(op.name) if op.has_parens else None
-                    if spec is not None and not env.module.has_rule_name(op.name):
+                    spec = operation_of(op, env.module)
+                    if spec is not None:
                         self.call_op(spec, op, state, env, ())
                         if spec.consumes:
                             return True
@@ -542,10 +542,9 @@ class _RunContext:
                                           params=info)
                             self.node.children.append(piece)
                             self.d._output(piece, piece_state, self.rule)
-                    if i + 1 < len(ops):
-                        self.d.warn(f"operations after {op.name}{{…}} have no shape to work on",
-                                    ops[i + 1], self.rule)
-                    return True
+                    # the current shape is now an inner node of the tree, never a leaf; as in
+                    # CityEngine, operations after the body go on with it unchanged
+                    consumed = True
                 elif t is A.Push:
                     sub_state = state.copy()
                     sub_state.draws = state.draws

@@ -21,7 +21,7 @@ class OpSpec:
     max_args: int
     selectors: frozenset = field(default_factory=frozenset)
     body: bool = False
-    consumes: bool = False  # the shape is replaced (split, comp): later ops in a sequence see nothing
+    consumes: bool = False  # the shape becomes an inner node (split, comp): it is never a leaf
     names: frozenset = field(default_factory=frozenset)  # positions taking a bare name (set)
     selector_min_args: int = 0  # selectors only when called with at least this many arguments
 
@@ -30,6 +30,18 @@ class OpSpec:
 
 
 OPERATIONS: dict[str, OpSpec] = {}
+
+
+def operation_of(op, module) -> OpSpec | None:
+    """The operation a successor ``op`` calls, or ``None`` when it calls a rule: a name with
+    parentheses, or a bare name of an operation that takes no arguments (CityEngine accepts
+    ``primitiveQuad`` for ``primitiveQuad()``), unless ``module`` defines a rule of that name."""
+    spec = OPERATIONS.get(op.name)
+    if spec is None or module.has_rule_name(op.name):
+        return None
+    if not getattr(op, "has_parens", False) and (spec.min_args > 0 or spec.body):
+        return None
+    return spec
 
 # functions that read the current shape (``geometry.area``, ``fileExists``…): name -> fn(env, args)
 SHAPE_FUNCTIONS: dict[str, Callable] = {}

@@ -322,12 +322,71 @@ def op_insert(call):
         st.material["color"] = tuple(asset.material.color)
 
 
+#: Per primitive: (resolution arguments, dimension arguments) of CityEngine's signatures, e.g.
+#: ``primitiveCylinder(sides, radius, height)``; ``primitiveCube(width, height, depth)``.
+_PRIMITIVE_ARGS = {"cube": (0, 3), "quad": (0, 2), "cylinder": (1, 2), "cone": (1, 2),
+                   "disk": (1, 1), "sphere": (2, 1)}
+
+
+def _primitive_size(kind: str, dims: list[float]) -> np.ndarray:
+    if kind == "cube":
+        return np.array(dims)
+    if kind == "quad":
+        return np.array([dims[0], 0.0, dims[1]])
+    if kind in ("cylinder", "cone"):
+        return np.array([2 * dims[0], dims[1], 2 * dims[0]])
+    if kind == "disk":
+        return np.array([2 * dims[0], 0.0, 2 * dims[0]])
+    return np.full(3, 2 * dims[0])                                        # sphere
+
+
+def _quad_in_scope_plane(size: np.ndarray) -> Mesh:
+    """The unit quad in the plane of the scope's two non-zero dimensions (a facade's xy, a
+    lot's xz); lying in xz when no dimension is zero (CityEngine's default)."""
+    flat = [k for k in range(3) if size[k] <= EPS]
+    a, b = ((0, 1) if flat == [2] else (1, 2) if flat == [0] else (0, 2))
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    v = np.zeros((4, 3))
+    v[:, a], v[:, b] = uv[:, 0], uv[:, 1]
+    mesh = Mesh(v, [[0, 1, 2, 3]], [uv])
+    # face the positive third axis (a lot's quad faces up, a facade's quad faces out)
+    c = 3 - a - b
+    if polygon_normal(v)[c] < 0:
+        mesh = Mesh(v, [[3, 2, 1, 0]], [uv[::-1].copy()])
+    return mesh
+
+
 def _primitive_op(kind):
+    n_res, n_dims = _PRIMITIVE_ARGS[kind]
+
     def fn(call):
+        """CityEngine's primitive operations: no arguments fit the primitive to the scope;
+        resolution arguments (sides, rows…) refine it; with its dimensions it gets that size,
+        centred in the scope's xz and lying on its y = 0."""
         st = call.state
-        mesh = PRIMITIVES[kind](*[call.num(k) for k in range(len(call.args))][:0])
-        if call.args and kind in ("cube",) and len(call.args) == 3:
-            st.own_scope().size = np.array([call.num(0), call.num(1), call.num(2)])
+        n = len(call.args)
+        if n not in (0, n_res, n_res + n_dims) and not (kind == "sphere" and n == 1):
+            raise CGARuntimeError(f"primitive{kind.title()}() takes {n_res} resolution and "
+                                  f"{n_dims} size arguments, got {n} arguments")
+        values = [call.num(k) for k in range(n)]
+        res = [max(3, int(round(v))) for v in values[:min(n, n_res)]]
+        dims = values[n_res:] if n > n_res else []
+        if any(d < 0 for d in dims):
+            raise CGARuntimeError(f"primitive{kind.title()}(): sizes must not be negative")
+        if kind == "quad":
+            mesh = _quad_in_scope_plane(np.array(_primitive_size(kind, dims)) if dims
+                                        else st.scope.size)
+        elif kind == "sphere" and res:
+            mesh = PRIMITIVES[kind](*(res + [16] if len(res) == 1 else res))
+        else:
+            mesh = PRIMITIVES[kind](*res)
+        if dims:
+            size = _primitive_size(kind, dims)
+            sc = st.own_scope()
+            old = sc.size
+            shift = np.array([(old[0] - size[0]) / 2, 0.0, (old[2] - size[2]) / 2])
+            sc.origin = sc.to_world(shift[None])[0]
+            sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
     return fn
@@ -336,7 +395,7 @@ def _primitive_op(kind):
 for _op, _kind in (("primitiveCube", "cube"), ("primitiveQuad", "quad"),
                    ("primitiveCylinder", "cylinder"), ("primitiveSphere", "sphere"),
                    ("primitiveCone", "cone"), ("primitiveDisk", "disk")):
-    operation(_op, 0, 3)(_primitive_op(_kind))
+    operation(_op, 0, sum(_PRIMITIVE_ARGS[_kind]))(_primitive_op(_kind))
 
 
 # ---- shape functions reading geometry ----------------------------------------------------------

@@ -1,0 +1,76 @@
+"""Behaviours real CityEngine rule files rely on (found by running public .cga files): the shape
+goes on after a split or component split, bare zero-argument operations, primitive arguments as
+the CGA reference documents them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from facadeforge import derive
+
+
+def _parts(rules: str, lot: str = "10x10"):
+    (m,) = derive(rules + "\n", lot_size=lot)
+    return m
+
+
+def _bbox(m):
+    v = np.concatenate([p.mesh.vertices for p in m.parts])
+    return np.round(v.min(axis=0), 3).tolist(), np.round(v.max(axis=0), 3).tolist()
+
+
+def test_operations_after_a_component_split_work_on_the_shape():
+    m = _parts("Lot --> extrude(9) comp(f){ top : Roof } color(1, 0, 0) Mass")
+    assert not m.warnings
+    by = {p.symbol: p for p in m.parts}
+    assert by["Roof"].mesh.n_faces == 1
+    assert by["Mass"].mesh.n_faces == 6 and by["Mass"].material.color == (1.0, 0.0, 0.0)
+    # after a split too; the split's own pieces are unchanged
+    m = _parts("Lot --> split(x){ 4 : A | ~1 : B } Whole")
+    assert sorted(p.symbol for p in m.parts) == ["A", "B", "Whole"]
+    whole = next(p for p in m.parts if p.symbol == "Whole")
+    assert np.ptp(whole.mesh.vertices[:, 0]) == pytest.approx(10.0)
+    # a split alone leaves no copy of the shape behind
+    assert sorted(p.symbol for p in _parts("Lot --> split(x){ 4 : A | ~1 : B }").parts) == [
+        "A", "B"]
+
+
+def test_zero_argument_operations_without_parentheses():
+    m = _parts("Lot --> s(2, 0, 2) primitiveQuad extrude(1)")
+    assert sum(p.mesh.n_faces for p in m.parts) == 6          # a box, not an undefined rule
+    # a rule of the same name wins, as a rule call
+    m = _parts("Lot --> primitiveQuad\nprimitiveQuad --> color(0, 0, 1) X")
+    assert [p.symbol for p in m.parts] == ["X"]
+
+
+@pytest.mark.parametrize("rule, lo, hi, faces", [
+    # sides, radius, height: centred in the scope's xz, standing on y = 0
+    ("primitiveCylinder(24, 0.3, 3.5)", [4.7, 0, 4.7], [5.3, 3.5, 5.3], 26),
+    ("primitiveCone(8, 1, 2)", [4.0, 0, 4.0], [6.0, 2.0, 6.0], 9),
+    ("primitiveDisk(8, 1)", [4.0, 0, 4.0], [6.0, 0, 6.0], 1),
+    ("primitiveCube(2, 3, 4)", [4.0, 0, 3.0], [6.0, 3.0, 7.0], 6),
+    ("primitiveQuad(4, 2)", [3.0, 0, 4.0], [7.0, 0, 6.0], 1),
+    # without arguments: fitted to the scope; a lot's quad lies in the lot
+    ("primitiveQuad()", [0, 0, 0], [10, 0, 10], 1),
+])
+def test_primitive_arguments(rule, lo, hi, faces):
+    m = _parts(f"Lot --> {rule}")
+    assert not m.warnings
+    got_lo, got_hi = _bbox(m)
+    assert got_lo == pytest.approx(lo, abs=1e-3) and got_hi == pytest.approx(hi, abs=1e-3)
+    assert sum(p.mesh.n_faces for p in m.parts) == faces
+
+
+def test_quad_has_texture_coordinates_for_uv_splits():
+    m = _parts("Lot --> extrude(5) comp(f){ front : F }\n"
+               "F --> primitiveQuad() split(u, unitSpace, 0){ ~1 : A | ~1 : B }")
+    assert not m.warnings
+    assert sorted(p.symbol for p in m.parts) == ["A", "B"]
+    widths = sorted(float(np.ptp(p.mesh.vertices[:, 0])) for p in m.parts)
+    assert widths == pytest.approx([5.0, 5.0])
+
+
+def test_primitive_with_wrong_argument_count_is_a_warning():
+    m = _parts("Lot --> primitiveCylinder(8, 1)")
+    assert any("primitiveCylinder" in w for w in m.warnings)
