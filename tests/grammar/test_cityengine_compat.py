@@ -74,3 +74,31 @@ def test_quad_has_texture_coordinates_for_uv_splits():
 def test_primitive_with_wrong_argument_count_is_a_warning():
     m = _parts("Lot --> primitiveCylinder(8, 1)")
     assert any("primitiveCylinder" in w for w in m.warnings)
+
+
+def test_split_group_without_repeat_is_inlined_once():
+    m = _parts("Lot --> split(x){ { 1 : A } | { ~3 : B }* }")
+    widths = sorted((p.symbol, round(float(np.ptp(p.mesh.vertices[:, 0])), 3)) for p in m.parts)
+    assert widths == [("A", 1.0), ("B", 3.0), ("B", 3.0), ("B", 3.0)]
+    m = _parts("Lot --> split(x){ { 1 : A | 2 : C } | ~1 : B }")
+    assert sorted((p.symbol, round(float(np.ptp(p.mesh.vertices[:, 0])), 3))
+                  for p in m.parts) == [("A", 1.0), ("B", 7.0), ("C", 2.0)]
+
+
+def test_setback_with_one_width_per_edge():
+    """``setback(comp(fe){…})``: the front band 4 m deep, the others 1 m (on a 20 × 10 lot)."""
+    m = _parts("Lot --> setback(comp(fe){ front : 4 | all : 1 }){ all : A | remainder : B }",
+               lot="20x10")
+    assert not m.warnings
+    rest = next(p for p in m.parts if p.symbol == "B")
+    lo, hi = rest.mesh.vertices.min(axis=0), rest.mesh.vertices.max(axis=0)
+    assert (hi - lo)[[0, 2]] == pytest.approx([18.0, 5.0])
+    # street selectors fall back to the shape's own directions, in the comp function too
+    m = _parts("Lot --> setback(comp(fe){ street.front : 4 | all : 0 }){ street.front : A "
+               "| remainder : B }", lot="20x10")
+    assert not m.warnings
+    band = next(p for p in m.parts if p.symbol == "A")
+    assert np.ptp(band.mesh.vertices[:, 2]) == pytest.approx(4.0)
+    # a width array of the wrong length is a clear warning
+    m = _parts("Lot --> setback([1, 2]){ all : A | remainder : B }")
+    assert any("one number per edge" in w for w in m.warnings)

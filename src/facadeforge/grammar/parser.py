@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import re
+from dataclasses import dataclass
 from importlib import resources
 
 from lark import Lark, Token, Transformer, v_args
@@ -46,6 +47,13 @@ def _unquote(tok: str) -> str:
 
 def _percent(tok: str) -> float:
     return float(tok.rstrip().rstrip("%").strip())
+
+
+@dataclass(frozen=True)
+class _Group:
+    """``{ … }`` inside a split body without ``*``: inlined by :meth:`_ToAst.body`."""
+
+    branches: tuple
 
 
 @v_args(meta=True)
@@ -185,7 +193,13 @@ class _ToAst(Transformer):
         return A.BodyOp("scatter", c[0] or (), (branch,), False, **_pos(meta))
 
     def body(self, meta, c):
-        return tuple(c)
+        out = []
+        for item in c:      # a group without "*" is its branches, once (CityEngine accepts it)
+            out.extend(item.branches if isinstance(item, _Group) else (item,))
+        return tuple(out)
+
+    def nested_group(self, meta, c):
+        return _Group(c[0])
 
     def branch_each(self, meta, c):
         return A.Branch(c[0], ":", c[1], **_pos(meta))

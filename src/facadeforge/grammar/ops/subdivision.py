@@ -361,6 +361,15 @@ def component_count(st, kind: str) -> int:
     return len(np.unique(e, axis=0))
 
 
+def _add_street_selectors(table: dict) -> None:
+    """``street.*`` and ``object.*`` edge selectors: without street-edge data on the initial
+    shape, CityEngine falls back to the shape's own directions; so do we."""
+    for name in _DIRS:
+        table["street." + name] = table[name]
+        table["object." + name] = table[name]
+    table["street.side"] = table["side"] & ~table["front"] & ~table["back"]
+
+
 @operation("comp", 1, 2, selectors=(0, 1), body=True)
 def op_comp(call):
     kind = call.sel(0)
@@ -475,6 +484,7 @@ def _comp_edges(call, st):
     for i, name in enumerate(_DIRS):
         table[name] = d == i
     table["side"] = (d < 2) | (d >= 4)
+    _add_street_selectors(table)
     taken = np.zeros(n, bool)
     out = []
     for branch in call.branches:
@@ -541,23 +551,24 @@ class _PlanarEdges:
         t = {name: d_idx == i for i, name in enumerate(_DIRS)}
         t["side"] = (d_idx < 2) | (d_idx >= 4)
         t["all"] = np.ones(k, bool)
-        for name in _DIRS:
-            t["street." + name] = t[name]
-            t["object." + name] = t[name]
-        t["street.side"] = t["side"] & ~t["front"] & ~t["back"]
+        _add_street_selectors(t)
         self.table = t
 
-    def band(self, edges, width: float):
-        """Strip of ``width`` inside the polygon along the given edges."""
+    def band(self, edges, width):
+        """Strip inside the polygon along the given edges, ``width`` wide (a number, or an array
+        with one width per edge of the polygon)."""
         import shapely
 
+        widths = np.broadcast_to(np.asarray(width, float), (self.k,))
         band = shapely.Polygon()
         for i in edges:
+            if widths[i] <= 0:
+                continue
             a, b = self.xy[i], self.xy[(i + 1) % self.k]
             t = (b - a) / max(np.linalg.norm(b - a), EPS)
-            inward = np.array([-t[1], t[0]])
-            band = band.union(shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward * width,
-                                               a - t * 1e3 + inward * width]))
+            inward = np.array([-t[1], t[0]]) * widths[i]
+            band = band.union(shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward,
+                                               a - t * 1e3 + inward]))
         return band
 
     def shapes(self, st, pieces) -> list:
@@ -586,10 +597,11 @@ def op_setback(call):
 
     Edges are selected like ``comp(e)`` (front/back/left/right/side/all/index); the band of width
     ``d`` along the selected edges becomes one shape per branch, the rest is ``remainder``.
+    ``d`` may be an array with one width per edge (``setback(comp(fe){ front : 4 | all : 1 })``).
     """
     st = call.state
-    d = call.num(0)
     pe = _PlanarEdges(st, "setback")
+    widths = _edge_widths(call, pe.k)
     remaining, out, remainder_branch = pe.shape, [], None
     taken = np.zeros(pe.k, bool)
     for branch in call.branches:
@@ -599,7 +611,7 @@ def op_setback(call):
             continue
         idx = np.flatnonzero(_match(key, pe.table, pe.k) & ~taken)
         taken[idx] = True
-        band = pe.band(idx, d)
+        band = pe.band(idx, widths)
         piece = remaining.intersection(band)
         remaining = remaining.difference(band)
         if piece.area > EPS:
@@ -607,6 +619,18 @@ def op_setback(call):
     if remainder_branch is not None and remaining.area > EPS:
         out.append((remainder_branch, remaining))
     return pe.shapes(st, out)
+
+
+def _edge_widths(call, k: int):
+    """The width argument of a per-edge operation: one number, or an array of ``k`` numbers."""
+    arg = call.args[0] if call.args else None
+    if isinstance(arg, np.ndarray):
+        if arg.dtype.kind not in "fi" or arg.size != k:
+            raise CGARuntimeError(f"{call.name}: the width array has {arg.size} "
+                                  f"{'values' if arg.dtype.kind in 'fi' else 'non-numbers'}; give "
+                                  f"one number per edge ({k}), e.g. comp(fe){{ front : 4 | all : 1 }}")
+        return arg.astype(float).reshape(-1)
+    return call.num(0)
 
 
 def _shape_letter(sides: tuple[str, ...]):
