@@ -117,6 +117,9 @@ def test_semantic_errors_name_file_line_and_suggest():
         load_rules("Lot --> extrude(flor(2.5)) X\n")
     with pytest.raises(RuleError, match="unknown import 'G'"):
         load_rules("Lot --> G.Facade\n")
+    with pytest.raises(RuleError, match="unknown built-in 'geometry.lowerheight'; did you mean "
+                                        "'geometry.height'"):
+        load_rules("Lot --> extrude(geometry.lowerheight) X\n")
     with pytest.raises(RuleError, match="start rule 'Lto' is not defined; did you mean 'Lot'"):
         load_rules("Lot --> X\n", start="Lto")
     with pytest.raises(RuleError, match="extrude\\(\\) takes 1 to 2 arguments, got 3"):

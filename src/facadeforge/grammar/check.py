@@ -26,6 +26,11 @@ _KEYWORDS = {
 }
 
 
+#: Prefixes of CityEngine's built-in names (``geometry.area``, ``scope.sx``…), never imports.
+_BUILTIN_NAMESPACES = frozenset({"geometry", "scope", "split", "comp", "initialShape", "material",
+                                 "world", "pivot", "edgeAttr", "convexHull", "street", "object"})
+
+
 def _shape_function_names() -> set:
     from .ops import SHAPE_FUNCTIONS, load_all
 
@@ -55,9 +60,13 @@ class _Checker:
                 return
             if selector_ok:  # selector vocabularies are open-ended (x, inside, sy, maxSlope, …)
                 return
+            prefix = node.name.split(".")[0]
+            if "." in node.name and prefix in _BUILTIN_NAMESPACES:
+                self.fail(f"unknown built-in '{node.name}'", node,
+                          [n for n in BUILTIN_NAMES | self.shape_fns
+                           if n.startswith(prefix + ".")])
             if "." in node.name and self.m.resolve(node.name) is None:
-                self.fail(f"unknown import '{node.name.split('.')[0]}' in '{node.name}'", node,
-                          self.m.imports)
+                self.fail(f"unknown import '{prefix}' in '{node.name}'", node, self.m.imports)
             self.fail(f"unknown attribute or variable '{node.name}'", node,
                       list(scope) + list(self.m.attrs) + (sorted(_KEYWORDS) if selector_ok else []))
         elif t is A.Call:
