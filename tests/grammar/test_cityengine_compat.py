@@ -102,3 +102,13 @@ def test_setback_with_one_width_per_edge():
     # a width array of the wrong length is a clear warning
     m = _parts("Lot --> setback([1, 2]){ all : A | remainder : B }")
     assert any("one number per edge" in w for w in m.warnings)
+
+
+@pytest.mark.parametrize("edge, sx, sy", [("world.lowest", 10.0, 20.0), ("longest", 20.0, 10.0),
+                                          ("world.highest", 10.0, 20.0)])
+def test_align_scope_to_geometry_edge_selectors(edge, sx, sy):
+    """A 10 m wide, 20 m tall facade: x along its bottom (or top) edge, or its longest (a side)."""
+    (m,) = derive("Lot --> extrude(20) comp(f){ front : F }\n"
+                  f"F --> alignScopeToGeometry(zUp, any, {edge}) print(scope.sx) "
+                  "print(scope.sy) X\n", lot_size="10x10")
+    assert [float(v) for v in m.attributes["prints"]] == pytest.approx([sx, sy])

@@ -115,7 +115,9 @@ def op_align_scope_to_axes(call):
 
 @operation("alignScopeToGeometry", 1, 3, selectors=(0, 1, 2))
 def op_align_scope_to_geometry(call):
-    """Scope axis ``upAxis`` along the normal of face ``faceIndex``, x along edge ``edgeIndex``."""
+    """Scope axis ``upAxis`` along the normal of face ``faceIndex`` (an index, ``largest`` or
+    ``any``), x along edge ``edgeIndex`` (an index, ``longest``, ``world.lowest`` — the bottom
+    edge, as Esri's facade rules use it —, ``world.highest`` or ``any``)."""
     st = call.state
     mesh = st.geometry
     if not mesh.n_faces:
@@ -132,8 +134,17 @@ def op_align_scope_to_geometry(call):
     poly = mesh.vertices[mesh.face(f)]
     k = len(poly)
     if isinstance(esel, str):
-        lengths = np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1)
-        e = int(np.argmax(lengths)) if esel == "longest" else int(np.argmin(lengths))
+        nxt = np.roll(poly, -1, axis=0)
+        lengths = np.linalg.norm(nxt - poly, axis=1)
+        mid_y = np.round((poly[:, 1] + nxt[:, 1]) / 2, 9)
+        if esel == "longest":
+            e = int(np.argmax(lengths))
+        elif esel in ("world.lowest", "lowest"):       # the bottom edge (the longest of ties)
+            e = int(np.lexsort((-lengths, mid_y))[0])
+        elif esel in ("world.highest", "highest"):
+            e = int(np.lexsort((-lengths, -mid_y))[0])
+        else:                                          # "any": the first edge
+            e = 0
     else:
         e = int(esel) % k
     n = normals[f]
