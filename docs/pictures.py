@@ -30,7 +30,7 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     import cv2
 
     from facadeforge import render
-    from facadeforge.evaluation.bench import box_to_image, select_samples
+    from facadeforge.evaluation.bench import select_samples
     from facadeforge.exchange.raster import PALETTE
     from facadeforge.reconstruction import _structure_png, reconstruct
 
@@ -40,8 +40,7 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     rec = reconstruct(photo, rectified=rectified)
     found = photo.copy()
     thick = max(2, round(max(photo.shape[:2]) / 300))
-    boxes = box_to_image(np.array(rec.windows(), float).reshape(-1, 4), rec.inverse,
-                         photo.shape[:2])
+    boxes = np.array(rec.windows(frame="input"), float).reshape(-1, 4)
     for x0, y0, x1, y1 in boxes.astype(int):
         cv2.rectangle(found, (x0, y0), (x1, y1), (40, 120, 255), thick)
     labels = PALETTE[rec.labels]

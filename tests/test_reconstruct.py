@@ -76,13 +76,13 @@ def test_label_maps_in_both_frames(result, synthetic):
 def test_windows_found_on_synthetic_facade(result, paper_result, synthetic):
     rec, _ = result
     assert rec.report["detection"]["source"] == "classifier"
-    score = match_boxes(synthetic[2], rec.windows())
+    score = match_boxes(synthetic[2], rec.windows(frame="input"))
     # the CMP classifier on a rendered facade: measured 0.39 (9 tp, 14 fp, 14 fn); shutters
     # count as window in CMP's labels, so several boxes hold a window and its shutters
     assert score.f1 >= 0.3, (score.precision, score.recall)
     rec, _ = paper_result
     assert rec.report["detection"]["source"] == "edges"
-    score = match_boxes(synthetic[2], rec.windows())
+    score = match_boxes(synthetic[2], rec.windows(frame="input"))
     assert score.f1 >= 0.3, (score.precision, score.recall)   # measured 0.36 (7 tp, 9 fp, 16 fn)
 
 
@@ -95,7 +95,7 @@ def test_windows_found_on_a_cmp_facade():
     (sample,) = [s for s in load_cmp(DATA / "cmp") if s.id == "cmp_b0187"]
     truth = [o.as_array() for o in sample.objects() if o.label == "window"]
     rec = reconstruct(sample.image(), rectified=True, model=False)
-    score = match_boxes(truth, rec.windows())
+    score = match_boxes(truth, rec.windows(frame="input"))
     assert score.f1 >= 0.6, (score.precision, score.recall)
     assert {"window", "door"} <= set(rec.report["elements"])
     # the scale comes from the storeys laid around the windows (3.2 m each): about 10 m for
@@ -104,7 +104,7 @@ def test_windows_found_on_a_cmp_facade():
     assert f["floor_period_m"] == pytest.approx(3.2, abs=0.01)
     assert 7 < f["height_m"] < 16, f
     edges = reconstruct(sample.image(), rectified=True, model=False, classifier=False)
-    assert match_boxes(truth, edges.windows()).f1 < score.f1
+    assert match_boxes(truth, edges.windows(frame="input")).f1 < score.f1
 
 
 def test_classifier_without_element_classes_is_refused():
@@ -198,7 +198,8 @@ def test_no_repetition_is_its_own_irreducible_facade():
     rec = reconstruct(img, rectified=True, model=False)
     assert rec.structure.floor_period_px == 0
     assert any("no vertical repetition" in f for f in rec.report["flags"])
-    assert rec.labels.shape == img.shape
+    assert rec.labels.shape == rec.rectified.shape[:2]
+    assert rec.labels_input().shape == img.shape
 
 
 def test_regular_facade_has_repetition():
@@ -283,3 +284,23 @@ def test_covered_pixels_of_a_rectified_frame():
     keystone = np.array([[1, 0.2, 0], [0, 1, 0], [0, 0.002, 1.0]])    # a perspective warp
     cov = _covered((100, 100), keystone, (100, 120))
     assert 0.3 < cov.mean() < 0.95 and cov[5, 5]
+
+
+def test_facade_extent_crops_background_around_the_facade():
+    from facadeforge.reconstruction import _facade_extent
+
+    classes = ("background", "wall", "window", "door", "balcony", "shop")
+    prob = np.zeros((200, 300, 6), np.float32)
+    prob[:, :, 0] = 1.0                                   # sky and neighbours
+    prob[40:200, 30:260, 0] = 0.0
+    prob[40:200, 30:260, 1] = 1.0                         # the facade
+    prob[60:70, 100:110, 0], prob[60:70, 100:110, 1] = 1.0, 0.0   # a small hole: still facade
+    assert _facade_extent(prob, classes) == pytest.approx((30, 40, 260, 200), abs=2)
+    wall = np.zeros_like(prob)
+    wall[:, :, 1] = 1.0
+    assert _facade_extent(wall, classes) is None          # all facade: nothing to crop
+    small = prob.copy()
+    small[:, :, 0], small[:, :, 1] = 1.0, 0.0
+    small[90:110, 140:160, 0], small[90:110, 140:160, 1] = 0.0, 1.0
+    assert _facade_extent(small, classes) is None         # a blob is not a facade to crop to
+    assert _facade_extent(prob[:, :, 1:], classes[1:]) is None   # no background class

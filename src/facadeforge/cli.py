@@ -227,7 +227,7 @@ def _demo_reconstruct(out: Path) -> None:
     rec_dir = out / "reconstruction"
     rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0], out_dir=rec_dir)
     truth = [o["box"] for o in objects if o["label"] == "window"]
-    score = match_boxes(truth, rec.windows())
+    score = match_boxes(truth, rec.windows(frame="input"))
     if rec.model is not None:
         render(rec.model, rec_dir / "preview.png")
     print(f"\nreconstructed the synthetic facade {photo.name} (truth: {len(truth)} windows):")

@@ -7,7 +7,9 @@
 2. ``rectify`` — vanishing points → homography (App. A), skipped with ``rectified=True``;
 3. ``symmetry`` / ``splits`` — MI repetition detection and floor/tile split lines (§2);
 4. ``classify`` / ``detect`` — better than the paper: the shipped pixel classifier
-   (``simon2011`` §4.3; ``classifier=``) and its elements as boxes (:mod:`.imaging.detect`);
+   (``simon2011`` §4.3; ``classifier=``) runs on the rectified photo, which is cropped to the
+   facade it finds (:func:`_facade_extent`: sky and neighbours around it become background),
+   and its elements become boxes (:mod:`.imaging.detect`);
    when it finds at least :data:`MIN_ELEMENTS`, floors, tiles and tile refinements are laid
    around them (:mod:`.imaging.element_layout`) instead of steps 3's lines and 6 — on the CMP
    val split this raises window F1 from 0.08 to 0.68 (README, *Benchmarks*);
@@ -101,10 +103,19 @@ class Reconstruction:
         return cv2.warpPerspective(self.labels, hcv, (w, h), flags=cv2.INTER_NEAREST,
                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
-    def windows(self, label: str = "window") -> list[list[float]]:
-        """Boxes ``[x0, y0, x1, y1]`` (rectified pixels) of the leaves labelled ``label``."""
-        return [list(map(float, s.tags["box_px"])) for s in self.tree.leaves()
-                if s.label == label and "box_px" in s.tags]
+    def windows(self, label: str = "window", frame: str = "rectified") -> list[list[float]]:
+        """Boxes ``[x0, y0, x1, y1]`` of the leaves labelled ``label``: rectified pixels, or
+        with ``frame="input"`` the bounding boxes of their corners in the input photo."""
+        boxes = [list(map(float, s.tags["box_px"])) for s in self.tree.leaves()
+                 if s.label == label and "box_px" in s.tags]
+        if frame == "rectified":
+            return boxes
+        if frame != "input":
+            raise InputError(f"frame {frame!r}: use 'rectified' or 'input'")
+        from .frames import box_to_image
+
+        return box_to_image(np.array(boxes, float).reshape(-1, 4), self.inverse,
+                            self.photo.shape[:2]).tolist()
 
     def save(self, out_dir: str | os.PathLike) -> list[Path]:
         """Write the OUTDIR files (see :func:`reconstruct`) atomically: everything is written
@@ -385,6 +396,40 @@ def _classifier(classifier):
     return clf
 
 
+def _facade_extent(prob: np.ndarray, classes, min_keep: float = 0.5
+                   ) -> tuple[int, int, int, int] | None:
+    """The rectangle ``(x0, y0, x1, y1)`` of the rectified photo the facade fills, or ``None``
+    (all of it): the longest run of columns, then of rows within them, whose probability of
+    not being facade (background, sky) averages below one half.  A crop that would keep less
+    than ``min_keep`` of a side is not trusted."""
+    outside = [list(classes).index(c) for c in ("background", "sky") if c in classes]
+    if not outside:
+        return None
+    from scipy.ndimage import uniform_filter1d
+
+    bg = prob[:, :, outside].sum(axis=2, dtype=np.float32)
+    h, w = bg.shape
+
+    def run(profile: np.ndarray) -> tuple[int, int]:
+        profile = uniform_filter1d(profile, max(1, profile.size // 100), mode="nearest")
+        on = np.concatenate([[0], (profile < 0.5).astype(np.int8), [0]])
+        d = np.diff(on)
+        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+        if not len(starts):
+            return 0, 0
+        k = int(np.argmax(ends - starts))
+        return int(starts[k]), int(ends[k])
+
+    x0, x1 = run(bg.mean(axis=0))
+    if x1 - x0 < min_keep * w:
+        return None
+    y0, y1 = run(bg[:, x0:x1].mean(axis=1))
+    if y1 - y0 < min_keep * h or (x0, y0, x1, y1) == (0, 0, w, h) \
+            or min(x1 - x0, y1 - y0) < MIN_SIDE:
+        return None
+    return x0, y0, x1, y1
+
+
 def _detect(prob, clf, gray, px_per_m):
     """Elements from the classifier's probabilities and the layout around them (``None`` with
     fewer than :data:`MIN_ELEMENTS`), and what goes to ``report["detection"]``."""
@@ -467,6 +512,16 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     homography = H @ to_work
     timings["rectify"] = time.perf_counter() - t
 
+    t = time.perf_counter()
+    prob = clf.predict_proba(rect_img) if clf is not None else None
+    crop = _facade_extent(prob, clf.classes) if prob is not None else None
+    uncropped = rect_img.shape[:2]
+    if crop is not None:     # the facade only: sky and neighbours around it are background
+        x0, y0, x1, y1 = crop
+        rect_img, prob = rect_img[y0:y1, x0:x1], prob[y0:y1, x0:x1]
+        homography = np.array([[1.0, 0, -x0], [0, 1.0, -y0], [0, 0, 1.0]]) @ homography
+    timings["classify"] = time.perf_counter() - t
+
     from .imaging.splits import FLOOR_PRIOR_M, floor_and_tile_split, to_gray
 
     gray = to_gray(rect_img)
@@ -475,10 +530,6 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     timings["symmetry"] = structure.timings.get("symmetry", 0.0)
     timings["splits"] = structure.timings.get("floors", 0.0) + structure.timings.get("tiles", 0.0)
     px_per_m = (1.0 / mpp[0], 1.0 / mpp[1]) if mpp else (structure.px_per_m, structure.px_per_m)
-
-    t = time.perf_counter()
-    prob = clf.predict_proba(rect_img) if clf is not None else None
-    timings["classify"] = time.perf_counter() - t
 
     t = time.perf_counter()
     layout, detection = _detect(prob, clf, gray, px_per_m)
@@ -547,6 +598,9 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         "input": {"photo": name, "width_px": int(rgb.shape[1]), "height_px": int(rgb.shape[0])},
         "rectification": {"applied": not rectified, "ok": rect_ok, "confidence": round(rect_conf, 4),
                           "reason": rect_reason, "homography": homography.tolist()},
+        # the facade's box in the rectified photo before the crop (None: all of it)
+        "facade_crop": None if crop is None else {
+            "box": [int(v) for v in crop], "of": [int(uncropped[1]), int(uncropped[0])]},
         "facade": {"width_m": round(w_m, 3), "height_m": round(h_m, 3),
                    "px_per_m": [round(v, 4) for v in px_per_m],
                    "scale_source": "given" if mpp else structure.scale_source,

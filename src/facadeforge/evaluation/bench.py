@@ -76,6 +76,7 @@ from ..datasets import (
 )
 from ..datasets.folder import objects_from_labels
 from ..errors import InputError
+from ..frames import box_to_image, warp_to_image
 from .methods import METHODS, Method, Prediction, get_method
 from .metrics import (
     DetectionAccumulator,
@@ -197,93 +198,6 @@ def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
     return scored, fit, (f"development split {split!r} (every 5th sorted id is val) of the "
                          f"{len(base)} photos in {data}/train (no {data}/val folder); fitted on "
                          f"its train part ({len(fit)})")
-
-
-# ---------------------------------------------------------------------------------- geometry
-def _check_homography(h: Any, where: str) -> np.ndarray:
-    m = np.asarray(h, np.float64)
-    if m.shape != (3, 3) or not np.isfinite(m).all():
-        raise InputError(f"{where}: homography must be a finite 3x3 matrix, got shape {m.shape}")
-    if abs(np.linalg.det(m)) < 1e-12 * max(1.0, float(np.abs(m).max()) ** 3):
-        raise InputError(f"{where}: homography is singular; it must map the prediction frame "
-                         "onto the photo one-to-one")
-    return m
-
-
-def warp_to_image(labels: np.ndarray, homography: np.ndarray, shape: tuple[int, int]
-                  ) -> np.ndarray:
-    """Resample a label map predicted in another frame into the photo's pixel frame.
-
-    Parameters
-    ----------
-    labels : (h, w) uint8
-        Prediction in its own frame.
-    homography : (3, 3) float
-        Prediction-frame pixel coordinates → photo pixel coordinates (pixel-edge convention:
-        pixel ``(r, c)`` has its centre at ``(c + 0.5, r + 0.5)``).
-    shape : (H, W)
-        The photo's size.
-
-    Returns
-    -------
-    (H, W) uint8
-        For each photo pixel, the prediction at the inverse-mapped pixel centre (nearest
-        neighbour); :data:`IGNORE` where that falls outside the prediction or behind the camera.
-    """
-    labels = np.asarray(labels)
-    inv = np.linalg.inv(_check_homography(homography, "warp_to_image"))
-    big_h, big_w = int(shape[0]), int(shape[1])
-    ph, pw = labels.shape
-    out = np.full((big_h, big_w), IGNORE, np.uint8)
-    if big_h == 0 or big_w == 0 or ph == 0 or pw == 0:
-        return out
-    xs = np.arange(big_w, dtype=np.float64) + 0.5
-    centre = inv @ np.array([big_w / 2, big_h / 2, 1.0])
-    sign = 1.0 if centre[2] >= 0 else -1.0  # the side of the plane the photo sees
-    step = max(1, (1 << 22) // max(big_w, 1))  # rows per block: bounded temporary memory
-    for r0 in range(0, big_h, step):
-        ys = np.arange(r0, min(big_h, r0 + step), dtype=np.float64)[:, None] + 0.5
-        z = (inv[2, 0] * xs + inv[2, 1] * ys + inv[2, 2]) * sign
-        with np.errstate(divide="ignore", invalid="ignore"):
-            u = (inv[0, 0] * xs + inv[0, 1] * ys + inv[0, 2]) * sign / z
-            v = (inv[1, 0] * xs + inv[1, 1] * ys + inv[1, 2]) * sign / z
-        ok = (z > 1e-12) & (u >= 0) & (u < pw) & (v >= 0) & (v < ph)
-        block = out[r0:r0 + ys.shape[0]]
-        block[ok] = labels[v[ok].astype(np.intp), u[ok].astype(np.intp)]
-    return out
-
-
-def box_to_image(boxes: np.ndarray, homography: np.ndarray, shape: tuple[int, int]
-                 ) -> np.ndarray:
-    """Map boxes from a prediction frame into the photo: bounding box of the mapped corners.
-
-    Parameters
-    ----------
-    boxes : (N, 4) float
-        ``x0, y0, x1, y1`` in prediction-frame pixels.
-    homography : (3, 3) float
-        Prediction frame → photo (as in :func:`warp_to_image`).
-    shape : (H, W)
-        The photo's size; boxes are clipped to it.
-
-    Returns
-    -------
-    (N, 4) float64
-    """
-    b = np.asarray(boxes, np.float64).reshape(-1, 4)
-    if b.shape[0] == 0:
-        return b
-    m = _check_homography(homography, "box_to_image")
-    corners = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [0, 3]], b[:, [2, 3]]], axis=1)
-    pts = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2) @ m.T
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xy = pts[..., :2] / pts[..., 2:3]
-    xy = np.nan_to_num(xy, nan=0.0, posinf=1e12, neginf=-1e12)
-    out = np.concatenate([xy.min(axis=1), xy.max(axis=1)], axis=1)
-    h, w = shape
-    out[:, [0, 2]] = np.clip(out[:, [0, 2]], 0, w)
-    out[:, [1, 3]] = np.clip(out[:, [1, 3]], 0, h)
-    return out
 
 
 # ---------------------------------------------------------------------------------- scoring

@@ -307,10 +307,21 @@ class StructureMethod:
         rec = reconstruct(sample.image(), model=False,
                           rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS,
                           classifier=None if self.classifier else False)
-        windows = np.array(rec.windows(), np.float64).reshape(-1, 4)
         floors = rec.report["floors"]
-        return Prediction(labels=rec.labels, homography=rec.inverse, windows=windows,
-                          floors=floors)
+        windows = np.array(rec.windows(frame="input"), np.float64).reshape(-1, 4)
+        crop = rec.report.get("facade_crop")
+        labels = rec.labels
+        homography = rec.inverse
+        if crop is not None:          # the rectified frame before the crop: background around
+            x0, y0, x1, y1 = crop["box"]
+            w0, h0 = crop["of"]
+            labels = np.zeros((h0, w0), np.uint8)
+            labels[y0:y1, x0:x1] = rec.labels
+            homography = rec.inverse @ np.array([[1.0, 0, -x0], [0, 1.0, -y0], [0, 0, 1.0]])
+        from ..frames import warp_to_image
+
+        return Prediction(labels=warp_to_image(labels, homography, sample.image_shape()),
+                          windows=windows, floors=floors)
 
 
 register_method("structure", "canonical",

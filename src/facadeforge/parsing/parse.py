@@ -62,7 +62,7 @@ class Parse:
     def labels_input(self) -> np.ndarray:
         """Canonical labels in the photo frame: the derivation inside the rectified facade, the
         classifier's argmax outside it."""
-        from ..evaluation.bench import warp_to_image
+        from ..frames import warp_to_image
 
         warped = warp_to_image(self.labels, self.inverse, self.photo.shape[:2])
         return np.where(warped == IGNORE, self.fallback, warped).astype(np.uint8)
