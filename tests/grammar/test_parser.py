@@ -117,6 +117,8 @@ def test_semantic_errors_name_file_line_and_suggest():
         load_rules("Lot --> extrude(flor(2.5)) X\n")
     with pytest.raises(RuleError, match="unknown import 'G'"):
         load_rules("Lot --> G.Facade\n")
+    with pytest.raises(RuleError, match=r"setback\(\) needs a \{ … \} body"):
+        load_rules("Lot --> setback(3) X\n")
     with pytest.raises(RuleError, match="unknown built-in 'geometry.lowerheight'; did you mean "
                                         "'geometry.height'"):
         load_rules("Lot --> extrude(geometry.lowerheight) X\n")

@@ -119,6 +119,13 @@ class _Checker:
             if t is A.Successor:
                 spec = operation_of(op, self.m)
                 if spec is not None:
+                    if spec.body:
+                        raise RuleError(f"{op.name}() needs a {{ … }} body saying what its parts "
+                                        f"become, e.g. {op.name}(…) {{ all : A | remainder : B }}"
+                                        if op.name in ("setback", "shapeL", "shapeU", "shapeO",
+                                                       "innerRectangle")
+                                        else f"{op.name}() needs a {{ … }} body saying what its "
+                                        f"parts become", self.m.path, op.line, op.column)
                     if not spec.min_args <= len(op.args) <= spec.max_args:
                         want = (spec.min_args if spec.min_args == spec.max_args
                                 else f"{spec.min_args} to {spec.max_args}")
