@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
                 dt = time.perf_counter() - t0
                 if dt < best:
                     best, best_rec = dt, rec
-            sc = match_boxes(truth, best_rec.windows())
+            sc = match_boxes(truth, best_rec.windows(frame="input"))
             row = {"style": style, "size": meta["image_size"], "seconds": round(best, 3),
                    "timings": {s: round(v, 4) for s, v in best_rec.report["timings"].items()},
                    "floors": best_rec.report["floors"], "tiles": best_rec.report["tiles"],

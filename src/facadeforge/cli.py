@@ -80,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     c.add_argument("photo", help="facade photo (JPEG/PNG/TIFF…; gray, RGBA and 16-bit are fine)")
     c.add_argument("--rectified", action="store_true", help="the photo is already fronto-parallel")
-    c.add_argument("--width-m", type=float, help="facade width in metres (else the floor-height prior)")
+    c.add_argument("--width-m", type=float, help="width of the facade in metres, without the "
+                   "neighbours around it (else the floor-height prior)")
     c.add_argument("--height-m", type=float, help="facade height in metres")
     c.add_argument("--depths", help="JSON {label or cluster: depth in metres}, negative = recessed")
     c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")

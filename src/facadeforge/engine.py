@@ -251,6 +251,9 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
         fps = lot(lot_size)
     else:
         fps = list(footprints)
+    if isinstance(rules, Rules) and style is not None:
+        raise InputError("style= applies when rules are loaded: pass it to load_rules(…, "
+                         "style=…) instead of derive")
     loaded = rules if isinstance(rules, Rules) else load_rules(rules, rule=rule, assets=assets,
                                                                  start=start, style=style)
     n_workers = workers if workers is not None else (os.cpu_count() or 1)

@@ -464,7 +464,9 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     rectified : bool
         The photo is already fronto-parallel: skip rectification.
     width_m, height_m : float, optional
-        Facade size in metres; otherwise the floor-height prior sets the scale.
+        Size in metres of the facade analysed — the rectified photo, cropped to the facade when
+        the classifier sees sky or neighbours around it (``report["facade_crop"]``); otherwise
+        the floor-height prior sets the scale.
     depths : mapping or path to JSON, optional
         Depth per class or per cluster id (metres, negative = recessed); see
         :data:`DEFAULT_DEPTHS`.

@@ -112,3 +112,27 @@ def test_align_scope_to_geometry_edge_selectors(edge, sx, sy):
                   f"F --> alignScopeToGeometry(zUp, any, {edge}) print(scope.sx) "
                   "print(scope.sy) X\n", lot_size="10x10")
     assert [float(v) for v in m.attributes["prints"]] == pytest.approx([sx, sy])
+
+
+@pytest.mark.parametrize("rule, lo, hi", [
+    ("primitiveQuad(2, 3)", [4.0, 3.5, 10.0], [6.0, 6.5, 10.0]),
+    ("primitiveDisk(8, 1)", [4.0, 4.0, 10.0], [6.0, 6.0, 10.0]),
+    ("primitiveQuad()", [0.0, 0.0, 10.0], [10.0, 10.0, 10.0]),
+])
+def test_flat_primitives_lie_in_a_facade(rule, lo, hi):
+    """On a facade (scope sz = 0) a quad or disk lies in the facade, centred in it."""
+    m = _parts(f"Lot --> extrude(10) comp(f){{ front : F }}\nF --> {rule}")
+    got_lo, got_hi = _bbox(m)
+    assert got_lo == pytest.approx(lo, abs=1e-3) and got_hi == pytest.approx(hi, abs=1e-3)
+
+
+def test_bare_names_of_other_operations_stay_leaves():
+    m = _parts("Lot --> extrude(5) comp(f){ side : Wall | top : trim }")
+    assert "trim" in {p.symbol for p in m.parts} and not m.warnings
+
+
+def test_occlusion_after_a_component_split_ignores_the_shape_itself():
+    m = _parts("Lot --> extrude(10) comp(f){ top : Roof } Mass\n"
+               "Mass --> s('0.5, '0.5, '0.5) center(xyz) Inner\n"
+               "Inner --> case inside() : In else : Out")
+    assert "Out" in {p.symbol for p in m.parts}

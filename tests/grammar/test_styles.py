@@ -74,3 +74,21 @@ def test_cli_style(tmp_path, capsys):
     assert main(["derive", str(rules), "--lot", "10x10", "--style", "Day", "-o", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown style 'Day'" in err[0]
+
+
+def test_the_chosen_styles_start_rule_comes_first():
+    rules = ('@StartRule\nLot --> extrude(5) A\nA --> X.\n'
+             'style Tall\n@StartRule\nOther --> extrude(30) B\nB --> Y.\n')
+    (m,) = derive(rules, lot_size="10x10")
+    assert {p.symbol for p in m.parts} == {"X"}
+    (m,) = derive(rules, lot_size="10x10", style="Tall")
+    assert {p.symbol for p in m.parts} == {"Y"}
+
+
+def test_style_belongs_to_loading():
+    from facadeforge import InputError, load_rules
+
+    with pytest.raises(InputError, match="load_rules"):
+        derive(load_rules(RULES), lot_size="10x10", style="Night")
+    (m,) = derive(load_rules(RULES, style="Night"), lot_size="10x10")
+    assert max(float(p.mesh.vertices[:, 1].max()) for p in m.parts) == pytest.approx(20.0)

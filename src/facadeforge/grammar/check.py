@@ -189,9 +189,10 @@ def check_rules(ruleset: RuleSet) -> None:
     """Raise ``RuleError`` for the first unknown name in any linked module."""
     for mod in ruleset.main.all_modules():
         c = _Checker(mod)
-        for a in mod.attrs.values():          # the declarations of the module's style
+        attrs, functions, rules = mod.own_declarations    # in the module's style
+        for a in attrs:
             c.expr(a.value, set())
-        for f in (f for by_arity in mod.functions.values() for f in by_arity.values()):
+        for f in functions:
             c.expr(f.body, {p.name for p in f.params})
-        for r in (r for by_arity in mod.rules.values() for r in by_arity.values()):
+        for r in rules:
             c.ops(r.body, {p.name for p in r.params})

@@ -543,7 +543,10 @@ class _RunContext:
                             self.node.children.append(piece)
                             self.d._output(piece, piece_state, self.rule)
                     # the current shape is now an inner node of the tree, never a leaf; as in
-                    # CityEngine, operations after the body go on with it unchanged
+                    # CityEngine, operations after the body go on with it unchanged (its own
+                    # volume, now an occluder, is an ancestor of what follows)
+                    if own is not None:
+                        state.context = {**state.context, "occluder_ancestors": own}
                     consumed = True
                 elif t is A.Push:
                     sub_state = state.copy()

@@ -60,11 +60,19 @@ class Module:
                 self.functions.setdefault(f.name, {})[len(f.params)] = f
             for r in rules:
                 self.rules.setdefault(r.name, {})[len(r.params)] = r
+        # this file's own declarations in its style (anonymous imports add theirs to the
+        # namespace below; they are checked in their own file)
+        self.own_declarations: tuple[list, list, list] = (
+            list(self.attrs.values()),
+            [f for by_arity in self.functions.values() for f in by_arity.values()],
+            [r for by_arity in self.rules.values() for r in by_arity.values()])
         # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
         self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
-        self.start_rules = [r.name for by_arity in self.rules.values()
-                            for r in by_arity.values()
-                            if any(a.name == "StartRule" for a in r.annotations)]
+        # @StartRule of the chosen style first, then of the styles it extends, then Default's
+        chain = _style_chain(rule_file, self.style)
+        self.start_rules = list(dict.fromkeys(
+            r.name for _, _, rules in reversed(chain) for r in rules
+            if any(a.name == "StartRule" for a in r.annotations)))
 
     # -- lookups -----------------------------------------------------------------------------
     def resolve(self, qualified: str) -> tuple[Module, str] | None:

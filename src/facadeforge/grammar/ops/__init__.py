@@ -32,14 +32,21 @@ class OpSpec:
 OPERATIONS: dict[str, OpSpec] = {}
 
 
+#: Operations that may be written without parentheses (Esri's own rules write
+#: ``primitiveQuad``); other bare lower-case names stay rule calls or leaves (``trim``, ``tag``).
+BARE_OPERATIONS: frozenset[str] = frozenset({
+    "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone", "primitiveDisk",
+    "primitiveSphere", "reverseNormals"})
+
+
 def operation_of(op, module) -> OpSpec | None:
     """The operation a successor ``op`` calls, or ``None`` when it calls a rule: a name with
-    parentheses, or a bare name of an operation that takes no arguments (CityEngine accepts
-    ``primitiveQuad`` for ``primitiveQuad()``), unless ``module`` defines a rule of that name."""
+    parentheses, or a bare name of :data:`BARE_OPERATIONS` (``primitiveQuad`` for
+    ``primitiveQuad()``), unless ``module`` defines a rule of that name."""
     spec = OPERATIONS.get(op.name)
     if spec is None or module.has_rule_name(op.name):
         return None
-    if not getattr(op, "has_parens", False) and (spec.min_args > 0 or spec.body):
+    if not getattr(op, "has_parens", False) and op.name not in BARE_OPERATIONS:
         return None
     return spec
 

@@ -340,11 +340,16 @@ def _primitive_size(kind: str, dims: list[float]) -> np.ndarray:
     return np.full(3, 2 * dims[0])                                        # sphere
 
 
-def _quad_in_scope_plane(size: np.ndarray) -> Mesh:
-    """The unit quad in the plane of the scope's two non-zero dimensions (a facade's xy, a
-    lot's xz); lying in xz when no dimension is zero (CityEngine's default)."""
+def _scope_plane(size: np.ndarray) -> tuple[int, int]:
+    """The two scope axes of a flat primitive: those of the scope's non-zero dimensions (a
+    facade's x, y; a lot's x, z), x and z when none is zero (CityEngine's default)."""
     flat = [k for k in range(3) if size[k] <= EPS]
-    a, b = ((0, 1) if flat == [2] else (1, 2) if flat == [0] else (0, 2))
+    return (0, 1) if flat == [2] else (1, 2) if flat == [0] else (0, 2)
+
+
+def _quad_in_scope_plane(size: np.ndarray) -> Mesh:
+    """The unit quad in the plane :func:`_scope_plane` picks, facing its third axis."""
+    a, b = _scope_plane(size)
     uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
     v = np.zeros((4, 3))
     v[:, a], v[:, b] = uv[:, 0], uv[:, 1]
@@ -362,7 +367,8 @@ def _primitive_op(kind):
     def fn(call):
         """CityEngine's primitive operations: no arguments fit the primitive to the scope;
         resolution arguments (sides, rows…) refine it; with its dimensions it gets that size,
-        centred in the scope's xz and lying on its y = 0."""
+        centred in the scope's xz and lying on its y = 0 — a quad or disk centred in the plane
+        of the scope's non-zero dimensions instead (a facade's xy)."""
         st = call.state
         n = len(call.args)
         if n not in (0, n_res, n_res + n_dims) and not (kind == "sphere" and n == 1):
@@ -374,17 +380,26 @@ def _primitive_op(kind):
         if any(d < 0 for d in dims):
             raise CGARuntimeError(f"primitive{kind.title()}(): sizes must not be negative")
         if kind == "quad":
-            mesh = _quad_in_scope_plane(np.array(_primitive_size(kind, dims)) if dims
-                                        else st.scope.size)
+            mesh = _quad_in_scope_plane(st.scope.size)
         elif kind == "sphere" and res:
             mesh = PRIMITIVES[kind](*(res + [16] if len(res) == 1 else res))
         else:
             mesh = PRIMITIVES[kind](*res)
+        if kind == "disk" and _scope_plane(st.scope.size) != (0, 2):   # a disk on a facade
+            a, b = _scope_plane(st.scope.size)
+            v = mesh.vertices[:, [0, 2, 1]] if (a, b) == (0, 1) else mesh.vertices[:, [1, 0, 2]]
+            mesh = mesh.with_vertices(v)
         if dims:
             size = _primitive_size(kind, dims)
+            if kind in ("quad", "disk"):    # flat: the two sizes go along the scope's plane
+                a, b = _scope_plane(st.scope.size)
+                size = np.zeros(3)
+                size[a], size[b] = (dims[0], dims[1]) if kind == "quad" else (2 * dims[0],) * 2
             sc = st.own_scope()
             old = sc.size
-            shift = np.array([(old[0] - size[0]) / 2, 0.0, (old[2] - size[2]) / 2])
+            shift = np.where(np.arange(3) == 1, 0.0, (old - size) / 2)
+            if kind in ("quad", "disk"):
+                shift = (old - size) / 2 * (size > 0)
             sc.origin = sc.to_world(shift[None])[0]
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())

@@ -115,9 +115,11 @@ def op_align_scope_to_axes(call):
 
 @operation("alignScopeToGeometry", 1, 3, selectors=(0, 1, 2))
 def op_align_scope_to_geometry(call):
-    """Scope axis ``upAxis`` along the normal of face ``faceIndex`` (an index, ``largest`` or
-    ``any``), x along edge ``edgeIndex`` (an index, ``longest``, ``world.lowest`` — the bottom
-    edge, as Esri's facade rules use it —, ``world.highest`` or ``any``)."""
+    """Scope axis ``upAxis`` along the normal of face ``faceIndex`` (an index, ``largest``,
+    ``world.lowest``/``world.highest`` — the face with the lowest/highest centre —, or ``any``:
+    the face holding the selected edge), x along edge ``edgeIndex`` (an index, ``longest``,
+    ``shortest``, ``world.lowest`` — the bottom edge, as Esri's facade rules use it —,
+    ``world.highest`` or ``any``)."""
     st = call.state
     mesh = st.geometry
     if not mesh.n_faces:
@@ -127,26 +129,42 @@ def op_align_scope_to_geometry(call):
     esel = call.args[2] if len(call.args) > 2 else 0
     normals = mesh.face_normals()
     areas = mesh.face_areas()
-    if isinstance(fsel, str):
-        f = int(np.argmax(areas)) if fsel == "largest" else 0
-    else:
-        f = int(fsel) % mesh.n_faces
-    poly = mesh.vertices[mesh.face(f)]
-    k = len(poly)
-    if isinstance(esel, str):
+    def edge_of(poly: np.ndarray) -> tuple[int, float]:
+        """The selected edge of a face and a score for choosing among faces (lower wins)."""
         nxt = np.roll(poly, -1, axis=0)
         lengths = np.linalg.norm(nxt - poly, axis=1)
         mid_y = np.round((poly[:, 1] + nxt[:, 1]) / 2, 9)
+        if not isinstance(esel, str):
+            return int(esel) % len(poly), 0.0
         if esel == "longest":
             e = int(np.argmax(lengths))
-        elif esel in ("world.lowest", "lowest"):       # the bottom edge (the longest of ties)
+            return e, -float(lengths[e])
+        if esel == "shortest":
+            e = int(np.argmin(lengths))
+            return e, float(lengths[e])
+        if esel in ("world.lowest", "lowest"):         # the bottom edge (the longest of ties)
             e = int(np.lexsort((-lengths, mid_y))[0])
-        elif esel in ("world.highest", "highest"):
+            return e, float(mid_y[e])
+        if esel in ("world.highest", "highest"):
             e = int(np.lexsort((-lengths, -mid_y))[0])
-        else:                                          # "any": the first edge
-            e = 0
+            return e, -float(mid_y[e])
+        return 0, 0.0                                  # "any": the first edge
+
+    faces = [mesh.vertices[mesh.face(i)] for i in range(mesh.n_faces)]
+    if fsel == "any" and isinstance(esel, str) and esel != "any":
+        f = min(range(len(faces)), key=lambda i: (edge_of(faces[i])[1], i))  # the extremal edge's face
+    elif fsel == "largest":
+        f = int(np.argmax(areas))
+    elif fsel in ("world.lowest", "world.highest"):
+        cy = np.array([p[:, 1].mean() for p in faces])
+        f = int(np.argmin(cy) if fsel == "world.lowest" else np.argmax(cy))
+    elif isinstance(fsel, str):
+        f = 0
     else:
-        e = int(esel) % k
+        f = int(fsel) % mesh.n_faces
+    poly = faces[f]
+    k = len(poly)
+    e = edge_of(poly)[0]
     n = normals[f]
     x = poly[(e + 1) % k] - poly[e]
     x = x - n * (x @ n)
