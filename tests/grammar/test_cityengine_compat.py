@@ -136,3 +136,16 @@ def test_occlusion_after_a_component_split_ignores_the_shape_itself():
                "Mass --> s('0.5, '0.5, '0.5) center(xyz) Inner\n"
                "Inner --> case inside() : In else : Out")
     assert "Out" in {p.symbol for p in m.parts}
+
+
+def test_setback_per_edge_evaluates_the_distance_on_each_edge():
+    """setbackPerEdge(d) is setback(comp(fe){ all : d }): ``scope.sx`` is each edge's length,
+    so on a 20 × 10 lot the long edges get 2 m and the short ones 1 m."""
+    m = _parts("Lot --> setbackPerEdge(scope.sx / 10){ all = A | remainder : B }", lot="20x10")
+    assert not m.warnings
+    rest = next(p for p in m.parts if p.symbol == "B")
+    assert np.ptp(rest.mesh.vertices, axis=0)[[0, 2]] == pytest.approx([18.0, 6.0])
+    m = _parts("const dists = [4, 1, 1, 1]\ndist = dists[comp.index]\n"
+               "Lot --> setbackPerEdge(dist){ all = A | remainder : B }", lot="20x10")
+    rest = next(p for p in m.parts if p.symbol == "B")
+    assert sorted(np.ptp(rest.mesh.vertices, axis=0)[[0, 2]]) == pytest.approx([5.0, 18.0])

@@ -185,7 +185,15 @@ class _ToAst(Transformer):
 
     def body_op(self, meta, c):
         repeat = len(c) > 3 and c[3] is not None
-        return A.BodyOp(str(c[0]), c[1] or (), c[2], repeat, **_pos(meta))
+        name, args = str(c[0]), tuple(c[1] or ())
+        if name == "setbackPerEdge" and args:
+            # CityEngine documents it as a shortcut: setback(comp(fe){ all : distance }){ … },
+            # the distance evaluated on each face edge in turn
+            pos = _pos(meta)
+            per_edge = A.CompFunction(A.Name("fe", **pos),
+                                      (A.Branch(A.Name("all", **pos), ":", args[0], **pos),), **pos)
+            name, args = "setback", (per_edge, *args[1:])
+        return A.BodyOp(name, args, c[2], repeat, **_pos(meta))
 
     def scatter_op(self, meta, c):
         # ``scatter(...){ ops }``: one implicit branch for every scattered point
