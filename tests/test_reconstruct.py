@@ -58,7 +58,7 @@ def test_outdir_holds_every_file(result):
     assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
     report = json.loads((out / "report.json").read_text())
     assert report["timings"]["symmetry"] > 0
-    assert {"load", "rectify", "splits", "refine", "match", "rules", "model", "total"} <= set(
+    assert {"load", "rectify", "splits", "refine", "match", "rules", "model", "export", "total"} <= set(
         report["timings"])
     assert isinstance(report["needs_review"], bool) and isinstance(report["flags"], list)
     assert report["floors"] >= 3
