@@ -149,3 +149,25 @@ def test_setback_per_edge_evaluates_the_distance_on_each_edge():
                "Lot --> setbackPerEdge(dist){ all = A | remainder : B }", lot="20x10")
     rest = next(p for p in m.parts if p.symbol == "B")
     assert sorted(np.ptp(rest.mesh.vertices, axis=0)[[0, 2]]) == pytest.approx([5.0, 18.0])
+
+
+@pytest.mark.parametrize("rule, symbol, area", [
+    # the documented examples: a 400 m² square set back to a 100 m² remainder, and to 300 m²
+    # of setback bands; only the front and left edges move (still a 100 m² remainder)
+    ("setbackToArea(100){ all = NIL | remainder = X }", "X", 100.0),
+    ("setbackToArea(geometry.area - 300){ all = G }", "G", 300.0),
+    ("setbackToArea(100){ front = B | left = C | remainder = X }", "X", 100.0),
+    # minimum distances raised by a common offset: the front keeps 4 m more than the others
+    ("setbackToArea(100, [4, 0, 0, 0]){ all = G | remainder = X }", "X", 100.0),
+])
+def test_setback_to_area(rule, symbol, area):
+    m = _parts(f"Lot --> {rule}", lot="20x20")
+    assert not m.warnings
+    got = sum(float(p.mesh.face_areas().sum()) for p in m.parts if p.symbol == symbol)
+    assert got == pytest.approx(area, rel=1e-3)
+
+
+def test_setback_to_area_out_of_reach_keeps_the_closest():
+    m = _parts("Lot --> setbackToArea(1000){ all = G | remainder = X }", lot="20x20")
+    assert sum(float(p.mesh.face_areas().sum()) for p in m.parts if p.symbol == "X") == \
+        pytest.approx(400.0)

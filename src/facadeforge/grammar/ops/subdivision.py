@@ -601,7 +601,12 @@ def op_setback(call):
     """
     st = call.state
     pe = _PlanarEdges(st, "setback")
-    widths = _edge_widths(call, pe.k)
+    return pe.shapes(st, _setback_pieces(call, pe, _edge_widths(call, pe.k)))
+
+
+def _setback_pieces(call, pe, widths) -> list:
+    """``[(branch, shapely geometry)]`` of a setback with ``widths`` (a number or one per
+    edge): each branch takes the band along its still untaken edges, ``remainder`` the rest."""
     remaining, out, remainder_branch = pe.shape, [], None
     taken = np.zeros(pe.k, bool)
     for branch in call.branches:
@@ -618,7 +623,52 @@ def op_setback(call):
             out.append((branch, piece))
     if remainder_branch is not None and remaining.area > EPS:
         out.append((remainder_branch, remaining))
-    return pe.shapes(st, out)
+    return out
+
+
+@operation("setbackToArea", 1, 4, body=True)
+def op_setback_to_area(call):
+    """``setbackToArea(area[, minDistances[, maxDistances]][, uvSet]){…}``: a setback whose
+    distances are chosen so that the remainder has ``area`` — one distance for every selected
+    edge, or ``minDistances`` raised by a common offset and capped at ``maxDistances`` (found
+    by bisection; the remainder's area falls as the offset grows).  An unreachable area gives
+    the closest setback (none, or the largest)."""
+    st = call.state
+    pe = _PlanarEdges(st, "setbackToArea")
+    target = call.num(0)
+    arrays = [np.asarray(a, float).reshape(-1) for a in call.args[1:]
+              if isinstance(a, np.ndarray)]
+    for a in arrays:
+        if a.size != pe.k:
+            raise CGARuntimeError(f"setbackToArea: a distance array has {a.size} values; give "
+                                  f"one per edge ({pe.k})")
+    lo = arrays[0] if arrays else np.zeros(pe.k)
+    hi = arrays[1] if len(arrays) > 1 else np.full(pe.k, np.inf)
+    selected = np.zeros(pe.k, bool)
+    for branch in call.branches:
+        key = _selector_key(call, branch)
+        if key != "remainder":
+            selected |= _match(key, pe.table, pe.k)
+    edges = np.flatnonzero(selected)
+
+    def widths(offset: float) -> np.ndarray:
+        return np.minimum(lo + offset, hi)
+
+    def remainder(offset: float) -> float:
+        return pe.shape.difference(pe.band(edges, widths(offset))).area
+
+    span = float(np.ptp(pe.xy, axis=0).max()) if len(pe.xy) else 0.0
+    a, b = 0.0, span
+    if remainder(a) <= target:
+        b = a
+    elif remainder(b) >= target:
+        a = b
+    for _ in range(50):                     # bounded: 50 halvings reach float precision
+        if b - a <= 1e-6 * max(span, 1.0):
+            break
+        mid = (a + b) / 2
+        a, b = (mid, b) if remainder(mid) > target else (a, mid)
+    return pe.shapes(st, _setback_pieces(call, pe, widths((a + b) / 2)))
 
 
 def _edge_widths(call, k: int):
