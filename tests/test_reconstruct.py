@@ -198,6 +198,9 @@ def test_no_repetition_is_its_own_irreducible_facade():
     rec = reconstruct(img, rectified=True, model=False)
     assert rec.structure.floor_period_px == 0
     assert any("no vertical repetition" in f for f in rec.report["flags"])
+    # the classifier sees no elements in noise: the edge path, with stage 1's own tile lines
+    assert rec.report["detection"]["source"] == "edges"
+    assert rec.report["tiles"] > rec.report["floors"]
     assert rec.labels.shape == rec.rectified.shape[:2]
     assert rec.labels_input().shape == img.shape
 

@@ -242,20 +242,15 @@ def _refine(gray, structure, tile_c, owner, boxes):
     return regions
 
 
-def _element_leaves(region) -> list:
-    from .imaging.refine import leaves
-
-    return [r for r in leaves(region) if r.role == "element"] if region is not None else []
-
-
 def _match(gray, regions, tile_c, n_floors):
     """Element type per element-leaf cluster (§4 eq. 8), kinds restricted per floor."""
     from .imaging.matching import match_elements
+    from .imaging.refine import element_leaves
 
     groups: dict[tuple[str, int, str], list] = {}
     for i, row in enumerate(regions):
         for j, region in enumerate(row):
-            for leaf in _element_leaves(region):
+            for leaf in element_leaves(region):
                 key = ("G" if i == n_floors - 1 else "U", tile_c[i][j], leaf.label)
                 groups.setdefault(key, []).append(leaf)
     chosen: dict[int, str] = {}
@@ -430,7 +425,7 @@ def _facade_extent(prob: np.ndarray, classes, min_keep: float = 0.5
     return x0, y0, x1, y1
 
 
-def _detect(prob, clf, gray, px_per_m):
+def _detect(prob, clf, gray, px_per_m, edges):
     """Elements from the classifier's probabilities and the layout around them (``None`` with
     fewer than :data:`MIN_ELEMENTS`), and what goes to ``report["detection"]``."""
     if prob is None:
@@ -446,7 +441,7 @@ def _detect(prob, clf, gray, px_per_m):
         return None, {"source": "edges", **info}
     detected = [c for c in DETECTED_LABELS if c in clf.classes]
     occupancy = prob[:, :, [clf.classes.index(c) for c in detected]].sum(axis=2)
-    layout = element_layout(elements, gray, occupancy, float(px_per_m[1]))
+    layout = element_layout(elements, gray, occupancy, float(px_per_m[1]), edges)
     return layout, {"source": "classifier", **info}
 
 
@@ -524,17 +519,24 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         homography = np.array([[1.0, 0, -x0], [0, 1.0, -y0], [0, 0, 1.0]]) @ homography
     timings["classify"] = time.perf_counter() - t
 
-    from .imaging.splits import FLOOR_PRIOR_M, floor_and_tile_split, to_gray
+    from .imaging.splits import FLOOR_PRIOR_M, edge_maps, floor_and_tile_split, to_gray
 
+    t = time.perf_counter()
     gray = to_gray(rect_img)
+    edges = edge_maps(gray)                      # eq. 3, shared by stage 1 and the layout
+    t_edges = time.perf_counter() - t
     mpp = _scale(width_m, height_m, rect_img.shape)
-    structure = floor_and_tile_split(rect_img, metres_per_pixel=mpp)
+    # stage 1; its tile lines only matter on the edge path (the classifier path lays its own)
+    structure = floor_and_tile_split(gray, metres_per_pixel=mpp, tiles=clf is None, edges=edges)
     timings["symmetry"] = structure.timings.get("symmetry", 0.0)
-    timings["splits"] = structure.timings.get("floors", 0.0) + structure.timings.get("tiles", 0.0)
+    timings["splits"] = t_edges + structure.timings.get("floors", 0.0) + structure.timings.get(
+        "tiles", 0.0)
     px_per_m = (1.0 / mpp[0], 1.0 / mpp[1]) if mpp else (structure.px_per_m, structure.px_per_m)
 
     t = time.perf_counter()
-    layout, detection = _detect(prob, clf, gray, px_per_m)
+    layout, detection = _detect(prob, clf, gray, px_per_m, edges)
+    if layout is None and clf is not None:       # too few elements: the edge path after all
+        structure = floor_and_tile_split(gray, metres_per_pixel=mpp, edges=edges)
     if layout is not None:
         # the floors laid around the elements replace stage 1's, and so does the floor period
         # they measure (stage 1's MI period is often a half or double storey on real photos)

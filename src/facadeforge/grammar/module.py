@@ -54,7 +54,8 @@ class Module:
         self.rules: dict[str, dict[int, A.RuleDef]] = {}
         # CityEngine styles: the chosen style's declarations replace those of the style it
         # extends (by default the Default style), by name (attributes) or name and arity
-        for attrs, functions, rules in _style_chain(rule_file, self.style):
+        chain = _style_chain(rule_file, self.style)
+        for attrs, functions, rules in chain:
             self.attrs.update({a.name: a for a in attrs})
             for f in functions:
                 self.functions.setdefault(f.name, {})[len(f.params)] = f
@@ -69,7 +70,6 @@ class Module:
         # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
         self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
         # @StartRule of the chosen style first, then of the styles it extends, then Default's
-        chain = _style_chain(rule_file, self.style)
         self.start_rules = list(dict.fromkeys(
             r.name for _, _, rules in reversed(chain) for r in rules
             if any(a.name == "StartRule" for a in r.annotations)))

@@ -36,7 +36,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from .detect import Element
-from .refine import Region
+from .refine import Region, element_leaves
 from .splits import edge_maps, interest_functions
 
 __all__ = ["ElementLayout", "element_layout", "element_region", "refine_clusters"]
@@ -143,7 +143,8 @@ def _peel(inner: Region, box, axis: str, a: int, b: int, strength: float) -> Reg
 
 
 def element_layout(elements: Sequence[Element], gray: np.ndarray, occupancy: np.ndarray,
-                   px_per_m: float) -> ElementLayout:
+                   px_per_m: float, edges: tuple[np.ndarray, np.ndarray] | None = None
+                   ) -> ElementLayout:
     """Floors, tiles and tile refinements around ``elements`` (module docstring).
 
     Parameters
@@ -155,9 +156,11 @@ def element_layout(elements: Sequence[Element], gray: np.ndarray, occupancy: np.
         Summed probability of the detected classes (line confidences).
     px_per_m : float
         Scale for the interest functions' smoothing (σ = 0.1 m).
+    edges : (hor, ver), optional
+        :func:`~.splits.edge_maps` of ``gray`` when the caller has them already.
     """
     h, w = gray.shape
-    hor, ver = edge_maps(gray)
+    hor, ver = edge_maps(gray) if edges is None else edges
     sigma = max(1.0, 0.1 * px_per_m)
     ver_y, _ = interest_functions(hor, ver, sigma_px=sigma)
     lines = [_line_in_gap(ver_y, g) for g in _gaps([(e.box[1], e.box[3]) for e in elements])]
@@ -205,14 +208,6 @@ def _leader_groups(sigs: list[np.ndarray], tol: float) -> list[int]:
     return out
 
 
-def _element_leaves(region: Region | None) -> list[Region]:
-    if region is None:
-        return []
-    from .refine import leaves
-
-    return [r for r in leaves(region) if r.role == "element"]
-
-
 def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[tuple[int, int]]],
                     regions: Sequence[Sequence[Region | None]] | None,
                     floor_clusters: Sequence[int], tile_clusters: Sequence[Sequence[int]],
@@ -236,7 +231,7 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
     for i, row in enumerate(tiles):
         y0, y1 = floors[i]
         for j, (x0, x1) in enumerate(row):
-            els = _element_leaves(regions[i][j] if regions is not None else None)
+            els = element_leaves(regions[i][j] if regions is not None else None)
             keys.append((int(tile_clusters[i][j]), tuple(e.label for e in els)))
             sig = [x1 - x0, y1 - y0]
             for e in els:

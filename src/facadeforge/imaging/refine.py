@@ -168,6 +168,11 @@ def leaves(region: Region) -> list[Region]:
     return out
 
 
+def element_leaves(region: Region | None) -> list[Region]:
+    """The leaves of role ``"element"`` (none for ``None``, a tile without a refinement)."""
+    return [] if region is None else [r for r in leaves(region) if r.role == "element"]
+
+
 def elements(region: Region) -> list[Region]:
     """Maximal subtrees of ``region`` whose leaves all have role ``"element"`` (depth-first)."""
     out: list[Region] = []

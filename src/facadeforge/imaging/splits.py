@@ -318,7 +318,8 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
                          tile_range_m: tuple[float, float] = TILE_RANGE_M,
                          work_height: int = WORK_HEIGHT_PX,
                          tiles: bool = True, regular: bool = True, sigma_m: float = 1.0,
-                         sigma_cap: bool = True) -> FacadeStructure:
+                         sigma_cap: bool = True,
+                         edges: tuple[np.ndarray, np.ndarray] | None = None) -> FacadeStructure:
     """Floors and tiles of a rectified facade photo (§2.2 + §2.4).
 
     1. Vertical symmetry profile (:func:`symmetry_profile`) on a working copy scaled to about
@@ -333,6 +334,8 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
        infeasible (unreliable period) the gaps are ``floor_range_m`` alone.
     4. Per floor band: horizontal symmetry period (``axis=1``, 16 bins) and tile lines on
        ``Hor(x)`` with gaps in ``tile_range_m``.
+
+    ``edges`` are :func:`edge_maps` of the photo when the caller has them already.
     """
     t0 = time.perf_counter()
     gray = to_gray(photo)
@@ -369,7 +372,7 @@ def floor_and_tile_split(photo: np.ndarray, metres_per_pixel=None, *, bins: int 
         px_per_m_x, source = px_per_m_y, "prior"
 
     t1 = time.perf_counter()
-    hor, ver = edge_maps(gray)
+    hor, ver = edge_maps(gray) if edges is None else edges
     sigma_y = sigma_m * px_per_m_y
     if period > 0 and sigma_cap:
         sigma_y = min(sigma_y, period / 6.0)
