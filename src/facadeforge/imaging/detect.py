@@ -164,14 +164,6 @@ def valley_split(prob: np.ndarray, mask: np.ndarray, box, dip: float = 0.7,
     return sorted(out, key=lambda b: (b[1], b[0]))
 
 
-def _class_boxes(prob_c: np.ndarray, mask: np.ndarray, *, xy_tol: float, dip: float,
-                 min_px: int) -> list[tuple[int, int, int, int]]:
-    boxes: list[tuple[int, int, int, int]] = []
-    for b in xy_cut(mask, xy_tol):
-        boxes += valley_split(prob_c, mask, b, dip, min_px)
-    return boxes
-
-
 def _overlap(a, b) -> bool:
     return min(a[2], b[2]) > max(a[0], b[0]) and min(a[3], b[3]) > max(a[1], b[1])
 
@@ -216,10 +208,9 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         if not mask.any():
             continue
         pc = p[:, :, c].astype(np.float32)
+        boxes = xy_cut(mask, xy_tol)
         if steps >= 2:
-            boxes = _class_boxes(pc, mask, xy_tol=xy_tol, dip=dip, min_px=min_px)
-        else:
-            boxes = xy_cut(mask, xy_tol)
+            boxes = [part for b in boxes for part in valley_split(pc, mask, b, dip, min_px)]
         els = [Element(label, b, float(pc[b[1]:b[3], b[0]:b[2]].mean())) for b in boxes]
         els = [e for e in els if e.area >= min_area]
         if steps >= 3 and len(els) >= 3:
