@@ -715,7 +715,8 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
                 export(rec.model, stage / f"model.{suffix}")
         timings = rec.report["timings"]     # the report, written last, carries the export time
         timings["export"] = time.perf_counter() - t0
-        timings["total"] = sum(v for k, v in timings.items() if k != "total")
+        timings.pop("total", None)                  # the total goes last again
+        timings["total"] = sum(timings.values())
         write_json(stage / "report.json", rec.report)
 
     return write_outdir(out, write)
