@@ -93,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("-o", "--output", required=True, help="output folder")
 
     from .classify.train import add_parser as add_train
+    from .parsing import DEFAULT_BUDGET
 
     g = sub.add_parser("parse", help="photo → best derivation of a parse grammar (Simon 2011)",
                        description="Fit a parse grammar to a facade photo: pixel classifier → "
@@ -104,7 +105,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
     g.add_argument("--method", default="evolution", choices=("hill", "evolution"),
                    help="search: evolution (default, §5.2) or hill (Alg. 4.1)")
-    g.add_argument("--budget", type=int, default=1000, help="derivations (default 1000)")
+    g.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
+                   help=f"derivations (default {DEFAULT_BUDGET})")
     g.add_argument("--rectified", action="store_true", help="the photo is already rectified")
     g.add_argument("--width-m", type=float, help="facade width in metres (scales the model)")
     g.add_argument("--seed", type=int, default=0)

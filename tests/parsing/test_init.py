@@ -55,3 +55,23 @@ def test_seeded_fit_recovers_uneven_columns():
     # floor), hence not 1.0; an unseeded search at the same budget does clearly worse
     assert agree > 0.9, agree
     assert agree > (plain.labels == lab).mean() + 0.02
+
+
+def test_grid_seed_ignores_a_neighbours_offset_rows():
+    """A second building at the side, with its windows at other heights, adds no floors: rows
+    need windows in half the columns."""
+    lab, cols, rows = _grid_labels()
+    lab = np.concatenate([lab, np.full((200, 40), CMP6.index("wall"), np.uint8)], axis=1)
+    for r in (40, 95, 140):                  # the neighbour's column, between the main rows
+        lab[r:r + 25, 172:190] = CMP6.index("window")
+    seed = grid_seed(_prob(lab), CMP6)
+    assert seed["nFloors"] == 3 and seed["nColumns"] == 4
+
+
+def test_grid_seed_reads_balcony_guards_per_floor():
+    lab, cols, rows = _grid_labels()
+    for c in cols:                            # guards under the windows of the lowest floor
+        lab[142:150, c:c + 20] = CMP6.index("balcony")
+    seed = grid_seed(_prob(lab), CMP6)
+    assert seed["guard1"] is True and seed["guard2"] is False and seed["guard3"] is False
+    assert 0.1 < seed["guardFrac"] < 0.5

@@ -54,6 +54,43 @@ def test_layout_matches_engine(name, seed):
         np.testing.assert_allclose(a[:4], b[:4], atol=1e-4)
 
 
+@pytest.mark.parametrize("name", ["grid", "haussmann"])
+def test_memo_across_derivations_changes_nothing(name):
+    """One SplitLayout deriving a sequence of nearby layouts (as a search does: its memo keeps
+    rule results keyed by the attributes they read) gives each the layout a fresh one gives."""
+    rules = load_rules(grammar_path(name))
+    params = parameters_of(rules)
+    rng = np.random.default_rng(7)
+    base = {p.name: (p.choices[rng.integers(len(p.choices))] if p.discrete else
+                     p.clip(rng.uniform(p.lo, p.hi))) for p in params}
+    shared = SplitLayout(rules)
+    for _ in range(25):
+        attrs = dict(base)
+        for p in rng.choice(params, 2):
+            attrs[p.name] = (p.choices[rng.integers(len(p.choices))] if p.discrete else
+                             p.clip(rng.uniform(p.lo, p.hi)))
+        a = shared.derive(15.0, 21.0, attrs)
+        b = SplitLayout(rules).derive(15.0, 21.0, attrs)
+        assert a.labels == b.labels
+        np.testing.assert_array_equal(a.boxes, b.boxes)
+
+
+def test_guards_put_balconies_at_the_foot_of_a_floors_windows():
+    rules = load_rules(grammar_path("grid"))
+    attrs = {"nFloors": 2.0, "groundTop": 0.2, "floor2": 0.55, "roofLine": 0.9, "nColumns": 2.0,
+             "column1": 0.2, "column2": 0.6, "windowWidth": 0.15, "windowHeight": 0.6,
+             "sillHeight": 0.1, "guardFrac": 0.25, "guard1": True, "guard2": False,
+             "balcony1": False, "balcony2": False}
+    lay = SplitLayout(rules).derive(10.0, 10.0, attrs)
+    windows = lay.boxes[[lab == "window" for lab in lay.labels]]
+    guards = lay.boxes[[lab == "balcony" for lab in lay.labels]]
+    assert len(windows) == 4 and len(guards) == 2
+    for g in guards:  # each guard sits right under a window of the first floor, as wide
+        above = windows[np.isclose(windows[:, 1], g[3]) & np.isclose(windows[:, 0], g[0])]
+        assert len(above) == 1 and np.isclose(above[0, 2], g[2])
+        assert g[3] < 5.5   # first floor (below floor2 = 5.5 m)
+
+
 def test_unsupported_operation_is_named(tmp_path):
     g = tmp_path / "g.cga"
     g.write_text('version "2019.0"\n@Range(5, 20) attr facadeWidth = 10\n@StartRule\n'

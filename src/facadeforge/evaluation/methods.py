@@ -374,9 +374,11 @@ class GrammarMethod:
     layout mapped back to the photo (the classifier's labels outside the rectified facade).  CMP
     photos are rectified already, as ``--rectified`` says on the command line."""
 
-    def __init__(self, search: str = "hill", budget: int = 1000) -> None:
+    def __init__(self, search: str = "hill", budget: int | None = None) -> None:
+        from ..parsing import DEFAULT_BUDGET
+
         self.search = search
-        self.budget = budget
+        self.budget = DEFAULT_BUDGET if budget is None else budget
 
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
         from ..classify import default_classifier
@@ -390,11 +392,11 @@ class GrammarMethod:
 
 register_method("grammar-hill", "canonical",
                 description="simon2011 §4.2: grid parse grammar fitted by hill "
-                            "climbing (1000 derivations) to the auto-context classifier"
+                            "climbing (1200 derivations) to the auto-context classifier"
                 )(GrammarMethod())
 register_method("grammar-evo", "canonical",
                 description="simon2011 §5.2: grid parse grammar fitted by the "
-                            "evolutionary search (1000 derivations)")(GrammarMethod("evolution"))
+                            "evolutionary search (1200 derivations)")(GrammarMethod("evolution"))
 register_method("grammar", "canonical",
                 description="grammar parsing, best default = grammar-evo: evolutionary search, "
-                            "1000 derivations")(GrammarMethod("evolution"))
+                            "1200 derivations")(GrammarMethod("evolution"))

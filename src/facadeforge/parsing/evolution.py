@@ -399,14 +399,16 @@ def _allocate(perf: np.ndarray, total: int) -> list[int]:
 def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parameter], *,
            budget: int = 1500, seed: int = 0, population: int = 16, islands: int = 3,
            tournament: int = 3, crossover: float = 0.7, migration_every: int = 5,
-           weights: Sequence[float] | None = None) -> SearchResult:
+           weights: Sequence[float] | None = None, seeded: float = 0.5) -> SearchResult:
     """Minimise ``objective_fn`` over ``params`` by the island-model EA of §5.2 (module doc).
 
     ``objective_fn(attrs)`` returns an energy or a 1-D array of energies (multi-objective:
     SPEA-II selection, Algorithm 5.3; the result and the best-so-far curve use the ``weights``
     sum, eq. 5.3).  ``population`` is the initial size of each of the ``islands`` populations
     (Algorithm 5.2; the global size ``population × islands`` stays constant while resources move
-    between islands).  Exactly ``budget`` derivations; deterministic for a ``seed``.
+    between islands); a ``seeded`` share of each island starts near the parameters' defaults
+    (the expert or measured seed), the rest spread by a Latin hypercube.  Exactly ``budget``
+    derivations; deterministic for a ``seed``.
     """
     t0 = time.perf_counter()
     if budget < 1:
@@ -419,6 +421,8 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
         raise InputError(f"tournament {tournament}: give at least 1 candidate")
     if not 0.0 <= crossover <= 1.0:
         raise InputError(f"crossover {crossover}: give a probability in [0, 1]")
+    if not 0.0 <= seeded <= 1.0:
+        raise InputError(f"seeded {seeded}: give a share in [0, 1]")
     if migration_every < 1:
         raise InputError(f"migration_every {migration_every}: give at least 1 generation")
     if not params:
@@ -440,12 +444,23 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
                        else p.choices[0] if p.discrete
                        else p.clip(p.default if p.default is not None else (p.lo + p.hi) / 2))
               for p in params}
-    starts = [expert] + latin_hypercube(params, total - 1, rng)
+    # Each island starts from the expert seed's neighbourhood (variants with a few small
+    # mutations) as well as the hypercube: in a space of ~70 parameters a random layout is far
+    # from any facade, and an island of only random layouts spends its budget catching up with
+    # the island that holds the seed.
+    n_near = max(1, round(seeded * population)) if seeded > 0 else 0
+    spread = latin_hypercube(params, total, rng)
     pops: list[list[_Ind]] = [[] for _ in range(islands)]
-    for n, attrs in enumerate(starts):
-        if obj.left <= 0:
-            break
-        pops[n // population].append(ev.evaluate(attrs))
+    for i in range(islands):
+        near = [expert] if i == 0 and n_near else []
+        while len(near) < n_near:
+            variant = dict(expert)
+            for _ in range(1 + int(rng.integers(3))):
+                ev.mutate(variant, policies[i], 0.05)
+            near.append(variant)
+        for attrs in (near + spread[i * population:(i + 1) * population])[:population]:
+            if obj.left > 0:
+                pops[i].append(ev.evaluate(attrs))
 
     sizes = [population] * islands
     perf = np.zeros(islands)

@@ -15,6 +15,7 @@ placeholders of ``grid.cga`` and ``haussmann.cga``); other grammars start from t
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Callable
 from typing import Any
@@ -73,8 +74,15 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     boxes = boxes[area >= 0.25 * np.median(area)]       # drop fragments
     if len(boxes) < 2:
         return None
+    # A grid: rows need windows in a good share of the columns and columns in a good share of
+    # the rows, so a neighbouring building's windows (other floor heights) or stray detections
+    # do not add rows or columns of their own.
     cols = _supported(_groups(boxes[:, 0], boxes[:, 2]), 2)
-    rows = _supported(_groups(boxes[:, 1], boxes[:, 3]), 2)
+    rows = _supported(_groups(boxes[:, 1], boxes[:, 3]), max(2, math.ceil(0.5 * len(cols))))
+    if rows:
+        boxes = boxes[np.concatenate(rows)]
+        cols = _supported(_groups(boxes[:, 0], boxes[:, 2]), max(2, math.ceil(0.5 * len(rows))))
+        rows = _supported(_groups(boxes[:, 1], boxes[:, 3]), max(2, math.ceil(0.5 * len(cols))))
     if not cols or not rows:
         return None
     cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))[:max_columns]
@@ -138,13 +146,21 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         if fracs:
             seed["balconyFrac"] = float(np.clip(np.median(fracs), 0.02, 0.35))
         # balcony guards: the share of a window's rows that are mostly balcony (at its foot)
-        shares = []
-        for x0, y0, x1, y1 in boxes.astype(int):
+        def guard_share(box: np.ndarray) -> float:
+            x0, y0, x1, y1 = box.astype(int)
             lo = min(h, y1 + max(1, (y1 - y0) // 3))
             rows_bal = bal[y0:lo, x0:x1].mean(axis=1) > 0.5
-            shares.append(rows_bal.sum() / max(y1 - y0, 1))
-        guard = float(np.median(shares)) if shares else 0.0
-        seed["guardFrac"] = float(np.clip(guard, 0, 0.5)) if guard > 0.05 else 0.0
+            return float(rows_bal.sum()) / max(y1 - y0, 1)
+
+        # guards per floor (grid.cga): the floor's windows mostly stand behind a guard; the
+        # guard's height is the median share over the guarded floors' windows
+        guarded: list[float] = []
+        for i, g in enumerate(rows, start=1):
+            floor_shares = [guard_share(boxes[j]) for j in g]
+            seed[f"guard{i}"] = bool(np.median(floor_shares) > 0.05)
+            if seed[f"guard{i}"]:
+                guarded += floor_shares
+        seed["guardFrac"] = float(np.clip(np.median(guarded), 0, 0.5)) if guarded else 0.0
     return seed
 
 

@@ -16,7 +16,10 @@ Expressions are evaluated by the interpreter's :class:`~facadeforge.grammar.expr
 (attributes, rule parameters, ``scope.sx``/``scope.sy``, built-in functions).  Because nothing in
 this subset depends on a shape's position or on randomness, a rule applied to two shapes of the
 same size with the same arguments yields the same layout up to translation: results are memoised
-per (rule, arguments, size), so twenty identical floors cost one.  A grammar using anything else
+per (rule, arguments, size), so twenty identical floors cost one.  The memo also outlives a
+derivation: its key holds the values of the attributes the rule reads (through the rules,
+functions and attribute defaults it reaches), so a search that moves one floor line derives
+the floors it did not move from the memo.  A grammar using anything else
 (``rand``, ``comp``, ``extrude``, ``split.index``…) raises :class:`ParseGrammarError` naming the rule
 and line; such grammars still derive in the engine, just not in the parser's inner loop.
 
@@ -51,6 +54,8 @@ _APPEARANCE_OPS = frozenset({
 
 MAX_DEPTH = 64
 MAX_LEAVES = 100_000
+#: Rule results kept across derivations before the memo is cleared.
+MEMO_SIZE = 50_000
 
 
 class ParseGrammarError(InputError, ValueError):
@@ -146,9 +151,13 @@ class SplitLayout:
                           for f in by_arity.values()}
         self._overrides: dict[str, Any] = {}
         self._attr_cache: dict[str, Any] = {}
-        self._memo: dict[tuple, tuple[np.ndarray, list[str]]] = {}
+        self._memo: dict[tuple, list[tuple]] = {}
         self._pieces: dict[tuple, list] = {}
         self._reads_cache: dict[int, frozenset[str]] = {}
+        self._rule_attrs: dict[str, tuple[str, ...]] = {}
+        self._split_attrs: dict[int, tuple[str, ...]] = {}
+        self._sig: dict[Any, tuple] = {}
+        self._plans: dict[int, tuple[str, tuple] | None] = {}
 
     # ------------------------------------------------------------------ attributes
     def attr_value(self, name: str):
@@ -171,10 +180,15 @@ class SplitLayout:
             raise InputError(f"layout size {width} x {height} must be positive")
         self._overrides = dict(attrs or {})
         self._attr_cache = {}
-        self._memo = {}
-        self._pieces = {}
+        self._sig = {}
         self._count = 0
+        if len(self._memo) > MEMO_SIZE:
+            self._memo.clear()
+        if len(self._pieces) > MEMO_SIZE:
+            self._pieces.clear()
         leaves = self._rule(self.start, (), width, height, None, 0)
+        if len(leaves) > MAX_LEAVES:
+            raise ParseGrammarError(f"the parse grammar makes more than {MAX_LEAVES} leaves")
         boxes = np.array([lf[:4] for lf in leaves], float).reshape(-1, 4)
         return Layout(boxes, tuple(lf[4] for lf in leaves), float(width), float(height))
 
@@ -188,8 +202,14 @@ class SplitLayout:
         if depth > MAX_DEPTH:
             raise ParseGrammarError(f"rule '{name}' (line {rdef.line}) nests deeper than "
                                     f"{MAX_DEPTH} levels")
-        key = (name, args, round(sx, 9), round(sy, 9), label)
-        hit = self._memo.get(key)
+        sig = self._sig.get(name)
+        if sig is None:  # the values of the attributes the rule reads, once per derivation
+            sig = self._sig[name] = tuple(self.attr_value(a) for a in self._reads_attrs(name))
+        try:
+            key = (name, args, round(sx, 9), round(sy, 9), label, sig)
+            hit = self._memo.get(key)
+        except TypeError:  # an unhashable argument or attribute (an array): no memo
+            key, hit = None, None
         if hit is not None:
             return hit
         env = _Env(self, {p.name: v for p, v in zip(rdef.params, args)}, sx, sy)
@@ -198,8 +218,46 @@ class SplitLayout:
         except CGARuntimeError as exc:
             raise ParseGrammarError(f"parse grammar, rule '{name}' (line {rdef.line}): {exc}"
                                     ) from None
-        self._memo[key] = out
+        if key is not None:
+            self._memo[key] = out
         return out
+
+    def _reads_attrs(self, rule: str) -> tuple[str, ...]:
+        """The attributes a rule's layout can depend on: those named in its body and in the
+        bodies of the rules, functions and attribute defaults it reaches (sorted)."""
+        hit = self._rule_attrs.get(rule)
+        if hit is None:
+            roots = [rdef.body for (n, _), rdef in self.rule_defs.items() if n == rule]
+            hit = self._rule_attrs[rule] = self._attrs_in(roots, follow_rules=True)
+        return hit
+
+    def _attrs_in(self, roots: list, follow_rules: bool) -> tuple[str, ...]:
+        """Attributes named in the expressions under ``roots`` (sorted), through the functions
+        they call and the defaults of the attributes they read; with ``follow_rules``, through
+        the successor rules too."""
+        found: set[str] = set()
+        seen: set[str] = set()
+        stack: list[Any] = list(roots)
+        while stack:
+            node = stack.pop()
+            if isinstance(node, tuple | list):
+                stack.extend(node)
+                continue
+            if not isinstance(node, A.Node):
+                continue
+            ref = getattr(node, "name", None)
+            if isinstance(node, A.Name) and ref in self.attr_defs and ref not in found:
+                found.add(ref)
+                stack.append(self.attr_defs[ref].value)
+            elif isinstance(node, A.Successor | A.Leaf | A.Call) and ref not in seen:
+                seen.add(ref)
+                if follow_rules:
+                    stack.extend(rdef.body for (n, _), rdef in self.rule_defs.items()
+                                 if n == ref)
+                if ref in self.functions:
+                    stack.append(self.functions[ref].body)
+            stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
+        return tuple(sorted(found))
 
     def _leaf(self, name: str, label: str | None, sx: float, sy: float):
         self._count += 1
@@ -246,9 +304,18 @@ class SplitLayout:
         # derivation), rule parameters, and the scope sizes they read.  Cache them per split,
         # keyed by what they can depend on, so twenty floors of one width share one x split.
         reads = self._reads(op)
-        key = (id(op), tuple(sorted(env.locals.items())) if env.locals else (), total,
-               sx if "scope.sx" in reads else None, sy if "scope.sy" in reads else None)
+        attrs = self._split_attrs.get(id(op))
+        if attrs is None:
+            attrs = self._split_attrs[id(op)] = self._attrs_in(
+                [b.selector if isinstance(b, A.Branch) else b for b in op.branches],
+                follow_rules=False)
+        sig = self._sig.get(id(op))
+        if sig is None:
+            sig = self._sig[id(op)] = tuple(self.attr_value(a) for a in attrs)
         try:
+            key = (id(op), tuple(sorted(env.locals.items())) if env.locals else (), total,
+                   sx if "scope.sx" in reads else None, sy if "scope.sy" in reads else None,
+                   sig)
             pieces = self._pieces.get(key)
         except TypeError:  # an unhashable rule argument (an array): no caching
             key, pieces = None, None
@@ -260,14 +327,42 @@ class SplitLayout:
         horizontal = axis_name == "x"
         for branch, start, size in pieces:
             w, h = (size, sy) if horizontal else (sx, size)
-            sub_env = _Env(self, env.locals, w, h)
-            leaves = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
-                               branch.line)
+            call = self._successor(branch)
+            if call is not None:  # the common piece, one successor rule: no ops loop
+                rule, arg_nodes = call
+                if arg_nodes:
+                    ev = _Env(self, env.locals, w, h).evaluator
+                    args = tuple(ev(a) for a in arg_nodes)
+                else:
+                    args = ()
+                leaves = self._rule(rule, args, w, h, None, depth + 2)
+            else:
+                sub_env = _Env(self, env.locals, w, h)
+                leaves = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
+                                   branch.line)
             if horizontal:
                 out += [(x0 + start, y0, x1 + start, y1, lab) for x0, y0, x1, y1, lab in leaves]
             else:
                 out += [(x0, y0 + start, x1, y1 + start, lab) for x0, y0, x1, y1, lab in leaves]
         return out
+
+    def _successor(self, branch: A.Branch) -> tuple[str, tuple] | None:
+        """``(rule, argument nodes)`` when a split piece's operations are one successor rule
+        call (what ``_ops`` would do with them), else ``None``."""
+        key = id(branch)
+        if key in self._plans:
+            return self._plans[key]
+        plan = None
+        ops = branch.ops
+        if len(ops) == 1:
+            op = ops[0]
+            if isinstance(op, A.Leaf):
+                plan = (op.name, ())
+            elif (isinstance(op, A.Successor) and op.name != "label"
+                  and op.name not in _APPEARANCE_OPS and op.name not in OPERATIONS):
+                plan = (op.name, tuple(op.args))
+        self._plans[key] = plan
+        return plan
 
     def _reads(self, op: A.BodyOp) -> frozenset[str]:
         """Scope sizes the split's size expressions read (both if they call functions)."""

@@ -21,6 +21,7 @@ search's best energy per derivation) and ``report.json``.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -35,9 +36,10 @@ import numpy as np
 from ..datasets import IGNORE, get_label_set
 from ..errors import InputError
 from ..model import Model, Shape
+from . import DEFAULT_BUDGET
 from .fit import FitResult, fit_grammar, grammar_path
 
-__all__ = ["Parse", "parse", "write_fitted_rules"]
+__all__ = ["DEFAULT_BUDGET", "Parse", "parse", "write_fitted_rules"]
 
 
 @dataclass
@@ -126,8 +128,21 @@ def write_fitted_rules(source: str, attrs: Mapping[str, Any]) -> str:
     return out
 
 
+def _stamp(path: Path) -> tuple[int, int]:
+    st = Path(path).stat()
+    return st.st_mtime_ns, st.st_size
+
+
+@functools.lru_cache(maxsize=8)
+def _load_grammar(path: str, mtime_ns: int, size: int):
+    """A parse grammar loaded once per file version (parsing its text costs ~0.1 s)."""
+    from ..engine import load_rules
+
+    return load_rules(path)
+
+
 def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
-          method: str = "evolution", budget: int = 1000, rectified: bool = False,
+          method: str = "evolution", budget: int = DEFAULT_BUDGET, rectified: bool = False,
           width_m: float | None = None, seed: int = 0, model: bool = True) -> Parse:
     """Parse a facade photo with a grammar (module docstring).
 
@@ -146,7 +161,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         Facade width in metres (scales the model; default the grammar's ``facadeWidth``).
     """
     from ..classify import resolve_classifier
-    from ..engine import derive_facade, load_rules
+    from ..engine import derive_facade
     from ..exchange.raster import label_map
     from ..photo import analysis_copy, as_rgb, check_facade_size, check_size
 
@@ -160,7 +175,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     clf = resolve_classifier(classifier, "cmp6" if rectified else "ecp7")
     label_set = get_label_set(clf.label_set)
     gpath = grammar_path(grammar)
-    rules = load_rules(gpath)
+    rules = _load_grammar(str(gpath), *_stamp(gpath))
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -192,7 +207,8 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
 
     t = time.perf_counter()
     text = write_fitted_rules(Path(gpath).read_text(), fit.attrs)
-    derived = derive_facade(load_rules(text), fit.width_m, fit.height_m, name="facade")
+    # the fitted values as attribute overrides derive what rules.cga (text) derives on its own
+    derived = derive_facade(rules, fit.width_m, fit.height_m, attrs=fit.attrs, name="facade")
     tree = derived.root
     labels = label_map(tree, size=rect_img.shape[:2]).astype(np.uint8)
     timings["derive"] = time.perf_counter() - t
