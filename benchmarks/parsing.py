@@ -7,7 +7,7 @@ its final hill-climbing energy) is averaged over facades — the comparison of F
 ``simon2011``.  Writes ``benchmarks/results/parsing_curves.json`` and
 ``docs/images/energy_curves.png``.
 
-    .venv/bin/python benchmarks/parsing.py [--n 10] [--budget 1500]
+    .venv/bin/python benchmarks/parsing.py [--n 10] [--budget N (default: parse's, 1200)]
 """
 
 from __future__ import annotations
@@ -82,7 +82,9 @@ def plot(results: dict, budget: int, path: Path) -> None:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=10)
-    ap.add_argument("--budget", type=int, default=1500)
+    from facadeforge.parsing import DEFAULT_BUDGET
+
+    ap.add_argument("--budget", type=int, default=DEFAULT_BUDGET)
     args = ap.parse_args(argv)
     from facadeforge.evaluation.bench import provenance, save_result
 
