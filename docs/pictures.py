@@ -1,7 +1,11 @@
-"""Regenerate ``docs/images/reconstruct.jpg``: ``facadeforge reconstruct`` on a CMP validation
-facade (``--rectified``) and an unrectified RueMonge validation photo — the photo with the
-found elements (input frame), ``structure.png``, ``labels.png`` and the derived model.  Both
-photos are from the development val splits (the shipped classifier has not seen them).
+"""Regenerate the README's pictures from a CMP validation facade (``--rectified``) and an
+unrectified RueMonge validation photo, both from the development val splits (the shipped
+classifiers have not seen them):
+
+- ``docs/images/reconstruct.jpg``: ``facadeforge reconstruct`` — the photo with the found
+  elements (input frame), ``structure.png``, ``labels.png`` and the derived model;
+- ``docs/images/parse.jpg``: ``facadeforge parse`` (default grammar, search and budget) — the
+  photo, the classifier's labels, the derivation's labels (input frame) and the derived model.
 
     .venv/bin/python docs/pictures.py
 """
@@ -47,27 +51,52 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     model = np.asarray(render(rec.model, None, size=(900, 900), azimuth=25.0,
                               elevation=12.0).convert("RGB"))
     tiles = [_fit(found), _fit(_structure_png(rec)), _fit(labels), _fit(model)]
-    return np.concatenate([np.pad(t, ((0, 0), (0, 6), (0, 0)), constant_values=255)
-                           for t in tiles], axis=1)
+    return _join(tiles, axis=1)
+
+
+def parse_row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
+    from facadeforge import render
+    from facadeforge.evaluation.bench import select_samples
+    from facadeforge.exchange.raster import PALETTE
+    from facadeforge.parsing.parse import parse
+
+    val, _, _ = select_samples(dataset, DATA / dataset, "val")
+    (sample,) = [s for s in val if s.id == sample_id]
+    photo = sample.image()
+    p = parse(photo, rectified=rectified)
+    model = np.asarray(render(p.model, None, size=(900, 900), azimuth=25.0,
+                              elevation=12.0).convert("RGB"))
+    tiles = [_fit(photo), _fit(PALETTE[p.fallback]), _fit(PALETTE[p.labels_input()]),
+             _fit(model)]
+    return _join(tiles, axis=1)
+
+
+def _join(parts: list[np.ndarray], axis: int) -> np.ndarray:
+    """Parts side by side (axis 1) or stacked (axis 0) with white 6-px gaps."""
+    if axis == 0:
+        width = max(r.shape[1] for r in parts)
+        parts = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0)), constant_values=255)
+                 for r in parts]
+    pad = ((0, 6), (0, 0), (0, 0)) if axis == 0 else ((0, 0), (0, 6), (0, 0))
+    return np.concatenate([np.pad(t, pad, constant_values=255) for t in parts], axis=axis)
 
 
 def main() -> int:
     from PIL import Image
 
-    rows = []
-    for dataset, sample_id, rectified in PHOTOS:
-        if not (DATA / dataset).is_dir():
-            print(f"skipping {dataset}: {DATA / dataset} is absent", file=sys.stderr)
+    for name, make, order in (("reconstruct.jpg", row, PHOTOS),
+                              ("parse.jpg", parse_row, PHOTOS[::-1])):
+        rows = []
+        for dataset, sample_id, rectified in order:
+            if not (DATA / dataset).is_dir():
+                print(f"skipping {dataset}: {DATA / dataset} is absent", file=sys.stderr)
+                continue
+            rows.append(make(dataset, sample_id, rectified))
+        if not rows:
             continue
-        rows.append(row(dataset, sample_id, rectified))
-    if not rows:
-        return 0
-    width = max(r.shape[1] for r in rows)
-    rows = [np.pad(r, ((0, 6), (0, width - r.shape[1]), (0, 0)), constant_values=255)
-            for r in rows]
-    out = ROOT / "docs" / "images" / "reconstruct.jpg"
-    Image.fromarray(np.concatenate(rows, axis=0)).save(out, quality=85)
-    print(f"wrote {out}")
+        out = ROOT / "docs" / "images" / name
+        Image.fromarray(_join(rows, axis=0)).save(out, quality=85)
+        print(f"wrote {out}")
     return 0
 
 
