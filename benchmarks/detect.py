@@ -1,7 +1,7 @@
 """Element detection from the classifier's probabilities, step by step (the ablation behind
 :mod:`facadeforge.imaging.detect`): window precision / recall / F1 (IoU ≥ 0.5) on the CMP val
 split for the connected components of the argmax map (what the ``classifier`` bench method
-scores) and for steps 1–4 of :func:`~facadeforge.imaging.detect.detect_elements`.  The shipped
+scores) and for steps 1–5 of :func:`~facadeforge.imaging.detect.detect_elements`.  The shipped
 ``cmp6`` model has not seen these facades.  Writes ``benchmarks/results/detect_cmp.json``.
 
     .venv/bin/python benchmarks/detect.py
@@ -20,7 +20,8 @@ DATA = ROOT.parent / "shared" / "data"
 
 STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
          3: "3. + fragments dropped (area < 0.3 median)", 4: "4. + weak evidence dropped "
-         "(mean p < 0.5) = detect_elements"}
+         "(mean p < 0.5)", 5: "5. + row-consistent splits (width >= 1.8 row median) = "
+         "detect_elements"}
 
 
 def main() -> int:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from facadeforge import InputError
-from facadeforge.imaging.detect import Element, detect_elements, valley_split, xy_cut
+from facadeforge.imaging.detect import Element, detect_elements, row_split, valley_split, xy_cut
 from facadeforge.imaging.element_layout import element_layout, element_region, refine_clusters
 from facadeforge.imaging.refine import SPLIT_TYPES, leaves
 
@@ -54,6 +54,30 @@ def test_valley_split_cuts_at_a_faint_pier():
     assert a[2] <= b[0] and 40 <= a[2] <= 50 and a[0] == 10 and b[2] == 80
     # no valley below the threshold: left whole
     assert valley_split(prob, mask, box, dip=0.4) == [box]
+
+
+def test_row_split_cuts_a_box_twice_as_wide_as_its_row():
+    """Four 20-px windows in a row with 20-px piers; the last two merged: step 5 cuts the
+    merged box at the pier."""
+    prob = np.zeros((60, 200), np.float32)
+    for x in (10, 50, 90, 130):
+        prob[20:50, x:x + 20] = 0.9
+    prob[20:50, 110:130] = 0.4
+    els = [Element("window", (10, 20, 30, 50), 0.9), Element("window", (50, 20, 70, 50), 0.9),
+           Element("window", (90, 20, 150, 50), 0.8)]
+    out = row_split(els, prob)
+    assert [e.box for e in out] == [(10, 20, 30, 50), (50, 20, 70, 50), (90, 20, 110, 50),
+                                    (130, 20, 150, 50)]
+    # a wide window alone in its row, or in a row of wide windows, stays whole
+    assert row_split(els[2:], prob) == els[2:]
+    wide = [Element("window", (10 + 60 * k, 20, 60 + 60 * k, 50), 0.9) for k in range(3)]
+    assert row_split(wide, prob) == wide
+    # and in detect_elements it is step 5
+    merged = _prob(60, 200, {"window": [(10, 20, 30, 50), (50, 20, 70, 50), (90, 20, 150, 50)]})
+    merged[20:50, 110:130, CLASSES.index("window")] = 0.65   # too shallow for step 2 (dip 0.7)
+    four = [e.box for e in detect_elements(merged, CLASSES) if e.label == "window"]
+    three = [e.box for e in detect_elements(merged, CLASSES, steps=4) if e.label == "window"]
+    assert len(three) == 3 and len(four) == 4
 
 
 def test_detect_elements_drops_fragments_and_weak_boxes():

@@ -6,7 +6,7 @@ Why this exists
     classifier (:mod:`facadeforge.classify`, ``simon2011`` §4.3) sees most window pixels, but
     the connected components of its class map are poor objects: neighbouring windows merge
     through piers it half sees, fragments and faint blobs appear.  :func:`detect_elements`
-    turns the class map into one box per element in four steps; each was kept because it
+    turns the class map into one box per element in five steps; each was kept because it
     raised window F1 (IoU ≥ 0.5) on the 60 CMP val facades (:mod:`benchmarks.detect` re-measures
     every step — see ``benchmarks/results/detect_cmp.json``):
 
@@ -21,6 +21,12 @@ Why this exists
     3. **Size**: boxes smaller than ``rel_area`` × the median box of their class, or below
        :data:`MIN_ELEMENT_FRACTION` of the image, are fragments.
     4. **Evidence**: boxes whose mean class probability is below ``min_score`` are dropped.
+    5. **Row consistency** (windows): the elements of a floor repeat (Müller 2007 §2, and the
+       size synchronisation of §3.2), so a window box at least ``row_ratio`` times as wide as
+       the median of the other windows in its row (two or more) is two or more windows merged
+       through a pier the classifier missed.  It is cut into ``round((w + g) / (m + g))``
+       parts (``m`` the row's median width, ``g`` its median gap) at the probability minima
+       nearest the even cut positions, each part trimmed to its columns above half its peak.
 
     Tried on the same split and not kept (no gain): extending windows down through balconies
     below them, splitting boxes wider than 1.7 median widths, splitting at full-height mullions
@@ -44,8 +50,8 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..errors import InputError
 
-__all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "valley_split",
-           "xy_cut"]
+__all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "row_split",
+           "valley_split", "xy_cut"]
 
 #: Canonical labels detected as elements (others, such as balconies, overlap them).
 DETECTED_LABELS: tuple[str, ...] = ("window", "door", "shop")
@@ -164,6 +170,52 @@ def valley_split(prob: np.ndarray, mask: np.ndarray, box, dip: float = 0.7,
     return sorted(out, key=lambda b: (b[1], b[0]))
 
 
+def row_split(els: list[Element], prob: np.ndarray, ratio: float = 1.8) -> list[Element]:
+    """Step 5 of the module docstring on one class's elements; ``prob`` is that class's
+    probability map."""
+    if len(els) < 3:
+        return list(els)
+    B = np.array([e.box for e in els], float)
+    out: list[Element] = []
+    for i, e in enumerate(els):
+        x0, y0, x1, y1 = e.box
+        shared = np.minimum(B[:, 3], y1) - np.maximum(B[:, 1], y0)
+        peers = np.flatnonzero((shared > 0.5 * np.minimum(B[:, 3] - B[:, 1], y1 - y0))
+                               & (np.arange(len(B)) != i))
+        width = x1 - x0
+        median = float(np.median(B[peers, 2] - B[peers, 0])) if len(peers) >= 2 else width
+        if width < ratio * median:
+            out.append(e)
+            continue
+        row = B[peers][np.argsort(B[peers, 0])]
+        gaps = row[1:, 0] - row[:-1, 2]
+        gaps = gaps[gaps > 0]
+        gap = float(np.median(gaps)) if len(gaps) else 0.25 * median
+        n = max(2, round((width + gap) / (median + gap)))
+        prof = prob[y0:y1, x0:x1].mean(axis=0)
+        cols = np.arange(width)
+        edges = [0]
+        for k in range(1, n):
+            at = k * width / n
+            lo = int(max(edges[-1] + 1, at - median / 3))
+            hi = int(min(width - 1, at + median / 3))
+            if hi <= lo:
+                break
+            # the lowest column, the one nearest the even cut among equals (a flat pier)
+            edges.append(lo + int(np.argmin(prof[lo:hi] + 1e-6 * np.abs(cols[lo:hi] - at))))
+        edges.append(width)
+        parts = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            seg = prof[a:b]
+            on = np.flatnonzero(seg > 0.5 * seg.max()) if seg.size else seg
+            if len(on):
+                box = (x0 + a + int(on[0]), y0, x0 + a + int(on[-1]) + 1, y1)
+                parts.append(Element(e.label, box,
+                                     float(prob[y0:y1, box[0]:box[2]].mean())))
+        out.extend(parts if len(parts) >= 2 else [e])
+    return out
+
+
 def _overlap(a, b) -> bool:
     return min(a[2], b[2]) > max(a[0], b[0]) and min(a[3], b[3]) > max(a[1], b[1])
 
@@ -171,7 +223,7 @@ def _overlap(a, b) -> bool:
 def detect_elements(prob: np.ndarray, classes: Sequence[str],
                     labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float = 0.2,
                     dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
-                    steps: int = 4) -> list[Element]:
+                    row_ratio: float = 1.8, steps: int = 5) -> list[Element]:
     """Element boxes of ``labels`` from class probabilities (module docstring).
 
     Parameters
@@ -181,9 +233,9 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
     classes : sequence of K canonical labels
         The channels of ``prob``; labels it lacks are not detected.
     labels : canonical labels to detect
-    xy_tol, dip, rel_area, min_score
-        Steps 1–4 of the module docstring.
-    steps : 1–4
+    xy_tol, dip, rel_area, min_score, row_ratio
+        Steps 1–5 of the module docstring.
+    steps : 1–5
         Run only the first ``steps`` steps (the ablation of ``benchmarks/detect.py``).
 
     Returns
@@ -218,6 +270,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
             els = [e for e in els if e.area >= rel_area * med]
         if steps >= 4:
             els = [e for e in els if e.score >= min_score]
+        if steps >= 5 and label == "window":
+            els = row_split(els, pc, row_ratio)
         found += els
     kept: list[Element] = []
     for e in sorted(found, key=lambda e: (-e.score * e.area, e.box)):
