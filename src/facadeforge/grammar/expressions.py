@@ -1,11 +1,4 @@
-"""Evaluate CGA expressions (AST → value).  Interprets the AST only; never calls Python ``eval``.
-
-Each expression node is turned once into a tree of Python closures (:func:`compiled`), so
-evaluating it again skips the per-node dispatch: arithmetic, comparisons, ``case`` and names
-of attributes and parameters run without looking up the node's type.  The closures call the
-same helpers as before (``_arith``, ``_compare``, the environment's ``lookup``/``call``), with a
-fast path when both operands are plain floats; nothing is compiled from text.
-"""
+"""Evaluate CGA expressions (AST → value).  Interprets the AST only; never calls Python ``eval``."""
 
 from __future__ import annotations
 
@@ -98,10 +91,7 @@ class Evaluator:
         self.env = env
 
     def __call__(self, node):
-        hit = _COMPILED.get(id(node))
-        if hit is None or hit[0] is not node:
-            return compiled(node)(self)
-        return hit[1](self)
+        return _DISPATCH[type(node)](self, node)
 
     def num(self, node) -> float:
         return to_float(self(node))
@@ -204,100 +194,3 @@ _DISPATCH = {
     A.CaseExpr: Evaluator._case, A.StochasticExpr: Evaluator._stochastic,
     A.CompFunction: Evaluator._comp_function,
 }
-
-
-# ---- closures -------------------------------------------------------------------------------
-
-#: id(node) → (node, closure); the node is kept so its id cannot be reused while cached.
-_COMPILED: dict[int, tuple[A.Node, object]] = {}
-_COMPILED_MAX = 200_000
-
-_FAST_ARITH = {"+": operator.add, "-": operator.sub, "*": operator.mul}
-
-
-def compiled(node):
-    """The closure ``f(evaluator) -> value`` evaluating ``node`` (built once per node)."""
-    hit = _COMPILED.get(id(node))
-    if hit is not None and hit[0] is node:
-        return hit[1]
-    if len(_COMPILED) > _COMPILED_MAX:
-        _COMPILED.clear()
-    fn = _compile(node)
-    _COMPILED[id(node)] = (node, fn)
-    return fn
-
-
-def _fallback(node):
-    method = _DISPATCH[type(node)]
-    return lambda ev: method(ev, node)
-
-
-def _compile(node):  # noqa: C901 - one small closure per node type
-    kind = type(node)
-    if kind in (A.Num, A.Str, A.Bool):
-        value = node.value
-        return lambda ev: value
-    if kind is A.Name:
-        name = node.name
-        return lambda ev: ev.env.lookup(name, node)
-    if kind is A.Call and node.name not in SELECTOR_FUNCTIONS:
-        name = node.name
-        args = tuple(compiled(a) for a in node.args)
-        return lambda ev: ev.env.call(name, [f(ev) for f in args], node)
-    if kind is A.Unary and node.op == "-":
-        operand = compiled(node.operand)
-
-        def neg(ev):
-            v = operand(ev)
-            if type(v) is float:
-                return -v
-            if isinstance(v, np.ndarray):
-                return -v.astype(float)
-            return -to_float(v)
-        return neg
-    if kind is A.Unary and node.op in ("'", "~"):
-        operand = compiled(node.operand)
-        wrap = Relative if node.op == "'" else Floating
-        return lambda ev: wrap(to_float(operand(ev)))
-    if kind is A.Binary:
-        return _compile_binary(node)
-    if kind is A.CaseExpr:
-        branches = tuple((compiled(c), compiled(v)) for c, v in node.branches)
-        otherwise = compiled(node.otherwise)
-
-        def case(ev):
-            for cond, value in branches:
-                c = cond(ev)
-                if c is True or (c is not False and to_bool(c)):
-                    return value(ev)
-            return otherwise(ev)
-        return case
-    return _fallback(node)
-
-
-def _compile_binary(node):
-    op = node.op
-    left, right = compiled(node.left), compiled(node.right)
-    if op == "&&":
-        return lambda ev: to_bool(left(ev)) and to_bool(right(ev))
-    if op == "||":
-        return lambda ev: to_bool(left(ev)) or to_bool(right(ev))
-    if op in _CMP:
-        fast = _CMP[op]
-
-        def compare(ev):
-            a, b = left(ev), right(ev)
-            if type(a) is float and type(b) is float:
-                return fast(a, b)
-            return _compare(op, a, b)
-        return compare
-    if op in _FAST_ARITH:
-        fast = _FAST_ARITH[op]
-
-        def arith(ev):
-            a, b = left(ev), right(ev)
-            if type(a) is float and type(b) is float:
-                return fast(a, b)
-            return _arith(op, a, b)
-        return arith
-    return lambda ev: _arith(op, left(ev), right(ev))
