@@ -68,6 +68,17 @@ def test_row_split_cuts_a_box_twice_as_wide_as_its_row():
     out = row_split(els, prob)
     assert [e.box for e in out] == [(10, 20, 30, 50), (50, 20, 70, 50), (90, 20, 110, 50),
                                     (130, 20, 150, 50)]
+    # three windows merged between two others: cut into three (the row's gaps count the
+    # merged box's own neighbours)
+    flanked = np.zeros((60, 200), np.float32)
+    for x in (10, 50, 90, 130, 170):
+        flanked[20:50, x:x + 20] = 0.9
+    flanked[20:50, 70:90] = flanked[20:50, 110:130] = 0.4
+    row = [Element("window", (10, 20, 30, 50), 0.9), Element("window", (50, 20, 150, 50), 0.8),
+           Element("window", (170, 20, 190, 50), 0.9)]
+    assert [e.box for e in row_split(row, flanked)] == [
+        (10, 20, 30, 50), (50, 20, 70, 50), (90, 20, 110, 50), (130, 20, 150, 50),
+        (170, 20, 190, 50)]
     # a wide window alone in its row, or in a row of wide windows, stays whole
     assert row_split(els[2:], prob) == els[2:]
     wide = [Element("window", (10 + 60 * k, 20, 60 + 60 * k, 50), 0.9) for k in range(3)]

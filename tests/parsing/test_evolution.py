@@ -140,6 +140,34 @@ def test_invalid_arguments():
         evolve(two_objectives, PARAMS, budget=10, weights=[1.0, 1.0, 1.0])
     with pytest.raises(InputError):
         evolve(two_objectives, PARAMS, budget=10, weights=[-1.0, 1.0])
+    with pytest.raises(InputError):
+        evolve(smooth, PARAMS, budget=10, seeded=1.5)
+
+
+@pytest.mark.parametrize("seeded", [0.0, 0.5])
+def test_islands_start_near_the_seed(seeded):
+    """The first generation: the expert seed on island 0 whatever ``seeded`` says, then a
+    ``seeded`` share of each island within a few small mutations of it, the rest spread."""
+    calls = []
+
+    def f(at):
+        calls.append(dict(at))
+        return smooth(at)
+
+    evolve(f, PARAMS, budget=48, seed=3, islands=3, population=16, seeded=seeded)
+    expert = {p.name: p.default for p in PARAMS}
+    assert calls[0] == expert
+    conts = [p for p in PARAMS if not p.discrete]
+
+    def near(at):  # within 0.25 of each range, every continuous parameter
+        return all(abs(at[p.name] - expert[p.name]) <= 0.25 * (p.hi - p.lo) for p in conts)
+
+    first = [near(at) for at in calls[:48]]
+    per_island = [sum(first[16 * i:16 * (i + 1)]) for i in range(3)]
+    if seeded == 0.0:
+        assert per_island[0] >= 1 and max(per_island) <= 6   # the seed, and hypercube luck
+    else:
+        assert all(n >= 8 for n in per_island)
 
 
 def test_evolution_recovers_a_known_layout(known_layout):

@@ -75,6 +75,44 @@ def test_memo_across_derivations_changes_nothing(name):
         np.testing.assert_array_equal(a.boxes, b.boxes)
 
 
+_HEADER = 'version "2019.0"\nattr facadeWidth = 10\n'
+
+
+def test_memo_keys_tell_values_of_other_types_apart():
+    """True, 1 and 1.0 are equal Python keys; a CGA str() tells them apart."""
+    lay = SplitLayout(load_rules(_HEADER + 'attr flag = 1\n@StartRule\nFacade --> split(x) '
+                                 '{ ~1 : A }\nA --> case str(flag) == "true" : Window '
+                                 'else : Wall\n'))
+    assert lay.derive(10, 10, {"flag": 1.0}).labels == ("wall",)
+    assert lay.derive(10, 10, {"flag": True}).labels == ("window",)
+    assert lay.derive(10, 10, {"flag": 1.0}).labels == ("wall",)
+
+
+def test_an_attribute_the_derivation_does_not_read_may_fail():
+    """The memo key holds every attribute a rule could read; one that cannot be evaluated
+    (rand in a parse grammar) only matters on the branch that reads it."""
+    rules = load_rules(_HEADER + "attr useBad = false\nattr bad = rand(0, 1)\n@StartRule\n"
+                       "Facade --> case useBad : split(x) { 'bad : Window | ~1 : Wall } "
+                       "else : Wall\n")
+    lay = SplitLayout(rules)
+    assert lay.derive(10, 10, {}).labels == ("wall",)
+    with pytest.raises(ParseGrammarError, match="deterministic"):
+        lay.derive(10, 10, {"useBad": True})
+
+
+def test_depth_limit_does_not_depend_on_earlier_derivations():
+    rules = load_rules(_HEADER + "attr deep = false\n@StartRule\n"
+                       "Facade --> case deep : Chain(62) else : R(3)\n"
+                       "Chain(n) --> case n > 0 : Chain(n - 1) else : R(3)\n"
+                       "R(k) --> case k > 0 : split(x) { ~1 : R(k - 1) | ~1 : Wall } "
+                       "else : Window\n")
+    warm = SplitLayout(rules)
+    assert len(warm.derive(10, 10, {}).labels) == 4
+    for lay in (warm, SplitLayout(rules)):
+        with pytest.raises(ParseGrammarError, match="nests deeper"):
+            lay.derive(10, 10, {"deep": True})
+
+
 def test_guards_put_balconies_at_the_foot_of_a_floors_windows():
     rules = load_rules(grammar_path("grid"))
     attrs = {"nFloors": 2.0, "groundTop": 0.2, "floor2": 0.55, "roofLine": 0.9, "nColumns": 2.0,

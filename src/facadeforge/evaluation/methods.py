@@ -38,6 +38,7 @@ import numpy as np
 
 from ..datasets import FacadeSample, LabelSet
 from ..errors import InputError
+from ..parsing import DEFAULT_BUDGET
 
 __all__ = ["LABEL_SPACES", "METHODS", "ClassifierMethod", "Method", "Prediction", "PriorBaseline",
            "GrammarMethod", "RowColPrior", "StructureMethod", "get_method",
@@ -375,8 +376,6 @@ class GrammarMethod:
     photos are rectified already, as ``--rectified`` says on the command line."""
 
     def __init__(self, search: str = "hill", budget: int | None = None) -> None:
-        from ..parsing import DEFAULT_BUDGET
-
         self.search = search
         self.budget = DEFAULT_BUDGET if budget is None else budget
 
@@ -392,11 +391,11 @@ class GrammarMethod:
 
 register_method("grammar-hill", "canonical",
                 description="simon2011 §4.2: grid parse grammar fitted by hill "
-                            "climbing (1200 derivations) to the auto-context classifier"
+                            f"climbing ({DEFAULT_BUDGET} derivations) to the auto-context classifier"
                 )(GrammarMethod())
 register_method("grammar-evo", "canonical",
                 description="simon2011 §5.2: grid parse grammar fitted by the "
-                            "evolutionary search (1200 derivations)")(GrammarMethod("evolution"))
+                            f"evolutionary search ({DEFAULT_BUDGET} derivations)")(GrammarMethod("evolution"))
 register_method("grammar", "canonical",
                 description="grammar parsing, best default = grammar-evo: evolutionary search, "
-                            "1200 derivations")(GrammarMethod("evolution"))
+                            f"{DEFAULT_BUDGET} derivations")(GrammarMethod("evolution"))

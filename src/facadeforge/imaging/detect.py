@@ -24,7 +24,7 @@ Why this exists
     5. **Row consistency** (windows): the elements of a floor repeat (Müller 2007 §2, and the
        size synchronisation of §3.2), so a window box at least ``row_ratio`` times as wide as
        the median of the other windows in its row (two or more) is two or more windows merged
-       through a pier the classifier missed.  It is cut into ``round((w + g) / (m + g))``
+       through a pier the classifier missed.  It is cut into ``max(2, round((w + g) / (m + g)))``
        parts (``m`` the row's median width, ``g`` its median gap) at the probability minima
        nearest the even cut positions, each part trimmed to its columns above half its peak.
 
@@ -184,10 +184,11 @@ def row_split(els: list[Element], prob: np.ndarray, ratio: float = 1.8) -> list[
                                & (np.arange(len(B)) != i))
         width = x1 - x0
         median = float(np.median(B[peers, 2] - B[peers, 0])) if len(peers) >= 2 else width
-        if width < ratio * median:
+        if width <= 0 or median <= 0 or width < ratio * median:
             out.append(e)
             continue
-        row = B[peers][np.argsort(B[peers, 0])]
+        row = B[np.append(peers, i)]          # the box itself too: peers may flank it
+        row = row[np.argsort(row[:, 0])]
         gaps = row[1:, 0] - row[:-1, 2]
         gaps = gaps[gaps > 0]
         gap = float(np.median(gaps)) if len(gaps) else 0.25 * median

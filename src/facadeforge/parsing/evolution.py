@@ -448,11 +448,13 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
     # mutations) as well as the hypercube: in a space of ~70 parameters a random layout is far
     # from any facade, and an island of only random layouts spends its budget catching up with
     # the island that holds the seed.
+    # The expert seed itself always starts on island 0 (with seeded=0 too, as Algorithm 5.2
+    # has it); the hypercube fills what the seed's neighbourhood leaves of each island.
     n_near = max(1, round(seeded * population)) if seeded > 0 else 0
     spread = latin_hypercube(params, total, rng)
     pops: list[list[_Ind]] = [[] for _ in range(islands)]
     for i in range(islands):
-        near = [expert] if i == 0 and n_near else []
+        near = [expert] if i == 0 else []
         while len(near) < n_near:
             variant = dict(expert)
             for _ in range(1 + int(rng.integers(3))):

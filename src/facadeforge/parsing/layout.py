@@ -58,6 +58,16 @@ MAX_LEAVES = 100_000
 MEMO_SIZE = 50_000
 
 
+#: Marks an attribute whose default is being evaluated (a cycle reads it again).
+_EVALUATING = object()
+
+
+def _typed(values) -> tuple:
+    """Values paired with their types, as a memo key (``True == 1 == 1.0`` in Python, but a
+    CGA ``str()`` or comparison can tell them apart)."""
+    return tuple((type(v), v) for v in values)
+
+
 class ParseGrammarError(InputError, ValueError):
     """A grammar uses something the parser's 2D layout derivation does not support."""
 
@@ -162,13 +172,20 @@ class SplitLayout:
     # ------------------------------------------------------------------ attributes
     def attr_value(self, name: str):
         if name in self._attr_cache:
-            return self._attr_cache[name]
+            value = self._attr_cache[name]
+            if value is _EVALUATING:
+                raise CGARuntimeError(f"attribute '{name}' is defined through itself")
+            return value
         adef = self.attr_defs[name]
         if not adef.const and name in self._overrides:
             value = self._overrides[name]
         else:
-            self._attr_cache[name] = CGARuntimeError  # cycle guard
-            value = _Env(self, {}, 0.0, 0.0).evaluator(adef.value)
+            self._attr_cache[name] = _EVALUATING  # cycle guard
+            try:
+                value = _Env(self, {}, 0.0, 0.0).evaluator(adef.value)
+            except BaseException:
+                del self._attr_cache[name]
+                raise
         self._attr_cache[name] = value
         return value
 
@@ -202,14 +219,16 @@ class SplitLayout:
         if depth > MAX_DEPTH:
             raise ParseGrammarError(f"rule '{name}' (line {rdef.line}) nests deeper than "
                                     f"{MAX_DEPTH} levels")
-        sig = self._sig.get(name)
-        if sig is None:  # the values of the attributes the rule reads, once per derivation
-            sig = self._sig[name] = tuple(self.attr_value(a) for a in self._reads_attrs(name))
+        sig = self._signature(name, self._reads_attrs)
         try:
-            key = (name, args, round(sx, 9), round(sy, 9), label, sig)
-            hit = self._memo.get(key)
+            # typed values (True, 1 and 1.0 are equal keys otherwise); the depth too, so a
+            # result found at one depth is not reused where its subtree would nest too deep
+            key = (name, _typed(args), round(sx, 9), round(sy, 9), label, depth, sig)
+            hit = self._memo.get(key) if sig is not None else None
         except TypeError:  # an unhashable argument or attribute (an array): no memo
             key, hit = None, None
+        if sig is None:
+            key = None
         if hit is not None:
             return hit
         env = _Env(self, {p.name: v for p, v in zip(rdef.params, args)}, sx, sy)
@@ -221,6 +240,29 @@ class SplitLayout:
         if key is not None:
             self._memo[key] = out
         return out
+
+    def _signature(self, owner, reads) -> tuple | None:
+        """The typed values of the attributes ``reads(owner)`` names, once per derivation, or
+        ``None`` when one of them cannot be evaluated (then nothing is memoised, and the error
+        surfaces only if the derivation really reads that attribute)."""
+        k = ("sig", id(owner) if isinstance(owner, A.Node) else owner)
+        if k in self._sig:
+            return self._sig[k]
+        try:
+            sig = _typed(self.attr_value(a) for a in reads(owner))
+        except CGARuntimeError:
+            sig = None
+        self._sig[k] = sig
+        return sig
+
+    def _split_reads_attrs(self, op: A.BodyOp) -> tuple[str, ...]:
+        """The attributes a split's size expressions read (through functions and defaults)."""
+        hit = self._split_attrs.get(id(op))
+        if hit is None:
+            hit = self._split_attrs[id(op)] = self._attrs_in(
+                [b.selector if isinstance(b, A.Branch) else b for b in op.branches],
+                follow_rules=False)
+        return hit
 
     def _reads_attrs(self, rule: str) -> tuple[str, ...]:
         """The attributes a rule's layout can depend on: those named in its body and in the
@@ -304,21 +346,17 @@ class SplitLayout:
         # derivation), rule parameters, and the scope sizes they read.  Cache them per split,
         # keyed by what they can depend on, so twenty floors of one width share one x split.
         reads = self._reads(op)
-        attrs = self._split_attrs.get(id(op))
-        if attrs is None:
-            attrs = self._split_attrs[id(op)] = self._attrs_in(
-                [b.selector if isinstance(b, A.Branch) else b for b in op.branches],
-                follow_rules=False)
-        sig = self._sig.get(id(op))
-        if sig is None:
-            sig = self._sig[id(op)] = tuple(self.attr_value(a) for a in attrs)
+        sig = self._signature(op, self._split_reads_attrs)
         try:
-            key = (id(op), tuple(sorted(env.locals.items())) if env.locals else (), total,
+            local = tuple((n, type(v), v) for n, v in sorted(env.locals.items()))
+            key = (id(op), local, total,
                    sx if "scope.sx" in reads else None, sy if "scope.sy" in reads else None,
                    sig)
-            pieces = self._pieces.get(key)
+            pieces = self._pieces.get(key) if sig is not None else None
         except TypeError:  # an unhashable rule argument (an array): no caching
             key, pieces = None, None
+        if sig is None:
+            key = None
         if pieces is None:
             call = SimpleNamespace(branches=op.branches, env=env, repeat=op.repeat)
             pieces = call_pieces(call, total)
@@ -340,6 +378,8 @@ class SplitLayout:
                 sub_env = _Env(self, env.locals, w, h)
                 leaves = self._ops(branch.ops, sub_env, "split", w, h, None, depth + 1,
                                    branch.line)
+            if len(out) + len(leaves) > MAX_LEAVES:
+                raise ParseGrammarError(f"the parse grammar makes more than {MAX_LEAVES} leaves")
             if horizontal:
                 out += [(x0 + start, y0, x1 + start, y1, lab) for x0, y0, x1, y1, lab in leaves]
             else:

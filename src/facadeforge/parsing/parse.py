@@ -113,7 +113,7 @@ def _literal(v: Any) -> str:
     if isinstance(v, str):
         return json.dumps(v)
     f = float(v)
-    return str(int(f)) if f.is_integer() else f"{f:.6g}"
+    return str(int(f)) if f.is_integer() else repr(f)   # exact: rules.cga derives the same
 
 
 def write_fitted_rules(source: str, attrs: Mapping[str, Any]) -> str:
@@ -137,10 +137,11 @@ def _stamp(path: Path) -> tuple[int, int]:
 
 @functools.lru_cache(maxsize=8)
 def _load_grammar(path: str, mtime_ns: int, size: int):
-    """A parse grammar loaded once per file version (parsing its text costs ~0.1 s)."""
+    """``(rules, text)`` of a parse grammar, loaded once per file version (parsing its text
+    costs ~0.1 s); the rules are only read, never changed, by a parse."""
     from ..engine import load_rules
 
-    return load_rules(path)
+    return load_rules(path), Path(path).read_text()
 
 
 def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
@@ -178,7 +179,8 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     clf = resolve_classifier(classifier, "cmp6" if rectified else "ecp7")
     label_set = get_label_set(clf.label_set)
     gpath = grammar_path(grammar)
-    rules = _load_grammar(str(gpath), *_stamp(gpath))
+    gpath = Path(gpath).resolve()
+    rules, grammar_text = _load_grammar(str(gpath), *_stamp(gpath))
     timings["load"] = time.perf_counter() - t
 
     def classify() -> tuple[np.ndarray, np.ndarray, float]:
@@ -218,7 +220,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    text = write_fitted_rules(Path(gpath).read_text(), fit.attrs)
+    text = write_fitted_rules(grammar_text, fit.attrs)
     # the fitted values as attribute overrides derive what rules.cga (text) derives on its own
     derived = derive_facade(rules, fit.width_m, fit.height_m, attrs=fit.attrs, name="facade")
     tree = derived.root
