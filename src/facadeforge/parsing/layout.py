@@ -219,11 +219,14 @@ class SplitLayout:
         if depth > MAX_DEPTH:
             raise ParseGrammarError(f"rule '{name}' (line {rdef.line}) nests deeper than "
                                     f"{MAX_DEPTH} levels")
-        sig = self._signature(name, self._reads_attrs)
+        sig = self._sig.get(name, _EVALUATING)
+        if sig is _EVALUATING:
+            sig = self._signature(name, self._reads_attrs)
         try:
             # typed values (True, 1 and 1.0 are equal keys otherwise); the depth too, so a
             # result found at one depth is not reused where its subtree would nest too deep
-            key = (name, _typed(args), round(sx, 9), round(sy, 9), label, depth, sig)
+            key = (name, _typed(args) if args else (), round(sx, 9), round(sy, 9), label, depth,
+                   sig)
             hit = self._memo.get(key) if sig is not None else None
         except TypeError:  # an unhashable argument or attribute (an array): no memo
             key, hit = None, None
@@ -245,7 +248,7 @@ class SplitLayout:
         """The typed values of the attributes ``reads(owner)`` names, once per derivation, or
         ``None`` when one of them cannot be evaluated (then nothing is memoised, and the error
         surfaces only if the derivation really reads that attribute)."""
-        k = ("sig", id(owner) if isinstance(owner, A.Node) else owner)
+        k = id(owner) if isinstance(owner, A.Node) else owner   # an int or a rule name
         if k in self._sig:
             return self._sig[k]
         try:
