@@ -87,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")
     k = c.add_mutually_exclusive_group()
     k.add_argument("--classifier", help="pixel classifier .npz whose windows, doors and shops "
-                   "structure the facade (default: the shipped cmp6 model)")
+                   "structure the facade (default: the shipped cmp6 model with --rectified, "
+                   "else ecp7, trained on Parisian street photos)")
     k.add_argument("--no-classifier", action="store_true",
                    help="elements from image edges only (Müller 2007 §2–3, no classifier)")
     c.add_argument("-o", "--output", required=True, help="output folder")

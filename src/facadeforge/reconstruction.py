@@ -7,7 +7,8 @@
 2. ``rectify`` — vanishing points → homography (App. A), skipped with ``rectified=True``;
 3. ``symmetry`` / ``splits`` — MI repetition detection and floor/tile split lines (§2);
 4. ``classify`` / ``detect`` — better than the paper: the shipped pixel classifier
-   (``simon2011`` §4.3; ``classifier=``) runs on the rectified photo, which is cropped to the
+   (``simon2011`` §4.3; ``classifier=``; ``cmp6`` for photos given as rectified, ``ecp7`` for
+   street photos) runs on the rectified photo, which is cropped to the
    facade it finds (:func:`_facade_extent`: sky and neighbours around it become background),
    and its elements become boxes (:mod:`.imaging.detect`);
    when it finds at least :data:`MIN_ELEMENTS`, floors, tiles and tile refinements are laid
@@ -62,9 +63,6 @@ MIN_ELEMENTS: int = 2
 #: Geometric tolerance of a cluster, as a fraction of the larger image side: members of one
 #: rule differ by at most this much in size and element position.
 CLUSTER_TOLERANCE: float = 0.005
-#: Label set of the shipped classifier used by default (trained on rectified CMP facades: the
-#: frame reconstruct analyses in).
-CLASSIFIER_LABEL_SET: str = "cmp6"
 
 
 @dataclass
@@ -377,14 +375,14 @@ def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str,
     return flags
 
 
-def _classifier(classifier):
+def _classifier(classifier, rectified: bool):
     """The pixel classifier to detect elements with, or ``None`` (``classifier=False``)."""
     if classifier is False:
         return None
-    from .classify import resolve_classifier
+    from .classify import default_label_set, resolve_classifier
     from .imaging.detect import DETECTED_LABELS
 
-    clf = resolve_classifier(classifier, CLASSIFIER_LABEL_SET)
+    clf = resolve_classifier(classifier, default_label_set(rectified))
     if not set(DETECTED_LABELS) & set(clf.classes):
         raise InputError(f"classifier {clf!r} has none of the classes "
                          f"{', '.join(DETECTED_LABELS)}; pass one that labels windows")
@@ -475,7 +473,9 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         Run tile refinement (§3) on the paper's path; without it tiles stay wall leaves.
     classifier : PixelClassifier, path to a model file, None or False
         Pixel classifier whose elements structure the facade (module docstring, step 4);
-        ``None``: the shipped ``cmp6`` model; ``False``: the paper's edge-based path only.
+        ``None``: the shipped model (``cmp6`` with ``rectified``, else ``ecp7``:
+        :func:`facadeforge.classify.default_label_set`); ``False``: the paper's edge-based
+        path only.
 
     Raises
     ------
@@ -490,7 +490,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
                                                                             **depths}
     work, to_work = analysis_copy(rgb)
-    clf = _classifier(classifier)          # a bad model file fails before any analysis
+    clf = _classifier(classifier, rectified)   # a bad model file fails before any analysis
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -293,7 +293,8 @@ register_method("rowcol-prior", "label_set",
 
 class StructureMethod:
     """Müller et al. 2007 end to end (:func:`facadeforge.reconstruct`, no 3D model, its default
-    path: elements detected by the shipped ``cmp6`` classifier structure the shape tree): windows
+    path: elements detected by the shipped classifier — ``cmp6`` on rectified CMP, ``ecp7`` on
+    street photos — structure the shape tree): windows
     are the shape tree's window leaves, labels its rasterised leaves (canonical labels), mapped
     back to the photo through the rectifying homography.  Photos of rectified datasets (CMP)
     skip rectification, as ``--rectified`` does on the command line.  ``structure-edges`` is

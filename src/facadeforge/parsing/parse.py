@@ -163,7 +163,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     width_m : float, optional
         Facade width in metres (scales the model; default the grammar's ``facadeWidth``).
     """
-    from ..classify import resolve_classifier
+    from ..classify import default_label_set, resolve_classifier
     from ..engine import derive_facade
     from ..exchange.raster import label_map
     from ..photo import analysis_copy, as_rgb, check_facade_size, check_size
@@ -176,7 +176,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         raise InputError(f"--budget {budget}: give a positive number of derivations")
     rgb, name = as_rgb(photo)
     check_size(rgb, name)
-    clf = resolve_classifier(classifier, "cmp6" if rectified else "ecp7")
+    clf = resolve_classifier(classifier, default_label_set(rectified))
     label_set = get_label_set(clf.label_set)
     gpath = grammar_path(grammar)
     gpath = Path(gpath).resolve()
