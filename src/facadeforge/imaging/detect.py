@@ -271,8 +271,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
             els = [e for e in els if e.area >= rel_area * med]
         if steps >= 4:
             els = [e for e in els if e.score >= min_score]
-        if steps >= 5 and label == "window":
-            els = row_split(els, pc, row_ratio)
+        if steps >= 5 and label == "window":   # the parts pass step 4's test too
+            els = [e for e in row_split(els, pc, row_ratio) if e.score >= min_score]
         found += els
     kept: list[Element] = []
     for e in sorted(found, key=lambda e: (-e.score * e.area, e.box)):
