@@ -88,6 +88,22 @@ def test_memo_keys_tell_values_of_other_types_apart():
     assert lay.derive(10, 10, {"flag": 1.0}).labels == ("wall",)
 
 
+def test_memo_follows_functions_and_attribute_defaults():
+    """A split size read through a function (which sees the scope) and an attribute default
+    that reads another attribute: each change reaches the key, so a shared layout still gives
+    what a fresh one gives."""
+    rules = load_rules(_HEADER + "attr base = 2\nattr w = base * 1.5\nsz(k) = k * w / scope.sx\n"
+                       "@StartRule\nFacade --> split(y) { ~1 : Row | ~1 : Row }\n"
+                       "Row --> split(x) { 'sz(1) : Window | ~1 : Wall }\n")
+    shared = SplitLayout(rules)
+    for attrs, size in [({}, (10, 10)), ({"base": 1.0}, (10, 10)), ({}, (20, 10)),
+                        ({"w": 5.0}, (20, 10)), ({}, (10, 10))]:
+        a = shared.derive(*size, attrs)
+        b = SplitLayout(rules).derive(*size, attrs)
+        np.testing.assert_array_equal(a.boxes, b.boxes)
+        assert a.labels == b.labels
+
+
 def test_an_attribute_the_derivation_does_not_read_may_fail():
     """The memo key holds every attribute a rule could read; one that cannot be evaluated
     (rand in a parse grammar) only matters on the branch that reads it."""

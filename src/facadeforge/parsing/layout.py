@@ -163,9 +163,8 @@ class SplitLayout:
         self._attr_cache: dict[str, Any] = {}
         self._memo: dict[tuple, list[tuple]] = {}
         self._pieces: dict[tuple, list] = {}
-        self._reads_cache: dict[int, frozenset[str]] = {}
         self._rule_attrs: dict[str, tuple[str, ...]] = {}
-        self._split_attrs: dict[int, tuple[str, ...]] = {}
+        self._split_cache: dict[int, tuple[frozenset[str], tuple[str, ...]]] = {}
         self._sig: dict[Any, tuple] = {}
         self._plans: dict[int, tuple[str, tuple] | None] = {}
 
@@ -258,13 +257,11 @@ class SplitLayout:
         self._sig[k] = sig
         return sig
 
-    def _split_reads_attrs(self, op: A.BodyOp) -> tuple[str, ...]:
-        """The attributes a split's size expressions read (through functions and defaults)."""
-        hit = self._split_attrs.get(id(op))
+    def _split_reads(self, op: A.BodyOp) -> tuple[frozenset[str], tuple[str, ...]]:
+        """The scope sizes and the attributes a split's size expressions read."""
+        hit = self._split_cache.get(id(op))
         if hit is None:
-            hit = self._split_attrs[id(op)] = self._attrs_in(
-                [b.selector if isinstance(b, A.Branch) else b for b in op.branches],
-                follow_rules=False)
+            hit = self._split_cache[id(op)] = self._reads_in([op.branches], follow_rules=False)
         return hit
 
     def _reads_attrs(self, rule: str) -> tuple[str, ...]:
@@ -273,13 +270,16 @@ class SplitLayout:
         hit = self._rule_attrs.get(rule)
         if hit is None:
             roots = [rdef.body for (n, _), rdef in self.rule_defs.items() if n == rule]
-            hit = self._rule_attrs[rule] = self._attrs_in(roots, follow_rules=True)
+            hit = self._rule_attrs[rule] = self._reads_in(roots, follow_rules=True)[1]
         return hit
 
-    def _attrs_in(self, roots: list, follow_rules: bool) -> tuple[str, ...]:
-        """Attributes named in the expressions under ``roots`` (sorted), through the functions
-        they call and the defaults of the attributes they read; with ``follow_rules``, through
-        the successor rules too."""
+    def _reads_in(self, roots: list, follow_rules: bool
+                  ) -> tuple[frozenset[str], tuple[str, ...]]:
+        """``(scope sizes, attributes)`` the expressions under ``roots`` read, through the
+        functions they call (which may read both scope sizes) and the defaults of the
+        attributes they read; with ``follow_rules``, through the successor rules too, else
+        only the selectors (sizes) of split branches."""
+        scope: set[str] = set()
         found: set[str] = set()
         seen: set[str] = set()
         stack: list[Any] = list(roots)
@@ -290,19 +290,26 @@ class SplitLayout:
                 continue
             if not isinstance(node, A.Node):
                 continue
+            if isinstance(node, A.Branch) and not follow_rules:
+                stack.append(node.selector)
+                continue
             ref = getattr(node, "name", None)
-            if isinstance(node, A.Name) and ref in self.attr_defs and ref not in found:
-                found.add(ref)
-                stack.append(self.attr_defs[ref].value)
+            if isinstance(node, A.Name):
+                if ref in self.attr_defs and ref not in found:
+                    found.add(ref)
+                    stack.append(self.attr_defs[ref].value)
+                elif ref in ("scope.sx", "scope.sy"):
+                    scope.add(ref)
             elif isinstance(node, A.Successor | A.Leaf | A.Call) and ref not in seen:
                 seen.add(ref)
                 if follow_rules:
                     stack.extend(rdef.body for (n, _), rdef in self.rule_defs.items()
                                  if n == ref)
                 if ref in self.functions:
+                    scope.update(("scope.sx", "scope.sy"))
                     stack.append(self.functions[ref].body)
             stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
-        return tuple(sorted(found))
+        return frozenset(scope), tuple(sorted(found))
 
     def _leaf(self, name: str, label: str | None, sx: float, sy: float):
         self._count += 1
@@ -348,8 +355,8 @@ class SplitLayout:
         # The pieces depend on the split's size expressions: attributes (fixed during one
         # derivation), rule parameters, and the scope sizes they read.  Cache them per split,
         # keyed by what they can depend on, so twenty floors of one width share one x split.
-        reads = self._reads(op)
-        sig = self._signature(op, self._split_reads_attrs)
+        reads, _ = self._split_reads(op)
+        sig = self._signature(op, lambda op: self._split_reads(op)[1])
         try:
             local = tuple((n, type(v), v) for n, v in sorted(env.locals.items()))
             key = (id(op), local, total,
@@ -406,27 +413,3 @@ class SplitLayout:
                 plan = (op.name, tuple(op.args))
         self._plans[key] = plan
         return plan
-
-    def _reads(self, op: A.BodyOp) -> frozenset[str]:
-        """Scope sizes the split's size expressions read (both if they call functions)."""
-        hit = self._reads_cache.get(id(op))
-        if hit is None:
-            names: set[str] = set()
-            stack: list[Any] = [op.branches]
-            while stack:
-                node = stack.pop()
-                if isinstance(node, tuple | list):
-                    stack.extend(node)
-                elif isinstance(node, A.Branch):
-                    stack.append(node.selector)
-                elif isinstance(node, A.RepeatGroup):
-                    stack.append(node.branches)
-                elif isinstance(node, A.Name):
-                    names.add(node.name)
-                elif isinstance(node, A.Call) and node.name in self.functions:
-                    names.update(("scope.sx", "scope.sy"))
-                    stack.extend(node.args)
-                elif isinstance(node, A.Node):
-                    stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
-            hit = self._reads_cache[id(op)] = frozenset(names & {"scope.sx", "scope.sy"})
-        return hit
