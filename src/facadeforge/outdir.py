@@ -39,9 +39,9 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None]) -> list[
         shutil.rmtree(stage, ignore_errors=True)
 
 
-def write_json(path: str | os.PathLike, obj) -> None:
-    """``obj`` as indented JSON at ``path``, atomically (NaN and infinities become null)."""
-    from .exchange._common import Staging, jsonable
+def write_json(path: str | os.PathLike, obj, indent: int = 2) -> None:
+    """``obj`` as indented JSON at ``path`` (NaN and infinities become null); inside
+    :func:`write_outdir`'s staging folder, which makes the whole folder atomic."""
+    from .exchange._common import jsonable
 
-    with Staging() as stage:
-        stage.write_text(path, json.dumps(jsonable(obj), indent=2))
+    Path(path).write_text(json.dumps(jsonable(obj), indent=indent))

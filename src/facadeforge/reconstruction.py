@@ -692,7 +692,6 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
     from PIL import Image
 
     from .exchange import export
-    from .exchange._common import jsonable
     from .exchange.raster import write_label_png
     from .outdir import write_json, write_outdir
 
@@ -704,8 +703,7 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
         Image.fromarray(_structure_png(rec)).save(stage / "structure.png", compress_level=1)
         write_label_png(rec.labels, stage / "labels.png")
         write_label_png(rec.labels_input(), stage / "labels_input.png")
-        (stage / "shape_tree.json").write_text(json.dumps(jsonable(rec.tree.to_dict()),
-                                                          indent=1))
+        write_json(stage / "shape_tree.json", rec.tree.to_dict(), indent=1)
         if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
             shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)
         else:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from facadeforge import derive
+from facadeforge import RuleError, derive, load_rules
 
 
 def _parts(rules: str, lot: str = "10x10"):
@@ -120,10 +120,21 @@ def test_align_scope_to_geometry_edge_selectors(edge, sx, sy):
     ("primitiveQuad()", [0.0, 0.0, 10.0], [10.0, 10.0, 10.0]),
 ])
 def test_flat_primitives_lie_in_a_facade(rule, lo, hi):
-    """On a facade (scope sz = 0) a quad or disk lies in the facade, centred in it."""
+    """On a facade (scope sz = 0) a quad or disk lies in the facade, centred in it, and faces
+    out as the facade does."""
     m = _parts(f"Lot --> extrude(10) comp(f){{ front : F }}\nF --> {rule}")
     got_lo, got_hi = _bbox(m)
     assert got_lo == pytest.approx(lo, abs=1e-3) and got_hi == pytest.approx(hi, abs=1e-3)
+    facade = _parts("Lot --> extrude(10) comp(f){ front : F }").parts[0].mesh.face_normals()[0]
+    normals = np.concatenate([p.mesh.face_normals() for p in m.parts])
+    assert normals @ facade == pytest.approx(np.ones(len(normals)), abs=1e-6)
+
+
+@pytest.mark.parametrize("rule", ["primitiveQuad()", "primitiveDisk(8, 1)"])
+def test_flat_primitives_on_a_lot_face_up(rule):
+    m = _parts(f"Lot --> {rule}")
+    normals = np.concatenate([p.mesh.face_normals() for p in m.parts])
+    assert normals[:, 1] == pytest.approx(np.ones(len(normals)), abs=1e-6)
 
 
 def test_bare_names_of_other_operations_stay_leaves():
@@ -165,6 +176,35 @@ def test_setback_to_area(rule, symbol, area):
     assert not m.warnings
     got = sum(float(p.mesh.face_areas().sum()) for p in m.parts if p.symbol == symbol)
     assert got == pytest.approx(area, rel=1e-3)
+
+
+def _remainder_margins(rule: str) -> list[float]:
+    """Distances from the 20 × 20 lot's four sides to the remainder X, sorted."""
+    m = _parts(f"Lot --> {rule}", lot="20x20")
+    lot = np.concatenate([p.mesh.vertices for p in m.parts])
+    rest = np.concatenate([p.mesh.vertices for p in m.parts if p.symbol == "X"])
+    lo, hi = lot.min(axis=0)[[0, 2]], lot.max(axis=0)[[0, 2]]
+    return sorted(np.concatenate([rest.min(axis=0)[[0, 2]] - lo, hi - rest.max(axis=0)[[0, 2]]]))
+
+
+def test_setback_to_area_moves_the_selected_edges_only():
+    """Only the front and left edges move (10 m each, for a 10 × 10 remainder); with minimum
+    distances [4, 0, 0, 0] the front keeps 4 m more than the other three edges."""
+    margins = _remainder_margins("setbackToArea(100){ front = B | left = C | remainder = X }")
+    assert margins == pytest.approx([0.0, 0.0, 10.0, 10.0], abs=1e-3)
+    margins = _remainder_margins("setbackToArea(100, [4, 0, 0, 0]){ all = G | remainder = X }")
+    d = margins[0]
+    assert margins == pytest.approx([d, d, d, d + 4], abs=1e-3)
+    assert (20 - 2 * d) * (20 - 2 * d - 4) == pytest.approx(100, rel=1e-3)
+    # one number is the minimum of every edge: 6 m each already leaves less than 100 m²
+    margins = _remainder_margins("setbackToArea(100, 6){ all = G | remainder = X }")
+    assert margins == pytest.approx([6.0] * 4, abs=1e-3)
+
+
+def test_setback_shortcuts_without_a_body_are_named():
+    for op in ("setbackPerEdge(3)", "setbackToArea(100)"):
+        with pytest.raises(RuleError, match=r"needs a \{ … \} body"):
+            load_rules(f"Lot --> {op} X\n")
 
 
 def test_setback_to_area_out_of_reach_keeps_the_closest():

@@ -24,14 +24,15 @@ def unit_quad() -> Mesh:
     return Mesh(v, [[0, 1, 2, 3]], [v[:, :2].copy()])
 
 
-def _ring(n: int) -> np.ndarray:
+def unit_ring(n: int = 16) -> np.ndarray:
+    """``n`` points of the circle inscribed in the unit square, counter-clockwise."""
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
     return np.column_stack([0.5 + 0.5 * np.cos(a), 0.5 + 0.5 * np.sin(a)])
 
 
 def unit_cylinder(n: int = 16) -> Mesh:
     """Cylinder along y, radius 0.5, in the unit cube."""
-    r = _ring(n)
+    r = unit_ring(n)
     bottom = np.column_stack([r[:, 0], np.zeros(n), r[:, 1]])
     top = bottom + [0, 1, 0]
     polys = [bottom, top[::-1]]
@@ -42,7 +43,7 @@ def unit_cylinder(n: int = 16) -> Mesh:
 
 
 def unit_cone(n: int = 16) -> Mesh:
-    r = _ring(n)
+    r = unit_ring(n)
     bottom = np.column_stack([r[:, 0], np.zeros(n), r[:, 1]])
     apex = np.array([0.5, 1.0, 0.5])
     polys = [bottom]
@@ -53,7 +54,7 @@ def unit_cone(n: int = 16) -> Mesh:
 
 
 def unit_disk(n: int = 16) -> Mesh:
-    r = _ring(n)
+    r = unit_ring(n)
     return Mesh.from_polygons([np.column_stack([r[:, 0], np.zeros(n), r[:, 1]])[::-1]])
 
 

@@ -122,8 +122,9 @@ class _Checker:
                     if spec.body:
                         raise RuleError(f"{op.name}() needs a {{ … }} body saying what its parts "
                                         f"become, e.g. {op.name}(…) {{ all : A | remainder : B }}"
-                                        if op.name in ("setback", "shapeL", "shapeU", "shapeO",
-                                                       "innerRectangle")
+                                        if op.name in ("setback", "setbackPerEdge",
+                                                       "setbackToArea", "shapeL", "shapeU",
+                                                       "shapeO", "innerRectangle")
                                         else f"{op.name}() needs a {{ … }} body saying what its "
                                         f"parts become", self.m.path, op.line, op.column)
                     if not spec.min_args <= len(op.args) <= spec.max_args:

@@ -516,8 +516,6 @@ class _RunContext:
                     spec = operation_of(op, env.module)
                     if spec is not None:
                         self.call_op(spec, op, state, env, ())
-                        if spec.consumes:
-                            return True
                     else:
                         args = tuple(env.evaluator(a) for a in op.args)
                         self.emit(state, op.name, args, env.module, origin)

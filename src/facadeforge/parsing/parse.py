@@ -278,7 +278,7 @@ def _save(p: Parse, out: Path) -> list[Path]:
         Image.fromarray(p.rectified).save(stage / "rectified.png", compress_level=1)
         write_label_png(p.labels, stage / "labels.png")
         write_label_png(p.labels_input(), stage / "labels_input.png")
-        (stage / "shape_tree.json").write_text(json.dumps(p.tree.to_dict(), indent=1))
+        write_json(stage / "shape_tree.json", p.tree.to_dict(), indent=1)
         (stage / "rules.cga").write_text(p.rules)
         _energy_png(p.fit.search.curve, stage / "energy.png",
                     f"{p.fit.search.method}: best energy per derivation")

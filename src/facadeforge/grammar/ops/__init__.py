@@ -21,7 +21,6 @@ class OpSpec:
     max_args: int
     selectors: frozenset = field(default_factory=frozenset)
     body: bool = False
-    consumes: bool = False  # the shape becomes an inner node (split, comp): it is never a leaf
     names: frozenset = field(default_factory=frozenset)  # positions taking a bare name (set)
     selector_min_args: int = 0  # selectors only when called with at least this many arguments
 
@@ -62,10 +61,10 @@ def shape_function(name: str):
 
 
 def operation(name: str, min_args: int = 0, max_args: int | None = None, selectors=(),
-              body: bool = False, consumes: bool = False, names=(), selector_min_args: int = 0):
+              body: bool = False, names=(), selector_min_args: int = 0):
     def deco(fn):
         OPERATIONS[name] = OpSpec(name, fn, min_args, min_args if max_args is None else max_args,
-                                  frozenset(selectors) | frozenset(names), body, consumes or body,
+                                  frozenset(selectors) | frozenset(names), body,
                                   frozenset(names), selector_min_args)
         return fn
     return deco

@@ -7,7 +7,7 @@ import numpy as np
 from ...errors import InputError
 from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, polygon_normal, triangulate_polygon
 from ...geometry.polygon import simple_pieces
-from ...geometry.primitives import PRIMITIVES
+from ...geometry.primitives import PRIMITIVES, unit_ring
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
@@ -331,12 +331,8 @@ _PRIMITIVE_ARGS = {"cube": (0, 3), "quad": (0, 2), "cylinder": (1, 2), "cone": (
 def _primitive_size(kind: str, dims: list[float]) -> np.ndarray:
     if kind == "cube":
         return np.array(dims)
-    if kind == "quad":
-        return np.array([dims[0], 0.0, dims[1]])
     if kind in ("cylinder", "cone"):
         return np.array([2 * dims[0], dims[1], 2 * dims[0]])
-    if kind == "disk":
-        return np.array([2 * dims[0], 0.0, 2 * dims[0]])
     return np.full(3, 2 * dims[0])                                        # sphere
 
 
@@ -347,18 +343,20 @@ def _scope_plane(size: np.ndarray) -> tuple[int, int]:
     return (0, 1) if flat == [2] else (1, 2) if flat == [0] else (0, 2)
 
 
-def _quad_in_scope_plane(size: np.ndarray) -> Mesh:
-    """The unit quad in the plane :func:`_scope_plane` picks, facing its third axis."""
+def _flat_in_scope_plane(outline: np.ndarray, size: np.ndarray) -> Mesh:
+    """A flat primitive — ``outline``, (n, 2) points of the unit square, counter-clockwise —
+    in the plane :func:`_scope_plane` picks, facing that plane's third axis (a lot's quad or
+    disk faces up, a facade's faces out), with the outline as its UVs."""
     a, b = _scope_plane(size)
-    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
-    v = np.zeros((4, 3))
-    v[:, a], v[:, b] = uv[:, 0], uv[:, 1]
-    mesh = Mesh(v, [[0, 1, 2, 3]], [uv])
-    # face the positive third axis (a lot's quad faces up, a facade's quad faces out)
-    c = 3 - a - b
-    if polygon_normal(v)[c] < 0:
-        mesh = Mesh(v, [[3, 2, 1, 0]], [uv[::-1].copy()])
-    return mesh
+    v = np.zeros((len(outline), 3))
+    v[:, a], v[:, b] = outline[:, 0], outline[:, 1]
+    order = np.arange(len(outline))
+    if polygon_normal(v)[3 - a - b] < 0:
+        order = order[::-1]
+    return Mesh(v, [order.tolist()], [outline[order].copy()])
+
+
+_SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
 
 
 def _primitive_op(kind):
@@ -379,27 +377,24 @@ def _primitive_op(kind):
         dims = values[n_res:] if n > n_res else []
         if any(d < 0 for d in dims):
             raise CGARuntimeError(f"primitive{kind.title()}(): sizes must not be negative")
-        if kind == "quad":
-            mesh = _quad_in_scope_plane(st.scope.size)
+        if kind in ("quad", "disk"):
+            mesh = _flat_in_scope_plane(_SQUARE if kind == "quad" else unit_ring(*res),
+                                        st.scope.size)
         elif kind == "sphere" and res:
             mesh = PRIMITIVES[kind](*(res + [16] if len(res) == 1 else res))
         else:
             mesh = PRIMITIVES[kind](*res)
-        if kind == "disk" and _scope_plane(st.scope.size) != (0, 2):   # a disk on a facade
-            a, b = _scope_plane(st.scope.size)
-            v = mesh.vertices[:, [0, 2, 1]] if (a, b) == (0, 1) else mesh.vertices[:, [1, 0, 2]]
-            mesh = mesh.with_vertices(v)
         if dims:
-            size = _primitive_size(kind, dims)
+            sc = st.own_scope()
+            old = sc.size
             if kind in ("quad", "disk"):    # flat: the two sizes go along the scope's plane
                 a, b = _scope_plane(st.scope.size)
                 size = np.zeros(3)
                 size[a], size[b] = (dims[0], dims[1]) if kind == "quad" else (2 * dims[0],) * 2
-            sc = st.own_scope()
-            old = sc.size
-            shift = np.where(np.arange(3) == 1, 0.0, (old - size) / 2)
-            if kind in ("quad", "disk"):
                 shift = (old - size) / 2 * (size > 0)
+            else:
+                size = _primitive_size(kind, dims)
+                shift = np.where(np.arange(3) == 1, 0.0, (old - size) / 2)
             sc.origin = sc.to_world(shift[None])[0]
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())

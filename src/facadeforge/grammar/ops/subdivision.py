@@ -626,6 +626,15 @@ def _setback_pieces(call, pe, widths) -> list:
     return out
 
 
+@operation("setbackPerEdge", 1, 2, body=True)
+def op_setback_per_edge(call):
+    """Registered so the checks know it takes a body; the parser rewrites every use with a body
+    to ``setback(comp(fe){ all : d }){ … }`` (:meth:`facadeforge.grammar.parser` ``body_op``),
+    so this never runs on parsed rules."""
+    raise CGARuntimeError("setbackPerEdge(d){ … } is rewritten to setback(comp(fe){ all : d })"
+                          " when the rules are parsed")
+
+
 @operation("setbackToArea", 1, 4, body=True)
 def op_setback_to_area(call):
     """``setbackToArea(area[, minDistances[, maxDistances]][, uvSet]){…}``: a setback whose
@@ -636,14 +645,22 @@ def op_setback_to_area(call):
     st = call.state
     pe = _PlanarEdges(st, "setbackToArea")
     target = call.num(0)
-    arrays = [np.asarray(a, float).reshape(-1) for a in call.args[1:]
-              if isinstance(a, np.ndarray)]
-    for a in arrays:
+
+    def per_edge(k: int, default: float) -> np.ndarray:
+        """Argument ``k`` (minDistances, maxDistances): one number for every edge, or one
+        per edge."""
+        if len(call.args) <= k:
+            return np.full(pe.k, default)
+        a = call.args[k]
+        if not isinstance(a, np.ndarray):
+            return np.full(pe.k, call.num(k))
+        a = np.asarray(a, float).reshape(-1)
         if a.size != pe.k:
             raise CGARuntimeError(f"setbackToArea: a distance array has {a.size} values; give "
                                   f"one per edge ({pe.k})")
-    lo = arrays[0] if arrays else np.zeros(pe.k)
-    hi = arrays[1] if len(arrays) > 1 else np.full(pe.k, np.inf)
+        return a
+
+    lo, hi = per_edge(1, 0.0), per_edge(2, np.inf)
     selected = np.zeros(pe.k, bool)
     for branch in call.branches:
         key = _selector_key(call, branch)
