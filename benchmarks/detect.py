@@ -24,6 +24,15 @@ STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
          "detect_elements"}
 
 
+#: The options of detect_elements that switch steps 2–5 off, in step order.
+_OFF = (("dip", 0.0), ("rel_area", 0.0), ("min_score", 0.0), ("row_ratio", float("inf")))
+
+
+def _steps(k: int) -> dict[str, float]:
+    """Options running only steps 1–``k`` (the defaults for the steps up to ``k``)."""
+    return dict(_OFF[k - 1:])
+
+
 def main() -> int:
     from facadeforge.classify import default_classifier
     from facadeforge.datasets.folder import objects_from_labels
@@ -49,7 +58,7 @@ def main() -> int:
                  np.array([o.as_array() for o in comps]).reshape(-1, 4)}
         for k, name in STEPS.items():
             t = time.perf_counter()
-            els = detect_elements(prob, ls.classes, steps=k)
+            els = detect_elements(prob, ls.classes, **_steps(k))
             seconds[k] += time.perf_counter() - t
             found[name] = np.array([e.box for e in els if e.label == "window"],
                                    float).reshape(-1, 4)

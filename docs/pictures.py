@@ -36,7 +36,7 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     from facadeforge import render
     from facadeforge.evaluation.bench import select_samples
     from facadeforge.exchange.raster import PALETTE
-    from facadeforge.reconstruction import _structure_png, reconstruct
+    from facadeforge.reconstruction import reconstruct, structure_image
 
     val, _, _ = select_samples(dataset, DATA / dataset, "val")
     (sample,) = [s for s in val if s.id == sample_id]
@@ -50,7 +50,7 @@ def row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     labels = PALETTE[rec.labels]
     model = np.asarray(render(rec.model, None, size=(900, 900), azimuth=25.0,
                               elevation=12.0).convert("RGB"))
-    tiles = [_fit(found), _fit(_structure_png(rec)), _fit(labels), _fit(model)]
+    tiles = [_fit(found), _fit(structure_image(rec)), _fit(labels), _fit(model)]
     return _join(tiles, axis=1)
 
 

@@ -14,12 +14,10 @@ from typing import Any
 
 import numpy as np
 
+from .datasets.labelsets import IGNORE
 from .errors import InputError
 
-__all__ = ["NO_LABEL", "box_to_image", "warp_to_image"]
-
-#: Label of target pixels no source pixel maps to (the datasets' ``IGNORE``).
-NO_LABEL: int = 255
+__all__ = ["box_to_image", "warp_to_image"]
 
 
 def _check_homography(h: Any, where: str) -> np.ndarray:
@@ -50,13 +48,13 @@ def warp_to_image(labels: np.ndarray, homography: np.ndarray, shape: tuple[int, 
     -------
     (H, W) uint8
         For each photo pixel, the prediction at the inverse-mapped pixel centre (nearest
-        neighbour); :data:`NO_LABEL` where that falls outside the prediction or behind the camera.
+        neighbour); :data:`~facadeforge.datasets.IGNORE` where that falls outside the prediction or behind the camera.
     """
     labels = np.asarray(labels)
     inv = np.linalg.inv(_check_homography(homography, "warp_to_image"))
     big_h, big_w = int(shape[0]), int(shape[1])
     ph, pw = labels.shape
-    out = np.full((big_h, big_w), NO_LABEL, np.uint8)
+    out = np.full((big_h, big_w), IGNORE, np.uint8)
     if big_h == 0 or big_w == 0 or ph == 0 or pw == 0:
         return out
     xs = np.arange(big_w, dtype=np.float64) + 0.5

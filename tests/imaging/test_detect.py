@@ -87,7 +87,8 @@ def test_row_split_cuts_a_box_twice_as_wide_as_its_row():
     merged = _prob(60, 200, {"window": [(10, 20, 30, 50), (50, 20, 70, 50), (90, 20, 150, 50)]})
     merged[20:50, 110:130, CLASSES.index("window")] = 0.65   # too shallow for step 2 (dip 0.7)
     four = [e.box for e in detect_elements(merged, CLASSES) if e.label == "window"]
-    three = [e.box for e in detect_elements(merged, CLASSES, steps=4) if e.label == "window"]
+    three = [e.box for e in detect_elements(merged, CLASSES, row_ratio=np.inf)
+             if e.label == "window"]
     assert len(three) == 3 and len(four) == 4
 
 
@@ -172,6 +173,12 @@ def test_layout_lines_run_through_wall_and_keep_every_element(jitter):
     assert sorted(found) == sorted((e.label, e.box) for e in els)
     assert len(lay.confidences["floors"]) == len(lay.floors) - 1
     assert all(c == 1.0 for c in lay.confidences["floors"])     # zero occupancy on every line
+    # confidence = 1 − the mean element probability along the line
+    occupancy = np.full((h, w), 0.3)
+    occupancy[:, : w // 2] = 0.7
+    half = element_layout(els, gray, occupancy, px_per_m=20.0)
+    assert half.floors == lay.floors
+    assert half.confidences["floors"] == pytest.approx([0.5] * (len(lay.floors) - 1), abs=0.01)
 
 
 def _walk(region):
@@ -212,13 +219,6 @@ def test_refine_clusters_splits_appearance_clusters_by_geometry():
     assert moved[1] != moved[2]                 # the moved element gets its own rule
     assert ids(els, tol=50.0)[1] == ids(els, tol=50.0)[2]
     assert sorted(set(moved)) == list(range(len(set(moved))))
-
-
-def test_element_threshold_is_the_benchmarks_object_threshold():
-    from facadeforge.datasets.folder import MIN_OBJECT_FRACTION
-    from facadeforge.imaging.detect import MIN_ELEMENT_FRACTION
-
-    assert MIN_ELEMENT_FRACTION == MIN_OBJECT_FRACTION
 
 
 def test_layout_of_no_elements_is_one_wall_tile():

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
+from ..datasets.folder import MIN_OBJECT_FRACTION
 from ..errors import InputError
 
 __all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "row_split",
@@ -57,7 +58,7 @@ __all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_element
 DETECTED_LABELS: tuple[str, ...] = ("window", "door", "shop")
 #: Boxes smaller than this fraction of the image are noise (the benchmark's object threshold,
 #: :data:`facadeforge.datasets.folder.MIN_OBJECT_FRACTION`, so no scored object is lost).
-MIN_ELEMENT_FRACTION: float = 1e-4
+MIN_ELEMENT_FRACTION: float = MIN_OBJECT_FRACTION
 #: Depth limit of both recursive cuts (a facade has far fewer than 2**12 elements in a row).
 MAX_CUT_DEPTH: int = 12
 
@@ -224,7 +225,7 @@ def _overlap(a, b) -> bool:
 def detect_elements(prob: np.ndarray, classes: Sequence[str],
                     labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float = 0.2,
                     dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
-                    row_ratio: float = 1.8, steps: int = 5) -> list[Element]:
+                    row_ratio: float = 1.8) -> list[Element]:
     """Element boxes of ``labels`` from class probabilities (module docstring).
 
     Parameters
@@ -235,9 +236,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         The channels of ``prob``; labels it lacks are not detected.
     labels : canonical labels to detect
     xy_tol, dip, rel_area, min_score, row_ratio
-        Steps 1–5 of the module docstring.
-    steps : 1–5
-        Run only the first ``steps`` steps (the ablation of ``benchmarks/detect.py``).
+        Steps 1–5 of the module docstring; ``dip=0``, ``rel_area=0``, ``min_score=0`` and
+        ``row_ratio=inf`` each switch a step off (the ablation of ``benchmarks/detect.py``).
 
     Returns
     -------
@@ -261,17 +261,15 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         if not mask.any():
             continue
         pc = p[:, :, c].astype(np.float32)
-        boxes = xy_cut(mask, xy_tol)
-        if steps >= 2:
-            boxes = [part for b in boxes for part in valley_split(pc, mask, b, dip, min_px)]
+        boxes = [part for b in xy_cut(mask, xy_tol)
+                 for part in valley_split(pc, mask, b, dip, min_px)]
         els = [Element(label, b, float(pc[b[1]:b[3], b[0]:b[2]].mean())) for b in boxes]
         els = [e for e in els if e.area >= min_area]
-        if steps >= 3 and len(els) >= 3:
+        if len(els) >= 3:
             med = float(np.median([e.area for e in els]))
             els = [e for e in els if e.area >= rel_area * med]
-        if steps >= 4:
-            els = [e for e in els if e.score >= min_score]
-        if steps >= 5 and label == "window":   # the parts pass step 4's test too
+        els = [e for e in els if e.score >= min_score]
+        if label == "window":                   # the parts pass step 4's test too
             els = [e for e in row_split(els, pc, row_ratio) if e.score >= min_score]
         found += els
     kept: list[Element] = []
