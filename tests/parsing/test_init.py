@@ -48,8 +48,9 @@ def test_seeded_fit_recovers_uneven_columns():
 
     rules = load_rules(grammar_path("grid"))
     assert initialiser_for(load_rules(grammar_path("generic"))) is None
-    seeded = fit_grammar(_prob(lab), CMP6, rules, budget=300, initialiser=initialiser_for(rules))
-    plain = fit_grammar(_prob(lab), CMP6, rules, budget=300)
+    seeded = fit_grammar(_prob(lab), CMP6, rules, method="evolution", budget=400,
+                         initialiser=initialiser_for(rules))
+    plain = fit_grammar(_prob(lab), CMP6, rules, method="evolution", budget=400)
     agree = (seeded.labels == lab).mean()
     # the grid grammar cannot place the top window exactly (shared sill fraction, taller top
     # floor), hence not 1.0; an unseeded search at the same budget does clearly worse
@@ -75,3 +76,40 @@ def test_grid_seed_reads_balcony_guards_per_floor():
     seed = grid_seed(_prob(lab), CMP6)
     assert seed["guard1"] is True and seed["guard2"] is False and seed["guard3"] is False
     assert 0.1 < seed["guardFrac"] < 0.5
+
+
+def test_grid_seed_reads_margins_street_and_an_arcade():
+    """Background beside and below the building becomes margins and a street band; shop
+    openings under the window columns, with wall piers between them and a door under the
+    third column, become an arcade."""
+    lab, cols, rows = _grid_labels()
+    lab[170:] = CMP6.index("wall")
+    for c in cols:
+        lab[172:195, c - 2:c + 22] = CMP6.index("shop")
+    lab[172:195, cols[2] - 2:cols[2] + 22] = CMP6.index("door")
+    bg = CMP6.index("background")
+    lab = np.concatenate([np.full((200, 16), bg, np.uint8), lab,
+                          np.full((200, 24), bg, np.uint8)], axis=1)          # 200 x 200
+    lab = np.concatenate([lab, np.full((10, 200), bg, np.uint8)], axis=0)     # street rows
+    seed = grid_seed(_prob(lab), CMP6)
+    assert abs(seed["leftMargin"] - 16 / 200) < 1e-6 and abs(seed["rightMargin"] - 24 / 200) < 1e-6
+    assert abs(seed["streetFrac"] - 10 / 210) < 1e-6
+    np.testing.assert_allclose([seed[f"column{j}"] for j in range(1, 5)],
+                               (np.array(cols) + 16) / 200, atol=1e-6)
+    assert seed["groundKind"] == "arcade" and seed["arcadeKind"] == "shop"
+    assert seed["doorColumn"] == 3.0
+    assert abs(seed["arcadeWidth"] - 24 / 200) < 1e-6
+    # without surroundings in the grammar the seed leaves them out, and the ground floor is
+    # measured on the whole width
+    plain = grid_seed(_prob(lab), CMP6, surroundings=False)
+    assert plain["leftMargin"] == 0 and "arcadeWidth" not in plain
+
+
+def test_margins_are_pinned_for_a_classifier_without_background():
+    from facadeforge.parsing.init import pinned_for
+
+    rules = load_rules(grammar_path("grid"))
+    assert pinned_for(rules, get_label_set("ecp7")) == {
+        "leftMargin": 0.0, "rightMargin": 0.0, "streetFrac": 0.0}
+    assert pinned_for(rules, CMP6) == {}
+    assert pinned_for(load_rules(grammar_path("haussmann")), get_label_set("ecp7")) == {}

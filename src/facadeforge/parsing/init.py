@@ -25,7 +25,8 @@ import numpy as np
 
 from ..datasets import LabelSet
 
-__all__ = ["GRID_ATTRIBUTES", "grid_seed", "initialiser_for", "window_boxes"]
+__all__ = ["GRID_ATTRIBUTES", "SURROUNDING_ATTRIBUTES", "grid_seed", "initialiser_for",
+           "pinned_for", "window_boxes"]
 
 
 def window_boxes(prob: np.ndarray, label_set: LabelSet, min_area: int = 6) -> np.ndarray:
@@ -63,9 +64,88 @@ def _supported(groups: list[np.ndarray], min_count: int) -> list[np.ndarray]:
     return [g for g in groups if len(g) >= min_count]
 
 
+def _surroundings(prob: np.ndarray, label_set: LabelSet, boxes: np.ndarray
+                  ) -> tuple[float, float, float]:
+    """``(left, right, street)``: the shares of the facade's width and height that the
+    classifier sees as background (not the building) at its left and right sides and at its
+    bottom.  A side margin is a run of columns, from the border inwards, that are mostly
+    background and hold no window; the street a run of such rows.  Zero for label sets without
+    a background class (``ecp7``: its photos' neighbours are labelled as facade)."""
+    if "background" not in label_set.classes:
+        return 0.0, 0.0, 0.0
+    h, w = prob.shape[:2]
+    bg = np.argmax(prob, axis=2) == label_set.index("background")
+    occupied_x = np.zeros(w, bool)
+    occupied_y = np.zeros(h, bool)
+    for x0, y0, x1, y1 in boxes.astype(int):
+        occupied_x[x0:x1] = True
+        occupied_y[y0:y1] = True
+
+    def run(share: np.ndarray, occupied: np.ndarray) -> int:
+        free = (share > 0.6) & ~occupied
+        return int(np.argmin(free)) if not free.all() else free.size
+
+    cols, rows = bg.mean(axis=0), bg.mean(axis=1)
+    left = run(cols, occupied_x)
+    right = run(cols[::-1], occupied_x[::-1])
+    street = run(rows[::-1], occupied_y[::-1])
+    return left / w, right / w, street / h
+
+
+def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w: float,
+                 w: int, kind: str) -> dict[str, Any]:
+    """``grid.cga``'s arcade attributes read from the classifier's labels ``band`` of the
+    ground floor: under each window column, the run of band columns that are mostly openings
+    (shop, door or window) gives the opening's width and height; the arcade's kind is the most
+    common opening class, its door the column whose opening is mostly door.  ``groundKind``
+    becomes ``"arcade"`` when two or more openings stand apart (their piers are not opening),
+    else stays ``kind``."""
+    kinds = [c for c in ("shop", "door", "window") if c in label_set.classes]
+    if band.shape[0] < 2 or not kinds:
+        return {}
+    ids = [label_set.index(c) for c in kinds]
+    opening = np.isin(band, ids)
+    share = opening.mean(axis=0)
+    widths, heights, door_share, counts = [], [], [], np.zeros(len(ids))
+    for x in left:
+        cx = int(round((x + win_w / 2) * w))
+        if not 0 <= cx < w or share[cx] < 0.4:
+            widths.append(0.0)
+            door_share.append(0.0)
+            continue
+        x0 = cx
+        while x0 > 0 and share[x0 - 1] >= 0.4:
+            x0 -= 1
+        x1 = cx + 1
+        while x1 < w and share[x1] >= 0.4:
+            x1 += 1
+        cells = band[:, x0:x1]
+        rows = opening[:, x0:x1].mean(axis=1) > 0.5
+        widths.append((x1 - x0) / w)
+        heights.append(float(rows.sum()) / band.shape[0])
+        counts += [(cells == i).sum() for i in ids]
+        n_open = max(1, int(opening[:, x0:x1].sum()))   # the door's share of the opening
+        door_share.append(float((cells == label_set.index("door")).sum()) / n_open
+                          if "door" in kinds else 0.0)
+    found = [x for x in widths if x > 0]
+    if not found:
+        return {}
+    seed: dict[str, Any] = {
+        "arcadeWidth": float(np.clip(np.median(found), 0.01, 0.3)),
+        "arcadeHeight": float(np.clip(np.median(heights), 0.2, 1)),
+        "arcadeKind": kinds[int(np.argmax(counts))],
+        "doorColumn": float(1 + int(np.argmax(door_share))) if max(door_share) > 0.5 else 0.0,
+    }
+    apart = len(found) >= 2 and float(share.mean()) < 0.7 and sum(found) < 0.8
+    seed["groundKind"] = "arcade" if apart else kind
+    return seed
+
+
 def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
-              max_columns: int = 12) -> dict[str, Any] | None:
-    """Attributes of ``grid.cga`` read from the window map, or ``None`` with too few windows."""
+              max_columns: int = 12, surroundings: bool = True) -> dict[str, Any] | None:
+    """Attributes of ``grid.cga`` read from the window map, or ``None`` with too few windows.
+    ``surroundings``: the grammar has background margins (``leftMargin``, ``rightMargin``,
+    ``streetFrac``) and its ground floor spans the building between them."""
     h, w = prob.shape[:2]
     boxes = window_boxes(prob, label_set)
     if len(boxes) < 2:
@@ -87,6 +167,10 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         return None
     cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))[:max_columns]
     rows = sorted(rows, key=lambda g: -np.median(boxes[g, 3]))[:max_floors]   # bottom first
+    left_m, right_m, street = (_surroundings(prob, label_set, boxes) if surroundings
+                               else (0.0, 0.0, 0.0))
+    left_m, right_m = min(left_m, 0.35), min(right_m, 0.35)
+    inner_w = w * max(0.05, 1 - left_m - right_m)    # the building between the side margins
     win_w = float(np.median([np.median(boxes[g, 2] - boxes[g, 0]) for g in cols])) / w
     left = [float(np.median(boxes[g, 0])) / w for g in cols]
     # rows in facade coordinates (fractions, y up): window bottom a, top b
@@ -106,6 +190,8 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         "roofLine": float(np.clip(roof, 0.1, 1)),
         "windowHeight": float(np.clip(np.median(heights) / fh, 0.1, 0.95)),
         "sillHeight": float(np.clip((gap / 2) / fh, 0, 0.6)),
+        "leftMargin": left_m, "rightMargin": right_m,
+        "streetFrac": float(np.clip(min(street, lines[0]), 0, 0.3)),
     }
     for j, x in enumerate(left, start=1):
         seed[f"column{j}"] = float(np.clip(x, 0, 1))
@@ -118,6 +204,9 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     if band.size and "shop" in label_set.classes:
         shop = band[:, :, label_set.index("shop")].mean()
         seed["groundKind"] = "shops" if shop > 0.25 else "wall"
+    if surroundings:
+        seed.update(_arcade_seed(labels[ground_row:], label_set, left, win_w, w,
+                                 seed.get("groundKind", "wall")))
     # the door: the largest door component of the ground floor band
     if "door" in label_set.classes and ground_row < h:
         door = (labels[ground_row:] == label_set.index("door")).astype(np.uint8)
@@ -125,8 +214,9 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         if n > 1:
             x, y, dw, dh, _ = stats[1 + int(np.argmax(stats[1:, 4]))]
             band_h = h - ground_row
-            seed["doorWidth"] = float(np.clip(dw / w, 0, 0.25))
-            seed["doorPosition"] = float(np.clip(x / max(w - dw, 1), 0, 1))
+            # the ground floor spans the building between the margins
+            seed["doorWidth"] = float(np.clip(dw / inner_w, 0, 0.25))
+            seed["doorPosition"] = float(np.clip((x - left_m * w) / max(inner_w - dw, 1), 0, 1))
             seed["doorHeight"] = float(np.clip((band_h - y) / band_h, 0.3, 1))
         else:
             seed["doorWidth"] = 0.0
@@ -168,6 +258,19 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
 GRID_ATTRIBUTES = frozenset({"groundTop", "nFloors", "roofLine", "nColumns", "column1",
                              "windowWidth", "windowHeight", "sillHeight"})
 
+#: Background margins and street band of ``grid.cga``, seeded when a grammar declares them all.
+SURROUNDING_ATTRIBUTES = frozenset({"leftMargin", "rightMargin", "streetFrac"})
+
+
+def pinned_for(rules, label_set: LabelSet) -> dict[str, Any]:
+    """Attributes the search must leave alone for this classifier: without a background class
+    (``ecp7``), the margins and street band would be scored as sky, which street photos never
+    show beside or below a facade, so they stay at zero rather than widen the search."""
+    names = set(rules.ruleset.main.attrs)
+    if SURROUNDING_ATTRIBUTES <= names and "background" not in label_set.classes:
+        return dict.fromkeys(sorted(SURROUNDING_ATTRIBUTES), 0.0)
+    return {}
+
 
 def initialiser_for(rules) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | None] | None:
     """The seed function for a loaded parse grammar, chosen by the attributes it declares (so a
@@ -177,8 +280,10 @@ def initialiser_for(rules) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | 
         return None
     columns = sum(1 for n in names if re.fullmatch(r"column\d+", n))
     floors = 1 + sum(1 for n in names if re.fullmatch(r"floor\d+", n))
+    surroundings = SURROUNDING_ATTRIBUTES <= names
 
     def seed(prob: np.ndarray, label_set: LabelSet) -> dict[str, Any] | None:
-        return grid_seed(prob, label_set, max_floors=floors, max_columns=columns)
+        return grid_seed(prob, label_set, max_floors=floors, max_columns=columns,
+                         surroundings=surroundings)
 
     return seed

@@ -166,6 +166,7 @@ class SplitLayout:
         self._rule_attrs: dict[str, tuple[str, ...]] = {}
         self._split_cache: dict[int, tuple[frozenset[str], tuple[str, ...]]] = {}
         self._sig: dict[Any, tuple] = {}
+        self._terminals: dict[int, str | None] = {}
         self._plans: dict[int, tuple[str, tuple] | None] = {}
 
     # ------------------------------------------------------------------ attributes
@@ -218,6 +219,9 @@ class SplitLayout:
         if depth > MAX_DEPTH:
             raise ParseGrammarError(f"rule '{name}' (line {rdef.line}) nests deeper than "
                                     f"{MAX_DEPTH} levels")
+        terminal = self._terminal(rdef)
+        if terminal is not None:   # appearance operations and a constant label: a leaf
+            return self._leaf(name, terminal or label, sx, sy)
         sig = self._sig.get(name, _EVALUATING)
         if sig is _EVALUATING:
             sig = self._signature(name, self._reads_attrs)
@@ -251,7 +255,8 @@ class SplitLayout:
         if k in self._sig:
             return self._sig[k]
         try:
-            sig = _typed(self.attr_value(a) for a in reads(owner))
+            values = tuple(map(self.attr_value, reads(owner)))
+            sig = (values, tuple(map(type, values)))   # typed, as _typed, but two C loops
         except CGARuntimeError:
             sig = None
         self._sig[k] = sig
@@ -305,8 +310,7 @@ class SplitLayout:
                 if follow_rules:
                     stack.extend(rdef.body for (n, _), rdef in self.rule_defs.items()
                                  if n == ref)
-                if ref in self.functions:
-                    scope.update(("scope.sx", "scope.sy"))
+                if ref in self.functions:   # its body reads the caller's scope, if any
                     stack.append(self.functions[ref].body)
             stack.extend(v for v in vars(node).values() if isinstance(v, A.Node | tuple))
         return frozenset(scope), tuple(sorted(found))
@@ -395,6 +399,27 @@ class SplitLayout:
             else:
                 out += [(x0, y0 + start, x1, y1 + start, lab) for x0, y0, x1, y1, lab in leaves]
         return out
+
+    def _terminal(self, rdef) -> str | None:
+        """For a rule whose body is only appearance operations and at most one ``label`` with
+        a string literal (``Wall --> color(…) label("wall")``): that label, or ``""`` without
+        one (the leaf keeps the label it inherits); ``None`` for any other rule."""
+        key = id(rdef)
+        if key in self._terminals:
+            return self._terminals[key]
+        found: str | None = ""
+        for op in rdef.body:
+            if not isinstance(op, A.Successor):
+                found = None
+            elif op.name == "label":
+                ok = len(op.args) == 1 and isinstance(op.args[0], A.Str)
+                found = op.args[0].value if ok and found is not None else None
+            elif op.name not in _APPEARANCE_OPS:
+                found = None
+            if found is None:
+                break
+        self._terminals[key] = found
+        return found
 
     def _successor(self, branch: A.Branch) -> tuple[str, tuple] | None:
         """``(rule, argument nodes)`` when a split piece's operations are one successor rule

@@ -212,8 +212,11 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     timings["rectify"] = rectify_s + time.perf_counter() - t
 
     t = time.perf_counter()
-    fixed = {"facadeWidth": float(width_m)} if width_m is not None else None
-    from .init import initialiser_for
+    from .init import initialiser_for, pinned_for
+
+    fixed = pinned_for(rules, label_set)
+    if width_m is not None:
+        fixed["facadeWidth"] = float(width_m)
 
     fit = fit_grammar(rect_prob, label_set, rules, method=method, budget=budget, seed=seed,
                       fixed=fixed, initialiser=initialiser_for(rules))
