@@ -205,7 +205,8 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         shop = band[:, :, label_set.index("shop")].mean()
         seed["groundKind"] = "shops" if shop > 0.25 else "wall"
     if surroundings:
-        seed.update(_arcade_seed(labels[ground_row:], label_set, left, win_w, w,
+        street_row = h - int(round(seed["streetFrac"] * h))     # the arcade stands on it
+        seed.update(_arcade_seed(labels[ground_row:street_row], label_set, left, win_w, w,
                                  seed.get("groundKind", "wall")))
     # the door: the largest door component of the ground floor band
     if "door" in label_set.classes and ground_row < h:
