@@ -94,6 +94,8 @@ def test_grid_seed_reads_margins_street_and_an_arcade():
     seed = grid_seed(_prob(lab), CMP6)
     assert abs(seed["leftMargin"] - 16 / 200) < 1e-6 and abs(seed["rightMargin"] - 24 / 200) < 1e-6
     assert abs(seed["streetFrac"] - 10 / 210) < 1e-6
+    # no sky above: the wall from the roof line to the top is attic, less the roof band
+    assert abs(seed["atticFrac"] - (1 - seed["roofLine"] - 0.03)) < 1e-6
     np.testing.assert_allclose([seed[f"column{j}"] for j in range(1, 5)],
                                (np.array(cols) + 16) / 200, atol=1e-6)
     assert seed["groundKind"] == "arcade" and seed["arcadeKind"] == "shop"
@@ -110,6 +112,6 @@ def test_margins_are_pinned_for_a_classifier_without_background():
 
     rules = load_rules(grammar_path("grid"))
     assert pinned_for(rules, get_label_set("ecp7")) == {
-        "leftMargin": 0.0, "rightMargin": 0.0, "streetFrac": 0.0}
+        "atticFrac": 0.0, "leftMargin": 0.0, "rightMargin": 0.0, "streetFrac": 0.0}
     assert pinned_for(rules, CMP6) == {}
     assert pinned_for(load_rules(grammar_path("haussmann")), get_label_set("ecp7")) == {}

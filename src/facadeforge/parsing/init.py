@@ -92,6 +92,21 @@ def _surroundings(prob: np.ndarray, label_set: LabelSet, boxes: np.ndarray
     return left / w, right / w, street / h
 
 
+def _attic(prob: np.ndarray, label_set: LabelSet, roof_line: float, roof_frac: float = 0.03
+           ) -> float:
+    """Height (share of the facade) of the wall band between the top floor's windows and the
+    roof: from the roof line up to the first of the top rows the classifier sees as roof, sky
+    or background (less ``grid.cga``'s default roof band), so the top floor is not stretched
+    to the top of the facade.  Zero without a background class (:func:`pinned_for`)."""
+    if "background" not in label_set.classes:
+        return 0.0
+    above = [label_set.index(c) for c in ("background", "sky", "roof")
+             if c in label_set.classes]
+    top = np.isin(np.argmax(prob, axis=2), above).mean(axis=1) > 0.6
+    top_rows = int(np.argmin(top)) if not top.all() else top.size
+    return float(np.clip(1 - top_rows / top.size - roof_line - roof_frac, 0, 0.3))
+
+
 def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w: float,
                  w: int, kind: str) -> dict[str, Any]:
     """``grid.cga``'s arcade attributes read from the classifier's labels ``band`` of the
@@ -192,6 +207,7 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         "sillHeight": float(np.clip((gap / 2) / fh, 0, 0.6)),
         "leftMargin": left_m, "rightMargin": right_m,
         "streetFrac": float(np.clip(min(street, lines[0]), 0, 0.3)),
+        "atticFrac": _attic(prob, label_set, roof),
     }
     for j, x in enumerate(left, start=1):
         seed[f"column{j}"] = float(np.clip(x, 0, 1))
@@ -260,13 +276,15 @@ GRID_ATTRIBUTES = frozenset({"groundTop", "nFloors", "roofLine", "nColumns", "co
                              "windowWidth", "windowHeight", "sillHeight"})
 
 #: Background margins and street band of ``grid.cga``, seeded when a grammar declares them all.
-SURROUNDING_ATTRIBUTES = frozenset({"leftMargin", "rightMargin", "streetFrac"})
+SURROUNDING_ATTRIBUTES = frozenset({"leftMargin", "rightMargin", "streetFrac", "atticFrac"})
 
 
 def pinned_for(rules, label_set: LabelSet) -> dict[str, Any]:
     """Attributes the search must leave alone for this classifier: without a background class
     (``ecp7``), the margins and street band would be scored as sky, which street photos never
-    show beside or below a facade, so they stay at zero rather than widen the search."""
+    show beside or below a facade, and the top of the facade is the roof band's (an attic wall
+    band would be read off the mansard roof), so they stay at zero rather than widen the
+    search."""
     names = set(rules.ruleset.main.attrs)
     if SURROUNDING_ATTRIBUTES <= names and "background" not in label_set.classes:
         return dict.fromkeys(sorted(SURROUNDING_ATTRIBUTES), 0.0)
