@@ -33,6 +33,11 @@ def test_window_boxes_and_grid_seed():
     lab, cols, rows = _grid_labels()
     prob = _prob(lab)
     assert len(window_boxes(prob, CMP6)) == 12
+    assert len(window_boxes(prob, CMP6, one_facade=True)) == 12
+    joined = lab.copy()                      # two windows of a row touch through a bridge
+    joined[30:33, 30:50] = CMP6.index("window")
+    for one_facade in (False, True):
+        assert len(window_boxes(_prob(joined), CMP6, one_facade)) == 12
     seed = grid_seed(prob, CMP6)
     assert seed["nColumns"] == 4 and seed["nFloors"] == 3
     np.testing.assert_allclose([seed[f"column{j}"] for j in range(1, 5)],

@@ -45,6 +45,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
@@ -218,12 +219,18 @@ def row_split(els: list[Element], prob: np.ndarray, ratio: float = 1.8) -> list[
     return out
 
 
+def _components(mask: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Boxes of the 4-connected components of ``mask``."""
+    _, _, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=4)
+    return [(int(x), int(y), int(x + w), int(y + h)) for x, y, w, h, _ in stats[1:]]
+
+
 def _overlap(a, b) -> bool:
     return min(a[2], b[2]) > max(a[0], b[0]) and min(a[3], b[3]) > max(a[1], b[1])
 
 
 def detect_elements(prob: np.ndarray, classes: Sequence[str],
-                    labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float = 0.2,
+                    labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float | None = 0.2,
                     dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
                     row_ratio: float = 1.8) -> list[Element]:
     """Element boxes of ``labels`` from class probabilities (module docstring).
@@ -238,6 +245,9 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
     xy_tol, dip, rel_area, min_score, row_ratio
         Steps 1–5 of the module docstring; ``dip=0``, ``rel_area=0``, ``min_score=0`` and
         ``row_ratio=inf`` each switch a step off (the ablation of ``benchmarks/detect.py``).
+        ``xy_tol=None`` starts from the connected components of the class mask instead of the
+        XY-cut: for photos of several houses whose floors are offset, which the XY-cut's
+        whole-image rows would chop.
 
     Returns
     -------
@@ -261,8 +271,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         if not mask.any():
             continue
         pc = p[:, :, c].astype(np.float32)
-        boxes = [part for b in xy_cut(mask, xy_tol)
-                 for part in valley_split(pc, mask, b, dip, min_px)]
+        start = xy_cut(mask, xy_tol) if xy_tol is not None else _components(mask)
+        boxes = [part for b in start for part in valley_split(pc, mask, b, dip, min_px)]
         els = [Element(label, b, float(pc[b[1]:b[3], b[0]:b[2]].mean())) for b in boxes]
         els = [e for e in els if e.area >= min_area]
         if len(els) >= 3:

@@ -29,16 +29,24 @@ __all__ = ["GRID_ATTRIBUTES", "SURROUNDING_ATTRIBUTES", "grid_seed", "initialise
            "pinned_for", "window_boxes"]
 
 
-def window_boxes(prob: np.ndarray, label_set: LabelSet, min_area: int = 6) -> np.ndarray:
+def window_boxes(prob: np.ndarray, label_set: LabelSet, one_facade: bool = False
+                 ) -> np.ndarray:
     """``(n, 4)`` boxes ``x0, y0, x1, y1`` (pixels, exclusive ends, row 0 on top) of the
-    connected components of the window class where it is the most probable class and clearly
-    so (p > 0.35): pixels without evidence, such as the uniform probabilities outside a warped
-    photo, never form windows."""
-    c = label_set.index("window")
-    win = ((np.argmax(prob, axis=2) == c) & (prob[:, :, c] > 0.35)).astype(np.uint8)
-    n, _, stats, _ = cv2.connectedComponentsWithStats(win, connectivity=4)
-    boxes = [(x, y, x + w, y + h) for x, y, w, h, a in stats[1:] if a >= min_area]
-    return np.array(boxes, float).reshape(-1, 4)
+    windows :func:`~facadeforge.imaging.detect.detect_elements` finds in the classifier's
+    probabilities: it separates windows that touch in the class map and drops fragments and
+    faint blobs (such as the uniform probabilities outside a warped photo).
+
+    ``one_facade``: the photo is one facade, cropped (given ``--rectified``, as CMP's), so its
+    windows stand in rows across the whole image and the detector starts from its XY-cut.
+    Otherwise (street photos show neighbouring houses whose floors are offset, which the
+    XY-cut's whole-image rows would chop) it starts from connected components, and keeps
+    windows of weaker evidence (mean probability 0.35), as balcony railings in front of Paris
+    windows lower it."""
+    from ..imaging.detect import detect_elements
+
+    els = detect_elements(prob, label_set.classes, labels=("window",),
+                          **({} if one_facade else {"xy_tol": None, "min_score": 0.35}))
+    return np.array([e.box for e in els], float).reshape(-1, 4)
 
 
 def _groups(lo: np.ndarray, hi: np.ndarray) -> list[np.ndarray]:
@@ -157,12 +165,14 @@ def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w
 
 
 def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
-              max_columns: int = 12, surroundings: bool = True) -> dict[str, Any] | None:
+              max_columns: int = 12, surroundings: bool = True, one_facade: bool = False
+              ) -> dict[str, Any] | None:
     """Attributes of ``grid.cga`` read from the window map, or ``None`` with too few windows.
     ``surroundings``: the grammar has background margins (``leftMargin``, ``rightMargin``,
-    ``streetFrac``) and its ground floor spans the building between them."""
+    ``streetFrac``) and its ground floor spans the building between them; ``one_facade``: see
+    :func:`window_boxes`."""
     h, w = prob.shape[:2]
-    boxes = window_boxes(prob, label_set)
+    boxes = window_boxes(prob, label_set, one_facade)
     if len(boxes) < 2:
         return None
     area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
@@ -291,9 +301,11 @@ def pinned_for(rules, label_set: LabelSet) -> dict[str, Any]:
     return {}
 
 
-def initialiser_for(rules) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | None] | None:
+def initialiser_for(rules, one_facade: bool = False
+                    ) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | None] | None:
     """The seed function for a loaded parse grammar, chosen by the attributes it declares (so a
-    renamed or edited copy of a built-in grammar is seeded too), or ``None``."""
+    renamed or edited copy of a built-in grammar is seeded too), or ``None``; ``one_facade``
+    as in :func:`window_boxes` (``parse`` passes whether the photo was given rectified)."""
     names = set(rules.ruleset.main.attrs)
     if not GRID_ATTRIBUTES <= names:
         return None
@@ -303,6 +315,6 @@ def initialiser_for(rules) -> Callable[[np.ndarray, LabelSet], dict[str, Any] | 
 
     def seed(prob: np.ndarray, label_set: LabelSet) -> dict[str, Any] | None:
         return grid_seed(prob, label_set, max_floors=floors, max_columns=columns,
-                         surroundings=surroundings)
+                         surroundings=surroundings, one_facade=one_facade)
 
     return seed

@@ -219,7 +219,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         fixed["facadeWidth"] = float(width_m)
 
     fit = fit_grammar(rect_prob, label_set, rules, method=method, budget=budget, seed=seed,
-                      fixed=fixed, initialiser=initialiser_for(rules))
+                      fixed=fixed, initialiser=initialiser_for(rules, one_facade=rectified))
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
