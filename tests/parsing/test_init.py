@@ -120,3 +120,32 @@ def test_margins_are_pinned_for_a_classifier_without_background():
         "atticFrac": 0.0, "leftMargin": 0.0, "rightMargin": 0.0, "streetFrac": 0.0}
     assert pinned_for(rules, CMP6) == {}
     assert pinned_for(load_rules(grammar_path("haussmann")), get_label_set("ecp7")) == {}
+
+
+def test_street_windows_ignore_uniform_probabilities_outside_the_photo():
+    """Outside a warped street photo the probabilities are uniform, and their argmax is class
+    0 — window, in ecp7.  Windows beside that area keep their own boxes."""
+    ecp7 = get_label_set("ecp7")
+    lab = np.full((200, 160), ecp7.index("wall"), np.uint8)
+    for r in (20, 70, 120):
+        for c in (10, 50, 90, 125):
+            lab[r:r + 30, c:c + 20] = ecp7.index("window")
+    p = np.full((*lab.shape, ecp7.num_classes), 0.02, np.float32)
+    np.put_along_axis(p, lab[:, :, None].astype(int), 0.9, axis=2)
+    p /= p.sum(axis=2, keepdims=True)
+    p[:, 145:] = 1 / ecp7.num_classes                    # outside the warped photo
+    boxes = window_boxes(p, ecp7)
+    assert len(boxes) == 12 and boxes[:, 2].max() == 145
+    assert grid_seed(p, ecp7)["nColumns"] == 4
+
+
+def test_wide_margins_do_not_make_a_street():
+    """Rows are measured between the margins: with margins of a third of the width on each
+    side, the shop ground floor stays a ground floor of shops, not street."""
+    lab, cols, rows = _grid_labels()
+    bg = CMP6.index("background")
+    lab = np.concatenate([np.full((200, 130), bg, np.uint8), lab,
+                          np.full((200, 130), bg, np.uint8)], axis=1)          # 200 x 420
+    seed = grid_seed(_prob(lab), CMP6)
+    assert seed["streetFrac"] == 0.0 and seed["groundKind"] == "shops"
+    assert abs(seed["leftMargin"] - 130 / 420) < 1e-6

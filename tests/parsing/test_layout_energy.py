@@ -222,3 +222,24 @@ def test_margins_frame_the_building_and_arcade_openings_sit_under_the_columns():
     np.testing.assert_allclose((door[0, 0] + door[0, 2]) / 2, 6.5)
     np.testing.assert_allclose(shop[0, 2] - shop[0, 0], 1.6)
     np.testing.assert_allclose([shop[0, 1], shop[0, 3]], [0.5, 0.5 + 0.75 * 2.5])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_arcade_with_overlapping_openings_matches_engine(seed):
+    """Openings wider than the column spacing push the later ones along; the 2D layout must
+    still be what the engine derives."""
+    rules = load_rules(grammar_path("grid"))
+    rng = np.random.default_rng(seed)
+    attrs = {p.name: (p.choices[rng.integers(len(p.choices))] if p.discrete else
+                      p.clip(rng.uniform(p.lo, p.hi))) for p in parameters_of(rules)}
+    attrs.update({"groundKind": "arcade", "nColumns": 12.0, "arcadeWidth": 0.3,
+                  "doorColumn": float(rng.integers(0, 13))})
+    attrs.update({f"column{j}": 0.05 + 0.07 * (j - 1) for j in range(1, 13)})
+    lay = SplitLayout(rules).derive(14.0, 18.0, attrs)
+    ours = sorted((round(b[0], 6), round(b[1], 6), round(b[2], 6), round(b[3], 6), lab)
+                  for b, lab in zip(lay.boxes.tolist(), lay.labels))
+    theirs = _engine_boxes(rules, 14.0, 18.0, attrs)
+    assert len(ours) == len(theirs)
+    for a, b in zip(ours, theirs):
+        assert a[4] == b[4]
+        np.testing.assert_allclose(a[:4], b[:4], atol=1e-4)

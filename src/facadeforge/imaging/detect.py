@@ -232,7 +232,7 @@ def _overlap(a, b) -> bool:
 def detect_elements(prob: np.ndarray, classes: Sequence[str],
                     labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float | None = 0.2,
                     dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
-                    row_ratio: float = 1.8) -> list[Element]:
+                    row_ratio: float = 1.8, min_prob: float = 0.0) -> list[Element]:
     """Element boxes of ``labels`` from class probabilities (module docstring).
 
     Parameters
@@ -248,6 +248,10 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         ``xy_tol=None`` starts from the connected components of the class mask instead of the
         XY-cut: for photos of several houses whose floors are offset, which the XY-cut's
         whole-image rows would chop.
+    min_prob : float
+        A pixel belongs to a class's mask only where that class is the most probable *and*
+        above this probability: ``1/K``-uniform probabilities (outside a warped photo) have an
+        arbitrary argmax, which must not join the windows beside them.
 
     Returns
     -------
@@ -268,6 +272,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
             continue
         c = list(classes).index(label)
         mask = argmax == c
+        if min_prob > 0:
+            mask &= p[:, :, c] > min_prob
         if not mask.any():
             continue
         pc = p[:, :, c].astype(np.float32)

@@ -39,13 +39,14 @@ def window_boxes(prob: np.ndarray, label_set: LabelSet, one_facade: bool = False
     ``one_facade``: the photo is one facade, cropped (given ``--rectified``, as CMP's), so its
     windows stand in rows across the whole image and the detector starts from its XY-cut.
     Otherwise (street photos show neighbouring houses whose floors are offset, which the
-    XY-cut's whole-image rows would chop) it starts from connected components, and keeps
-    windows of weaker evidence (mean probability 0.35), as balcony railings in front of Paris
-    windows lower it."""
+    XY-cut's whole-image rows would chop) it starts from connected components of the pixels
+    whose window probability is above 0.35 (so the uniform probabilities outside the warped
+    photo, whose argmax is arbitrary, never join a window), and keeps windows of weaker
+    evidence (mean probability 0.35), as balcony railings in front of Paris windows lower it."""
     from ..imaging.detect import detect_elements
 
-    els = detect_elements(prob, label_set.classes, labels=("window",),
-                          **({} if one_facade else {"xy_tol": None, "min_score": 0.35}))
+    street = {} if one_facade else {"xy_tol": None, "min_score": 0.35, "min_prob": 0.35}
+    els = detect_elements(prob, label_set.classes, labels=("window",), **street)
     return np.array([e.box for e in els], float).reshape(-1, 4)
 
 
@@ -93,9 +94,11 @@ def _surroundings(prob: np.ndarray, label_set: LabelSet, boxes: np.ndarray
         free = (share > 0.6) & ~occupied
         return int(np.argmin(free)) if not free.all() else free.size
 
-    cols, rows = bg.mean(axis=0), bg.mean(axis=1)
-    left = run(cols, occupied_x)
-    right = run(cols[::-1], occupied_x[::-1])
+    cols = bg.mean(axis=0)
+    left = min(run(cols, occupied_x), int(0.35 * w))
+    right = min(run(cols[::-1], occupied_x[::-1]), int(0.35 * w))
+    # the street is measured between the margins, which would count towards every row
+    rows = bg[:, left:max(w - right, left + 1)].mean(axis=1)
     street = run(rows[::-1], occupied_y[::-1])
     return left / w, right / w, street / h
 
@@ -118,50 +121,51 @@ def _attic(prob: np.ndarray, label_set: LabelSet, roof_line: float, roof_frac: f
 def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w: float,
                  w: int, kind: str) -> dict[str, Any]:
     """``grid.cga``'s arcade attributes read from the classifier's labels ``band`` of the
-    ground floor: under each window column, the run of band columns that are mostly openings
-    (shop, door or window) gives the opening's width and height; the arcade's kind is the most
-    common opening class, its door the column whose opening is mostly door.  ``groundKind``
-    becomes ``"arcade"`` when two or more openings stand apart (their piers are not opening),
-    else stays ``kind``."""
+    ground floor (between the margins, above the street; ``left`` are the window columns'
+    left edges in that band, as fractions of the facade width ``w``): under each window
+    column, the run of band columns that are mostly openings (shop, door or window) gives the
+    opening's width and height; the arcade's kind is the most common opening class, its door
+    the column whose opening is mostly door.  Only when two or more distinct openings stand
+    apart (piers that are not opening between them) is ``groundKind`` ``"arcade"`` and are
+    the arcade's attributes returned; otherwise ``{"groundKind": kind}``."""
     kinds = [c for c in ("shop", "door", "window") if c in label_set.classes]
-    if band.shape[0] < 2 or not kinds:
+    if band.shape[0] < 2 or band.shape[1] < 2 or not kinds:
         return {}
     ids = [label_set.index(c) for c in kinds]
     opening = np.isin(band, ids)
     share = opening.mean(axis=0)
-    widths, heights, door_share, counts = [], [], [], np.zeros(len(ids))
-    for x in left:
+    bw = band.shape[1]
+    runs: dict[tuple[int, int], int] = {}       # (x0, x1) → the first column standing on it
+    door_share = [0.0] * len(left)
+    for j, x in enumerate(left):
         cx = int(round((x + win_w / 2) * w))
-        if not 0 <= cx < w or share[cx] < 0.4:
-            widths.append(0.0)
-            door_share.append(0.0)
+        if not 0 <= cx < bw or share[cx] < 0.4:
             continue
         x0 = cx
         while x0 > 0 and share[x0 - 1] >= 0.4:
             x0 -= 1
         x1 = cx + 1
-        while x1 < w and share[x1] >= 0.4:
+        while x1 < bw and share[x1] >= 0.4:
             x1 += 1
-        cells = band[:, x0:x1]
-        rows = opening[:, x0:x1].mean(axis=1) > 0.5
-        widths.append((x1 - x0) / w)
-        heights.append(float(rows.sum()) / band.shape[0])
-        counts += [(cells == i).sum() for i in ids]
+        runs.setdefault((x0, x1), j)
         n_open = max(1, int(opening[:, x0:x1].sum()))   # the door's share of the opening
-        door_share.append(float((cells == label_set.index("door")).sum()) / n_open
-                          if "door" in kinds else 0.0)
-    found = [x for x in widths if x > 0]
-    if not found:
-        return {}
-    seed: dict[str, Any] = {
-        "arcadeWidth": float(np.clip(np.median(found), 0.01, 0.3)),
+        if "door" in kinds:
+            door_share[j] = float((band[:, x0:x1] == label_set.index("door")).sum()) / n_open
+    widths = [(x1 - x0) / w for x0, x1 in runs]
+    apart = len(runs) >= 2 and float(share.mean()) < 0.7 and sum(widths) < 0.8
+    if not apart:
+        return {"groundKind": kind}
+    heights = [float((opening[:, x0:x1].mean(axis=1) > 0.5).sum()) / band.shape[0]
+               for x0, x1 in runs]
+    counts = [sum(int((band[:, x0:x1] == i).sum()) for x0, x1 in runs) for i in ids]
+    spacing = min(np.diff(sorted(left)), default=1.0)    # openings must not overlap
+    return {
+        "groundKind": "arcade",
+        "arcadeWidth": float(np.clip(min(np.median(widths), spacing), 0.01, 0.3)),
         "arcadeHeight": float(np.clip(np.median(heights), 0.2, 1)),
         "arcadeKind": kinds[int(np.argmax(counts))],
         "doorColumn": float(1 + int(np.argmax(door_share))) if max(door_share) > 0.5 else 0.0,
     }
-    apart = len(found) >= 2 and float(share.mean()) < 0.7 and sum(found) < 0.8
-    seed["groundKind"] = "arcade" if apart else kind
-    return seed
 
 
 def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
@@ -194,7 +198,6 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     rows = sorted(rows, key=lambda g: -np.median(boxes[g, 3]))[:max_floors]   # bottom first
     left_m, right_m, street = (_surroundings(prob, label_set, boxes) if surroundings
                                else (0.0, 0.0, 0.0))
-    left_m, right_m = min(left_m, 0.35), min(right_m, 0.35)
     inner_w = w * max(0.05, 1 - left_m - right_m)    # the building between the side margins
     win_w = float(np.median([np.median(boxes[g, 2] - boxes[g, 0]) for g in cols])) / w
     left = [float(np.median(boxes[g, 0])) / w for g in cols]
@@ -224,26 +227,29 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     for i, y in enumerate(lines[1:], start=2):
         seed[f"floor{i}"] = float(np.clip(y, 0, 1))
     labels = np.argmax(prob, axis=2)
+    # the ground floor: between the first floor line and the street, between the margins
     ground_row = int(round((1 - seed["groundTop"]) * h))
-    # ground floor: shops where the band below the first floor line is mostly shop
-    band = prob[ground_row:, :, :]
+    street_row = max(ground_row, h - int(round(seed["streetFrac"] * h)))
+    x_in = int(round(left_m * w))
+    x_out = max(x_in + 1, w - int(round(right_m * w)))
+    band = prob[ground_row:street_row, x_in:x_out]
+    # shops where the band below the first floor line is mostly shop
     if band.size and "shop" in label_set.classes:
         shop = band[:, :, label_set.index("shop")].mean()
         seed["groundKind"] = "shops" if shop > 0.25 else "wall"
     if surroundings:
-        street_row = h - int(round(seed["streetFrac"] * h))     # the arcade stands on it
-        seed.update(_arcade_seed(labels[ground_row:street_row], label_set, left, win_w, w,
+        seed.update(_arcade_seed(labels[ground_row:street_row, x_in:x_out], label_set,
+                                 [x - x_in / w for x in left], win_w, w,
                                  seed.get("groundKind", "wall")))
     # the door: the largest door component of the ground floor band
-    if "door" in label_set.classes and ground_row < h:
-        door = (labels[ground_row:] == label_set.index("door")).astype(np.uint8)
-        n, _, stats, _ = cv2.connectedComponentsWithStats(door, connectivity=4)
+    if "door" in label_set.classes and street_row > ground_row:
+        door = (labels[ground_row:street_row, x_in:x_out] == label_set.index("door"))
+        n, _, stats, _ = cv2.connectedComponentsWithStats(door.astype(np.uint8), connectivity=4)
         if n > 1:
             x, y, dw, dh, _ = stats[1 + int(np.argmax(stats[1:, 4]))]
-            band_h = h - ground_row
-            # the ground floor spans the building between the margins
+            band_h = street_row - ground_row
             seed["doorWidth"] = float(np.clip(dw / inner_w, 0, 0.25))
-            seed["doorPosition"] = float(np.clip((x - left_m * w) / max(inner_w - dw, 1), 0, 1))
+            seed["doorPosition"] = float(np.clip(x / max(inner_w - dw, 1), 0, 1))
             seed["doorHeight"] = float(np.clip((band_h - y) / band_h, 0.3, 1))
         else:
             seed["doorWidth"] = 0.0

@@ -401,9 +401,10 @@ class SplitLayout:
         return out
 
     def _terminal(self, rdef) -> str | None:
-        """For a rule whose body is only appearance operations and at most one ``label`` with
-        a string literal (``Wall --> color(…) label("wall")``): that label, or ``""`` without
-        one (the leaf keeps the label it inherits); ``None`` for any other rule."""
+        """For a rule whose body is only appearance operations and ``label`` calls with a
+        non-empty string literal (``Wall --> color(…) label("wall")``): the last label, or
+        ``""`` without one (the leaf keeps the label it inherits); ``None`` for any other rule,
+        which :meth:`_ops` derives."""
         key = id(rdef)
         if key in self._terminals:
             return self._terminals[key]
@@ -412,7 +413,7 @@ class SplitLayout:
             if not isinstance(op, A.Successor):
                 found = None
             elif op.name == "label":
-                ok = len(op.args) == 1 and isinstance(op.args[0], A.Str)
+                ok = len(op.args) == 1 and isinstance(op.args[0], A.Str) and op.args[0].value
                 found = op.args[0].value if ok and found is not None else None
             elif op.name not in _APPEARANCE_OPS:
                 found = None

@@ -130,8 +130,10 @@ def coordinate_sweep(obj: Objective, params: list[Parameter], current: dict[str,
     # Coupled structural moves: every value of a count (a stepped range) together with every
     # other choice of an enum — e.g. twice the tiles with one window each instead of paired
     # windows — which no single-axis move reaches through the worse layouts in between.
+    # Only structural switches (enums of at most three choices) pair with counts: an index
+    # such as grid.cga's doorColumn would multiply the moves past any budget.
     counts = [p for p in params if not p.discrete and p.step > 0]
-    enums = [p for p in params if p.discrete]
+    enums = [p for p in params if p.discrete and len(p.choices) <= 3]
     for a in counts:
         for b in enums:
             for va in np.arange(a.lo, a.hi + a.step / 2, a.step):
