@@ -13,7 +13,9 @@ Why this exists
     1. **XY-cut** (the projection-profile segmentation of document analysis) of the class mask,
        applied recursively: a region is cut at the runs of rows, then of columns, whose mask
        profile drops below ``xy_tol`` × its peak.  It separates windows joined by bridges a
-       few pixels wide, which components cannot.
+       few pixels wide, which components cannot.  (On photos of several houses with offset
+       floors its whole-image rows chop windows; ``xy_tol=None`` starts from connected
+       components instead, as the parse seed does for street photos.)
     2. **Valley splits** on the class probability: a box is cut by a vertical line where its
        smoothed column profile falls below ``dip`` × the smaller of the peaks on either side.
        This catches piers between side-by-side windows that the classifier sees only faintly.
