@@ -73,49 +73,47 @@ def _supported(groups: list[np.ndarray], min_count: int) -> list[np.ndarray]:
     return [g for g in groups if len(g) >= min_count]
 
 
-def _surroundings(prob: np.ndarray, label_set: LabelSet, boxes: np.ndarray
+def _leading(mask: np.ndarray) -> int:
+    """Length of the run of True at the start of a 1-D mask."""
+    return int(np.argmin(mask)) if not mask.all() else mask.size
+
+
+def _surroundings(labels: np.ndarray, label_set: LabelSet, boxes: np.ndarray
                   ) -> tuple[float, float, float]:
     """``(left, right, street)``: the shares of the facade's width and height that the
-    classifier sees as background (not the building) at its left and right sides and at its
-    bottom.  A side margin is a run of columns, from the border inwards, that are mostly
-    background and hold no window; the street a run of such rows.  Zero for label sets without
-    a background class (``ecp7``: its photos' neighbours are labelled as facade)."""
+    classifier's ``labels`` (argmax map) show as background (not the building) at its left and
+    right sides and at its bottom.  A side margin is a run of columns, from the border
+    inwards, that are mostly background and hold no window; the street a run of such rows,
+    measured between the margins.  Zero for label sets without a background class (``ecp7``:
+    its photos' neighbours are labelled as facade)."""
     if "background" not in label_set.classes:
         return 0.0, 0.0, 0.0
-    h, w = prob.shape[:2]
-    bg = np.argmax(prob, axis=2) == label_set.index("background")
+    h, w = labels.shape
+    bg = labels == label_set.index("background")
     occupied_x = np.zeros(w, bool)
     occupied_y = np.zeros(h, bool)
     for x0, y0, x1, y1 in boxes.astype(int):
         occupied_x[x0:x1] = True
         occupied_y[y0:y1] = True
-
-    def run(share: np.ndarray, occupied: np.ndarray) -> int:
-        free = (share > 0.6) & ~occupied
-        return int(np.argmin(free)) if not free.all() else free.size
-
-    cols = bg.mean(axis=0)
-    left = min(run(cols, occupied_x), int(0.35 * w))
-    right = min(run(cols[::-1], occupied_x[::-1]), int(0.35 * w))
+    free_x = (bg.mean(axis=0) > 0.6) & ~occupied_x
+    left = min(_leading(free_x), int(0.35 * w))
+    right = min(_leading(free_x[::-1]), int(0.35 * w))
     # the street is measured between the margins, which would count towards every row
-    rows = bg[:, left:max(w - right, left + 1)].mean(axis=1)
-    street = run(rows[::-1], occupied_y[::-1])
+    free_y = (bg[:, left:max(w - right, left + 1)].mean(axis=1) > 0.6) & ~occupied_y
+    street = _leading(free_y[::-1])
     return left / w, right / w, street / h
 
 
-def _attic(prob: np.ndarray, label_set: LabelSet, roof_line: float, roof_frac: float = 0.03
+def _attic(labels: np.ndarray, label_set: LabelSet, roof_line: float, roof_frac: float = 0.03
            ) -> float:
     """Height (share of the facade) of the wall band between the top floor's windows and the
-    roof: from the roof line up to the first of the top rows the classifier sees as roof, sky
-    or background (less ``grid.cga``'s default roof band), so the top floor is not stretched
+    roof: from the roof line up to the first of the top rows the classifier's ``labels`` show
+    as background (less ``grid.cga``'s default roof band), so the top floor is not stretched
     to the top of the facade.  Zero without a background class (:func:`pinned_for`)."""
     if "background" not in label_set.classes:
         return 0.0
-    above = [label_set.index(c) for c in ("background", "sky", "roof")
-             if c in label_set.classes]
-    top = np.isin(np.argmax(prob, axis=2), above).mean(axis=1) > 0.6
-    top_rows = int(np.argmin(top)) if not top.all() else top.size
-    return float(np.clip(1 - top_rows / top.size - roof_line - roof_frac, 0, 0.3))
+    top = (labels == label_set.index("background")).mean(axis=1) > 0.6
+    return float(np.clip(1 - _leading(top) / top.size - roof_line - roof_frac, 0, 0.3))
 
 
 def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w: float,
@@ -196,7 +194,8 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         return None
     cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))[:max_columns]
     rows = sorted(rows, key=lambda g: -np.median(boxes[g, 3]))[:max_floors]   # bottom first
-    left_m, right_m, street = (_surroundings(prob, label_set, boxes) if surroundings
+    labels = np.argmax(prob, axis=2)
+    left_m, right_m, street = (_surroundings(labels, label_set, boxes) if surroundings
                                else (0.0, 0.0, 0.0))
     inner_w = w * max(0.05, 1 - left_m - right_m)    # the building between the side margins
     win_w = float(np.median([np.median(boxes[g, 2] - boxes[g, 0]) for g in cols])) / w
@@ -220,13 +219,12 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
         "sillHeight": float(np.clip((gap / 2) / fh, 0, 0.6)),
         "leftMargin": left_m, "rightMargin": right_m,
         "streetFrac": float(np.clip(min(street, lines[0]), 0, 0.3)),
-        "atticFrac": _attic(prob, label_set, roof),
+        "atticFrac": _attic(labels, label_set, roof),
     }
     for j, x in enumerate(left, start=1):
         seed[f"column{j}"] = float(np.clip(x, 0, 1))
     for i, y in enumerate(lines[1:], start=2):
         seed[f"floor{i}"] = float(np.clip(y, 0, 1))
-    labels = np.argmax(prob, axis=2)
     # the ground floor: between the first floor line and the street, between the margins
     ground_row = int(round((1 - seed["groundTop"]) * h))
     street_row = max(ground_row, h - int(round(seed["streetFrac"] * h)))
@@ -291,7 +289,8 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
 GRID_ATTRIBUTES = frozenset({"groundTop", "nFloors", "roofLine", "nColumns", "column1",
                              "windowWidth", "windowHeight", "sillHeight"})
 
-#: Background margins and street band of ``grid.cga``, seeded when a grammar declares them all.
+#: Background margins, street band and attic of ``grid.cga``, seeded when a grammar declares
+#: them all.
 SURROUNDING_ATTRIBUTES = frozenset({"leftMargin", "rightMargin", "streetFrac", "atticFrac"})
 
 

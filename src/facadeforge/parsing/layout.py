@@ -225,16 +225,16 @@ class SplitLayout:
         sig = self._sig.get(name, _EVALUATING)
         if sig is _EVALUATING:
             sig = self._signature(name, self._reads_attrs)
-        try:
-            # typed values (True, 1 and 1.0 are equal keys otherwise); the depth too, so a
-            # result found at one depth is not reused where its subtree would nest too deep
-            key = (name, _typed(args) if args else (), round(sx, 9), round(sy, 9), label, depth,
-                   sig)
-            hit = self._memo.get(key) if sig is not None else None
-        except TypeError:  # an unhashable argument or attribute (an array): no memo
-            key, hit = None, None
-        if sig is None:
-            key = None
+        key = hit = None
+        if sig is not None:
+            try:
+                # typed values (True, 1 and 1.0 are equal keys otherwise); the depth too, so a
+                # result found at one depth is not reused where its subtree would nest too deep
+                key = (name, _typed(args) if args else (), round(sx, 9), round(sy, 9), label,
+                       depth, sig)
+                hit = self._memo.get(key)
+            except TypeError:  # an unhashable argument or attribute (an array): no memo
+                key = None
         if hit is not None:
             return hit
         env = _Env(self, {p.name: v for p, v in zip(rdef.params, args)}, sx, sy)
@@ -281,9 +281,9 @@ class SplitLayout:
     def _reads_in(self, roots: list, follow_rules: bool
                   ) -> tuple[frozenset[str], tuple[str, ...]]:
         """``(scope sizes, attributes)`` the expressions under ``roots`` read, through the
-        functions they call (which may read both scope sizes) and the defaults of the
-        attributes they read; with ``follow_rules``, through the successor rules too, else
-        only the selectors (sizes) of split branches."""
+        bodies of the functions they call (a function sees its caller's scope) and the
+        defaults of the attributes they read; with ``follow_rules``, through the successor
+        rules too, else only the selectors (sizes) of split branches."""
         scope: set[str] = set()
         found: set[str] = set()
         seen: set[str] = set()
@@ -361,16 +361,15 @@ class SplitLayout:
         # keyed by what they can depend on, so twenty floors of one width share one x split.
         reads, _ = self._split_reads(op)
         sig = self._signature(op, lambda op: self._split_reads(op)[1])
-        try:
-            local = tuple((n, type(v), v) for n, v in sorted(env.locals.items()))
-            key = (id(op), local, total,
-                   sx if "scope.sx" in reads else None, sy if "scope.sy" in reads else None,
-                   sig)
-            pieces = self._pieces.get(key) if sig is not None else None
-        except TypeError:  # an unhashable rule argument (an array): no caching
-            key, pieces = None, None
-        if sig is None:
-            key = None
+        key = pieces = None
+        if sig is not None:
+            try:
+                local = tuple((n, type(v), v) for n, v in sorted(env.locals.items()))
+                key = (id(op), local, total, sx if "scope.sx" in reads else None,
+                       sy if "scope.sy" in reads else None, sig)
+                pieces = self._pieces.get(key)
+            except TypeError:  # an unhashable rule argument (an array): no caching
+                key = None
         if pieces is None:
             call = SimpleNamespace(branches=op.branches, env=env, repeat=op.repeat)
             pieces = call_pieces(call, total)
