@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env demo test lint bench clean
+.PHONY: env train-env demo test lint bench clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -18,6 +18,10 @@ $(VENV)/.synced: $(UV) pyproject.toml uv.lock
 	touch $@
 
 env: $(VENV)/.synced
+
+# PyTorch for training the convnet classifier, in its own environment so `make test` stays light.
+train-env: $(UV) pyproject.toml uv.lock
+	UV_PROJECT_ENVIRONMENT=.venv-train $(UV) sync --frozen --extra train --python $(PYTHON)
 
 demo: env
 	$(VENV)/bin/facadeforge demo -o demo-out
@@ -33,4 +37,4 @@ bench: env
 	$(VENV)/bin/python benchmarks/report.py
 
 clean:
-	rm -rf $(VENV) $(TOOLS) .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-train $(TOOLS) .pytest_cache .ruff_cache

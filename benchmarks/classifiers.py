@@ -1,8 +1,8 @@
 """Pixel classifiers compared: the §4.3.1 randomised forest (as in the thesis: 10 trees of depth
-18 on 15 × 15 patch tests) against the shipped auto-context forest, trained on the development
-train split and scored on the validation split of RueMonge (ecp7, as the thesis's ECP numbers)
-and CMP (cmp6).  The forest is trained here on each run; the auto-context model is the shipped
-one.  Writes ``benchmarks/results/classifiers.json``.
+18 on 15 × 15 patch tests) against the shipped models (auto-context forest, convnet), all trained
+on the development train split and scored on the validation split of RueMonge (ecp7, as the
+thesis's ECP numbers) and CMP (cmp6).  The forest is trained here on each run; the others are
+the shipped files.  Writes ``benchmarks/results/classifiers.json``.
 
     .venv/bin/python benchmarks/classifiers.py
 """
@@ -35,7 +35,7 @@ def score(clf, samples) -> dict:
 
 
 def main() -> int:
-    from facadeforge.classify import default_classifier
+    from facadeforge.classify import SHIPPED_KINDS, default_classifier, shipped_model_path
     from facadeforge.classify.train import train_classifier
     from facadeforge.evaluation.bench import provenance, save_result, select_samples
 
@@ -52,8 +52,11 @@ def main() -> int:
         results[dataset] = {
             "label_set": ls.name, "train_images": len(train), "val_images": len(val),
             "forest (§4.3.1)": {**score(forest, val), "train_seconds": round(train_s, 1)},
-            "autocontext (shipped)": score(default_classifier(ls.name), val),
         }
+        for kind in SHIPPED_KINDS:
+            if shipped_model_path(ls.name, kind).is_file():
+                results[dataset][f"{kind} (shipped)"] = score(default_classifier(ls.name, kind),
+                                                              val)
         print(dataset, {k: v["class_avg_accuracy"] for k, v in results[dataset].items()
                         if isinstance(v, dict)})
     save_result({"results": results, **provenance()},

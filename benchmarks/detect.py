@@ -73,7 +73,7 @@ def main() -> int:
     for name, r in rows.items():
         print(f"{name:70s} P {r['precision']:.3f} R {r['recall']:.3f} F1 {r['f1']:.3f}")
     save_result({"dataset": "cmp", "split": "val", "images": len(val), "classifier":
-                 "shipped autocontext-cmp6", "window_detection": rows, **provenance()},
+                 f"shipped {clf.kind}-{ls.name}", "window_detection": rows, **provenance()},
                 ROOT / "benchmarks" / "results" / "detect_cmp.json")
     return 0
 

@@ -26,7 +26,7 @@ from .model import PixelClassifier, save_classifier
 __all__ = ["TRAINABLE_KINDS", "add_parser", "cmd_train_classifier", "train_classifier"]
 
 #: Kinds trained from a dataset (``gmm`` is trained from a photo's scribbles instead).
-TRAINABLE_KINDS: tuple[str, ...] = ("forest", "autocontext")
+TRAINABLE_KINDS: tuple[str, ...] = ("forest", "autocontext", "convnet")
 
 
 def _small_labels(labels: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -55,15 +55,16 @@ def _progress(msg: str, quiet: bool) -> None:
 def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str, *,
                      kind: str = "autocontext", stages: int = 2, trees: int = 10,
                      max_depth: int | None = None, per_image: int = 3000, folds: int = 2,
-                     seed: int = 0, jobs: int = 2, quiet: bool = True,
-                     meta: dict[str, Any] | None = None) -> PixelClassifier:
-    """Train a ``forest`` (§4.3.1) or ``autocontext`` classifier on labelled ``samples``.
+                     seed: int = 0, jobs: int = 2, epochs: int = 40, width: int = 16,
+                     quiet: bool = True, meta: dict[str, Any] | None = None) -> PixelClassifier:
+    """Train a ``forest`` (§4.3.1), ``autocontext`` or ``convnet`` classifier on labelled
+    ``samples``.
 
     Parameters
     ----------
     samples : sequence of FacadeSample
         Training photos with label maps in ``label_set``.
-    kind : {"forest", "autocontext"}
+    kind : {"forest", "autocontext", "convnet"}
     stages : int
         Auto-context stages (1 = a plain forest on appearance features).
     trees, max_depth : int
@@ -74,6 +75,8 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
     folds : int
         Auto-context: stage s + 1 trains on out-of-fold predictions of stage s over this many
         folds of photos.
+    epochs, width : int
+        Convnet: training epochs and channels of the first level (:mod:`.convnet_train`).
     """
     from .autocontext import AutoContextClassifier, stage_features
     from .features import analysis_image, appearance_features
@@ -87,8 +90,9 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
     if len(samples) < max(2, folds):
         raise InputError(f"training needs at least {max(2, folds)} labelled photos, got "
                          f"{len(samples)}; check --data and --split")
-    if stages < 1 or trees < 1 or per_image < 10:
-        raise InputError("stages and trees must be >= 1 and per-image samples >= 10")
+    if stages < 1 or trees < 1 or per_image < 10 or epochs < 1 or width < 1:
+        raise InputError("stages, trees, epochs and width must be >= 1 and per-image samples "
+                         ">= 10")
     k = label_set.num_classes
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -104,6 +108,15 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
         smalls.append(small)
         labels.append(lab)
         picks.append(_sample_pixels(lab, k, per_image, rng))
+    if kind == "convnet":
+        from .convnet import ConvNetSpec
+        from .convnet_train import train_convnet
+
+        info = {k_: v for k_, v in info.items() if k_ not in ("kind", "trees", "per_image")}
+        return train_convnet(smalls, labels, label_set.classes, label_set.name,
+                             spec=ConvNetSpec(width=width), epochs=epochs, seed=seed,
+                             threads=jobs, progress=None if quiet else
+                             (lambda m: _progress(m, False)), meta=info)
     y = np.concatenate([lab.ravel()[p] for lab, p in zip(labels, picks)]).astype(np.int64)
     if len(np.unique(y)) < 2:
         raise InputError("the training photos have fewer than two labelled classes")
@@ -151,13 +164,14 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
 # ------------------------------------------------------------------------------------ CLI
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "train-classifier", help="train a pixel classifier (forest, autocontext, gmm)",
-        description="Train a pixel classifier for grammar parsing. forest/autocontext learn from "
-                    "a labelled dataset's train split; gmm learns from one photo's scribbles.")
+        "train-classifier", help="train a pixel classifier (forest, autocontext, convnet, gmm)",
+        description="Train a pixel classifier for grammar parsing. forest, autocontext and "
+                    "convnet learn from a labelled dataset's train split; gmm learns from one "
+                    "photo's scribbles.")
     p.add_argument("--kind", default="autocontext", choices=(*TRAINABLE_KINDS, "gmm"))
     p.add_argument("--dataset", choices=("cmp", "ruemonge", "folder"),
-                   help="dataset layout (forest, autocontext)")
-    p.add_argument("--data", help="dataset folder (forest, autocontext)")
+                   help="dataset layout (forest, autocontext, convnet)")
+    p.add_argument("--data", help="dataset folder (forest, autocontext, convnet)")
     p.add_argument("--split", default="train",
                    help="split to train on: train (default, the development train split) or all")
     p.add_argument("--labels", help="label set (default: the dataset's, cmp6 / ecp7)")
@@ -167,6 +181,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--trees", type=int, default=10, help="trees per forest (default 10)")
     p.add_argument("--per-image", type=int, default=3000,
                    help="pixels sampled per training photo (default 3000)")
+    p.add_argument("--epochs", type=int, default=40, help="convnet: training epochs (default 40)")
+    p.add_argument("--width", type=int, default=16,
+                   help="convnet: channels of the first level (default 16)")
     p.add_argument("--limit", type=int, help="train on the first N photos only")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", required=True, help="model file to write (.npz)")
@@ -201,7 +218,7 @@ def cmd_train_classifier(args: argparse.Namespace) -> int:
         label_set = scored[0].label_set if scored else get_label_set(args.labels or "ecp7")
         clf = train_classifier(scored, label_set, kind=args.kind, stages=args.stages,
                                trees=args.trees, per_image=args.per_image, seed=args.seed,
-                               quiet=args.quiet,
+                               epochs=args.epochs, width=args.width, quiet=args.quiet,
                                meta={"command": command, "dataset": args.dataset,
                                      "split": args.split, "split_rule": rule})
     save_classifier(clf, out)

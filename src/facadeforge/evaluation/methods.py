@@ -338,8 +338,8 @@ register_method("structure-edges", "canonical",
 
 class ClassifierMethod:
     """Baseline of ``simon2011`` §4.4.1: the pixel classifier alone, each pixel its most
-    probable class (the shipped auto-context model of the dataset's label set); with
-    ``smoothness > 0``, the MRF-Potts segmentation of the same probabilities (eq. 4.14,
+    probable class (the shipped model of the dataset's label set, :func:`default_classifier`);
+    with ``smoothness > 0``, the MRF-Potts segmentation of the same probabilities (eq. 4.14,
     alpha-expansion graph cuts).  The models are trained on the development train split, so
     ``fit`` does nothing; held-out data is scored with the same shipped models."""
 
@@ -362,7 +362,7 @@ class ClassifierMethod:
 
 
 register_method("classifier", "label_set",
-                description="baseline (simon2011 §4.4.1): auto-context forest classifier, "
+                description="baseline (simon2011 §4.4.1): the shipped pixel classifier, "
                             "argmax per pixel")(ClassifierMethod())
 register_method("mrf", "label_set",
                 description="baseline (simon2011 §4.4.1): MRF-Potts (λ = 1) on the classifier's "
@@ -392,7 +392,7 @@ class GrammarMethod:
 
 register_method("grammar-hill", "canonical",
                 description="simon2011 §4.2: grid parse grammar fitted by hill "
-                            f"climbing ({DEFAULT_BUDGET} derivations) to the auto-context classifier"
+                            f"climbing ({DEFAULT_BUDGET} derivations) to the shipped classifier"
                 )(GrammarMethod())
 register_method("grammar-evo", "canonical",
                 description="simon2011 §5.2: grid parse grammar fitted by the "

@@ -4,8 +4,8 @@ Stages (``report.json`` times each):
 
 1. **load** the photo (any format Pillow reads; gray, RGBA and 16-bit are converted);
 2. **classify**: the pixel classifier's probabilities in the photo frame (§4.2.1) — a model
-   file (``--classifier``) or the shipped auto-context model (``cmp6`` for rectified photos,
-   ``ecp7``, trained on Parisian street photos, otherwise);
+   file (``--classifier``) or the shipped model (``cmp6`` for rectified photos, ``ecp7``,
+   trained on Parisian street photos, otherwise; :func:`~facadeforge.classify.default_classifier`);
 3. **rectify** (unless ``--rectified``): vanishing points → homography (Müller 2007 App. A, as
    ``reconstruct`` does), found while the classifier runs in a second thread; the
    probabilities are warped into the rectified frame;
