@@ -431,7 +431,9 @@ def _detect(prob, clf, gray, px_per_m, edges):
     from .imaging.detect import DETECTED_LABELS, detect_elements
     from .imaging.element_layout import element_layout
 
-    elements = detect_elements(prob, clf.classes)
+    # CMP draws each window whole behind the balcony railing in front of it
+    elements = detect_elements(prob, clf.classes,
+                               behind=("balcony",) if clf.label_set == "cmp6" else ())
     info = {"classifier": {"kind": clf.kind, "label_set": clf.label_set},
             "found": len(elements),
             "by_label": dict(Counter(e.label for e in elements))}

@@ -232,3 +232,17 @@ def test_layout_floor_period_is_the_storey_between_two_lines():
     lay = element_layout(els, np.full((260, 130), 0.5), np.zeros((260, 130)), px_per_m=20.0)
     assert len(lay.floors) == 4
     assert lay.floor_period_px == pytest.approx(60, abs=2)
+
+
+def test_windows_extend_through_the_railing_in_front_of_them():
+    """``behind``: a window whose foot is hidden by a balcony railing (CMP draws the window
+    whole) reaches down through the railing rows, by at most a third of its height."""
+    classes = ("wall", "window", "balcony")
+    prob = np.zeros((60, 40, 3), np.float32)
+    prob[:, :, 0] = 1
+    prob[10:40, 10:30] = (0, 1, 0)        # window rows 10-39
+    prob[40:60, 5:35] = (0, 0, 1)         # railing below it, deeper than a third of the window
+    plain = detect_elements(prob, classes, labels=("window",))
+    through = detect_elements(prob, classes, labels=("window",), behind=("balcony",))
+    assert [e.box for e in plain] == [(10, 10, 30, 40)]
+    assert [e.box for e in through] == [(10, 10, 30, 50)]   # 30 px window + 10 px
