@@ -1,7 +1,7 @@
 """Training the facade U-Net of :mod:`.convnet` with PyTorch on a CPU (or a GPU when present).
 
-PyTorch is needed for training only; it comes with the ``train`` extra
-(``uv sync --extra train``, or ``pip install 'facadeforge[train]'``).  The trained network is
+PyTorch is needed for training only; it comes with the ``train`` extra (``make train-env``
+builds ``.venv-train`` with it; elsewhere ``pip install 'facadeforge[train]'``).  The trained network is
 exported with batch norm folded into its convolutions and saved like every other classifier,
 so using it needs numpy alone.
 
@@ -43,8 +43,8 @@ def require_torch():
         import torch
     except ImportError:
         raise InputError("training a convnet classifier needs PyTorch; install the train extra "
-                         "('uv sync --extra train' in a checkout, or pip install "
-                         "'facadeforge[train]')") from None
+                         "('make train-env' in a checkout, then run .venv-train/bin/facadeforge; "
+                         "or pip install 'facadeforge[train]')") from None
     return torch
 
 
