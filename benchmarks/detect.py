@@ -1,7 +1,8 @@
 """Element detection from the classifier's probabilities, step by step (the ablation behind
 :mod:`facadeforge.imaging.detect`): window precision / recall / F1 (IoU ≥ 0.5) on the CMP val
 split for the connected components of the argmax map (what the ``classifier`` bench method
-scores) and for steps 1–5 of :func:`~facadeforge.imaging.detect.detect_elements`.  The shipped
+scores) and for steps 1–6 of :func:`~facadeforge.imaging.detect.detect_elements` (step 6,
+``behind=("balcony",)``, is what ``reconstruct`` runs with ``cmp6``).  The shipped
 ``cmp6`` model has not seen these facades.  Writes ``benchmarks/results/detect_cmp.json``.
 
     .venv/bin/python benchmarks/detect.py
@@ -21,16 +22,17 @@ DATA = ROOT.parent / "shared" / "data"
 STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
          3: "3. + fragments dropped (area < 0.3 median)", 4: "4. + weak evidence dropped "
          "(mean p < 0.5)", 5: "5. + row-consistent splits (width >= 1.8 row median) = "
-         "detect_elements"}
+         "detect_elements", 6: "6. + windows extended through the railing below them "
+         "(behind=balcony, as reconstruct with cmp6)"}
 
 
 #: The options of detect_elements that switch steps 2–5 off, in step order.
 _OFF = (("dip", 0.0), ("rel_area", 0.0), ("min_score", 0.0), ("row_ratio", float("inf")))
 
 
-def _steps(k: int) -> dict[str, float]:
+def _steps(k: int) -> dict[str, object]:
     """Options running only steps 1–``k`` (the defaults for the steps up to ``k``)."""
-    return dict(_OFF[k - 1:])
+    return {**dict(_OFF[k - 1:]), **({"behind": ("balcony",)} if k >= 6 else {})}
 
 
 def main() -> int:

@@ -108,6 +108,21 @@ def test_damaged_network_file_is_refused(tmp_path):
         load_classifier(tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="unsupported network shape"):
         ConvNetSpec(width=0)
+    with pytest.raises(ValueError, match="more than"):
+        ConvNetSpec(width=256, multipliers=(64, 64), rowcol=())   # a zip bomb's shape
+    # untrusted metadata: non-finite or absurd spec values are a ClassifierFileError
+    import json
+    meta = json.loads(arrays["__meta__"].tobytes().decode())
+    meta["meta"]["spec"]["width"] = 1e400   # Infinity once written as JSON
+    arrays["head_w"] = np.load(path)["head_w"]
+    arrays["__meta__"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    np.savez(tmp_path / "inf.npz", **arrays)
+    with pytest.raises(ClassifierFileError):
+        load_classifier(tmp_path / "inf.npz")
+    arrays["__meta__"] = np.frombuffer(b"[1, 2]", np.uint8)
+    np.savez(tmp_path / "list.npz", **arrays)
+    with pytest.raises(ClassifierFileError, match="not a facadeforge"):
+        load_classifier(tmp_path / "list.npz")
 
 
 def test_training_without_torch_says_how_to_install(monkeypatch):
@@ -128,9 +143,48 @@ def test_training_without_torch_says_how_to_install(monkeypatch):
         train_convnet([img] * 8, [np.zeros((32, 32), np.uint8)] * 8, CLASSES, "cmp6")
 
 
+def test_shipped_defaults_prefer_the_convnet_where_one_is_shipped():
+    from facadeforge.classify import default_classifier, shipped_model_path
+
+    assert shipped_model_path("cmp6").name == "convnet-cmp6.npz"
+    assert shipped_model_path("ecp7").name == "autocontext-ecp7.npz"   # no ecp7 convnet
+    assert shipped_model_path("cmp6", "autocontext").name == "autocontext-cmp6.npz"
+    assert default_classifier("cmp6").kind == "convnet"
+    with pytest.raises(InputError, match="no shipped convnet classifier"):
+        default_classifier("ecp7", "convnet")
+
+
+def test_grey_input_is_refused_with_a_clear_error():
+    spec = ConvNetSpec(width=2, multipliers=(1, 2), rowcol=())
+    clf = ConvNetClassifier(spec, random_weights(spec, 6), CLASSES, "cmp6")
+    with pytest.raises(InputError, match="RGB"):
+        clf.predict_small(np.zeros((20, 20), np.uint8))
+
+
+def test_exported_numpy_network_equals_torch():
+    """With PyTorch present: export (batch norm folded, layout changed) preserves the network."""
+    torch = pytest.importorskip("torch", reason="PyTorch (the train extra) is not installed")
+    from facadeforge.classify.convnet import forward, network_input, pad_to
+    from facadeforge.classify.convnet_train import _build, export_weights
+
+    torch.manual_seed(0)
+    spec = ConvNetSpec(width=4)
+    net = _build(torch, spec, 6)
+    for m in net.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.5, 0.5)
+            m.running_var.uniform_(0.5, 2)
+    net.eval()
+    img = np.random.default_rng(0).integers(0, 255, (40, 27, 3), dtype=np.uint8)
+    x = pad_to(network_input(img), spec.stride)
+    with torch.no_grad():
+        ref = net(torch.from_numpy(np.ascontiguousarray(x)).permute(2, 0, 1)[None])
+    np.testing.assert_allclose(forward(spec, export_weights(net), x),
+                               ref[0].permute(1, 2, 0).numpy(), atol=1e-4)
+
+
 def test_training_learns_a_toy_facade():
-    """With PyTorch present (the train extra), a few epochs separate dark windows from wall,
-    and the exported numpy network reproduces the trained one."""
+    """With PyTorch present (the train extra), a few epochs separate dark windows from wall."""
     pytest.importorskip("torch", reason="PyTorch (the train extra) is not installed")
     from facadeforge.classify.convnet_train import train_convnet
 

@@ -246,3 +246,6 @@ def test_windows_extend_through_the_railing_in_front_of_them():
     through = detect_elements(prob, classes, labels=("window",), behind=("balcony",))
     assert [e.box for e in plain] == [(10, 10, 30, 40)]
     assert [e.box for e in through] == [(10, 10, 30, 50)]   # 30 px window + 10 px
+    prob[44:60, 5:35] = (1, 0, 0)         # the railing ends after 4 rows: so does the window
+    through = detect_elements(prob, classes, labels=("window",), behind=("balcony",))
+    assert [e.box for e in through] == [(10, 10, 30, 44)]

@@ -60,7 +60,8 @@ def default_classifier(label_set: str, kind: str | None = None) -> PixelClassifi
         path = shipped_model_path(label_set, kind)
         if not path.is_file():
             shipped = sorted(p.stem for p in MODEL_DIR.glob("*.npz"))
-            raise InputError(f"no shipped {kind or ''} classifier for label set {label_set!r} "
+            raise InputError(f"no shipped {kind + ' ' if kind else ''}classifier for label set "
+                             f"{label_set!r} "
                              f"(shipped: {', '.join(shipped) or 'none'}); train one with "
                              "'facadeforge train-classifier' and pass it with --classifier")
         _LOADED[key] = load_classifier(path)

@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from ..errors import InputError
 from .features import analysis_image, resize_proba
 from .model import PixelClassifier, register_kind
 
@@ -39,6 +40,9 @@ __all__ = ["ConvNetClassifier", "ConvNetSpec", "fold_batchnorm", "network_input"
 #: Per-channel RGB normalisation of the network input (the usual photo statistics).
 RGB_MEAN = np.array([0.485, 0.456, 0.406], np.float32) * 255
 RGB_STD = np.array([0.229, 0.224, 0.225], np.float32) * 255
+
+#: Most weights a network may have (the shipped one has 1.0 M).
+MAX_PARAMETERS = 20_000_000
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,9 @@ class ConvNetSpec:
               and self.in_channels == 5)
         if not ok:
             raise ValueError(f"unsupported network shape {self}")
+        # a model file is untrusted: no spec may ask for more than MAX_PARAMETERS weights
+        if sum(int(np.prod(s)) for s in self.shapes(16).values()) > MAX_PARAMETERS:
+            raise ValueError(f"network shape {self} has more than {MAX_PARAMETERS} weights")
 
     @property
     def channels(self) -> tuple[int, ...]:
@@ -197,7 +204,8 @@ def softmax(scores: np.ndarray) -> np.ndarray:
 
 
 def pad_to(x: np.ndarray, stride: int) -> np.ndarray:
-    """``x`` reflect-padded at the bottom and right to sides that are multiples of ``stride``."""
+    """``x`` padded at the bottom and right to sides that are multiples of ``stride``: mirrored
+    where the image is larger than the padding, its edge repeated where it is not."""
     h, w = x.shape[:2]
     H, W = -(-h // stride) * stride, -(-w // stride) * stride
     if (H, W) == (h, w):
@@ -220,13 +228,18 @@ class ConvNetClassifier(PixelClassifier):
         if set(weights) != set(expected) or any(tuple(np.shape(weights[n])) != s
                                                 for n, s in expected.items()):
             raise ValueError("network weights do not match the network shape")
+        if not all(np.issubdtype(np.asarray(weights[n]).dtype, np.floating) for n in expected):
+            raise ValueError("network weights are not floating-point numbers")
         self.weights = {n: np.ascontiguousarray(weights[n], np.float32) for n in expected}
         if not all(np.isfinite(w).all() for w in self.weights.values()):
             raise ValueError("network weights are not finite")
-        self.meta.setdefault("spec", spec.to_json())
+        self.meta["spec"] = spec.to_json()
 
     def predict_small(self, small: np.ndarray) -> np.ndarray:
         """``(h, w, K)`` probabilities on an analysis-scale uint8 RGB image."""
+        if small.ndim != 3 or small.shape[2] != 3:
+            raise InputError(f"the convnet classifies RGB images; got an array of shape "
+                             f"{small.shape} (convert grey or RGBA photos to RGB first)")
         h, w = small.shape[:2]
         x = pad_to(network_input(small), self.spec.stride)
         return softmax(forward(self.spec, self.weights, x))[:h, :w]
@@ -235,7 +248,11 @@ class ConvNetClassifier(PixelClassifier):
         return resize_proba(self.predict_small(analysis_image(image)), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
-        return {n: w.astype(np.float16) for n, w in self.weights.items()}
+        out = {n: w.astype(np.float16) for n, w in self.weights.items()}
+        if not all(np.isfinite(w).all() for w in out.values()):
+            raise ValueError("network weights overflow float16 (|w| > 65504); the training "
+                             "diverged")
+        return out
 
     @classmethod
     def from_arrays(cls, arrays, classes, label_set, meta) -> ConvNetClassifier:

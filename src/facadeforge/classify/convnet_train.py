@@ -142,6 +142,9 @@ def train_convnet(smalls: Sequence[np.ndarray], labels: Sequence[np.ndarray], cl
     torch = require_torch()
     spec = spec or ConvNetSpec()
     k = len(classes)
+    if crop < spec.stride or crop % spec.stride:
+        raise InputError(f"crop {crop}: use a multiple of {spec.stride} (the network halves its "
+                         f"input {len(spec.channels) - 1} times)")
     if len(smalls) < batch:
         raise InputError(f"training needs at least {batch} labelled photos (one batch), got "
                          f"{len(smalls)}")

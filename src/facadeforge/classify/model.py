@@ -142,13 +142,17 @@ def load_classifier(path: str | Path) -> PixelClassifier:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
         meta = json.loads(arrays.pop("__meta__").tobytes().decode())
-    except (OSError, ValueError, KeyError, UnicodeDecodeError) as exc:
+        if not isinstance(meta, dict):
+            raise ValueError("metadata is not an object")
+        version = int(meta.get("version", 0))
+    except (OSError, ValueError, KeyError, TypeError, OverflowError, MemoryError,
+            UnicodeDecodeError) as exc:
         raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file "
                                   f"({exc.__class__.__name__}); train one with "
                                   "'facadeforge train-classifier'") from None
     if meta.get("format") != "facadeforge-classifier":
         raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file")
-    if int(meta.get("version", 0)) > FORMAT_VERSION:
+    if version > FORMAT_VERSION:
         raise ClassifierFileError(f"classifier {path}: format version {meta.get('version')} is "
                                   f"newer than this facadeforge reads ({FORMAT_VERSION}); "
                                   "upgrade facadeforge")
@@ -161,7 +165,7 @@ def load_classifier(path: str | Path) -> PixelClassifier:
         classes = tuple(str(c) for c in meta["classes"])
         return CLASSIFIER_KINDS[kind].from_arrays(arrays, classes, str(meta["label_set"]),
                                                   meta.get("meta", {}))
-    except (KeyError, ValueError, TypeError, IndexError) as exc:
+    except (KeyError, ValueError, TypeError, IndexError, OverflowError, MemoryError) as exc:
         raise ClassifierFileError(f"classifier {path}: damaged or inconsistent model file "
                                   f"({exc}); train it again with 'facadeforge "
                                   "train-classifier'") from None

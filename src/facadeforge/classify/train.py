@@ -93,6 +93,13 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
     if stages < 1 or trees < 1 or per_image < 10 or epochs < 1 or width < 1:
         raise InputError("stages, trees, epochs and width must be >= 1 and per-image samples "
                          ">= 10")
+    if kind == "convnet":  # its shape is checked before any photo is read
+        from .convnet import ConvNetSpec
+
+        try:
+            spec = ConvNetSpec(width=width)
+        except ValueError as exc:
+            raise InputError(f"--width {width}: {exc}; use 1-256 (default 16)") from None
     k = label_set.num_classes
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -109,12 +116,11 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
         labels.append(lab)
         picks.append(_sample_pixels(lab, k, per_image, rng))
     if kind == "convnet":
-        from .convnet import ConvNetSpec
         from .convnet_train import train_convnet
 
         info = {k_: v for k_, v in info.items() if k_ not in ("kind", "trees", "per_image")}
         return train_convnet(smalls, labels, label_set.classes, label_set.name,
-                             spec=ConvNetSpec(width=width), epochs=epochs, seed=seed,
+                             spec=spec, epochs=epochs, seed=seed,
                              threads=jobs, progress=None if quiet else
                              (lambda m: _progress(m, False)), meta=info)
     y = np.concatenate([lab.ravel()[p] for lab, p in zip(labels, picks)]).astype(np.int64)

@@ -30,8 +30,11 @@ Why this exists
        parts (``m`` the row's median width, ``g`` its median gap) at the probability minima
        nearest the even cut positions, each part trimmed to its columns above half its peak.
 
-    Tried on the same split and not kept (no gain): extending windows down through balconies
-    below them, splitting boxes wider than 1.7 median widths, splitting at full-height mullions
+    6. **Behind railings** (``behind``, for datasets that draw windows whole behind balconies,
+       as CMP): windows extended down through the balcony rows below them, by at most a third
+       of their height (by their whole height it lost F1).
+
+    Tried on the same split and not kept (no gain): splitting boxes wider than 1.7 median widths, splitting at full-height mullions
     (CMP marks some mullioned windows as one window and others as two), completing the grid of
     window rows × columns, and snapping box edges to image edges.
 
