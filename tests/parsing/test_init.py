@@ -149,3 +149,20 @@ def test_wide_margins_do_not_make_a_street():
     seed = grid_seed(_prob(lab), CMP6)
     assert seed["streetFrac"] == 0.0 and seed["groundKind"] == "shops"
     assert abs(seed["leftMargin"] - 130 / 420) < 1e-6
+
+
+def test_windows_beside_a_door_are_the_ground_floor():
+    """A residential ground floor: windows in the columns and a door between them.  The row
+    of windows beside the door is the ground floor's (the door is seeded inside it), not a
+    fourth upper floor above an empty ground band."""
+    lab, cols, rows = _grid_labels()
+    lab[170:] = CMP6.index("wall")
+    for c in cols:
+        lab[168:190, c:c + 20] = CMP6.index("window")      # ground-floor windows
+    lab[160:200, 72:88] = CMP6.index("door")                # the door between columns 2 and 3
+    seed = grid_seed(_prob(lab), CMP6)
+    assert seed["nFloors"] == 3                             # the three upper floors only
+    assert seed["groundTop"] >= 0.19   # up to the gap below the first upper row: holds the door
+    assert seed["doorWidth"] > 0 and abs(seed["doorWidth"] - 16 / 160) < 0.02
+    lab[160:200, 72:88] = CMP6.index("wall")                # without the door: four floors
+    assert grid_seed(_prob(lab), CMP6)["nFloors"] == 4

@@ -166,6 +166,18 @@ def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w
     }
 
 
+def _door_beside(door: np.ndarray, row: np.ndarray) -> bool:
+    """Whether a door stands beside a row of window boxes ``(x0, y0, x1, y1)`` (pixels, rows
+    down): a door component, more than a speck, reaching from below the windows' foot up past
+    half their height — the row is then the ground floor's, not a floor above it."""
+    top = int(np.median(row[:, 1]))
+    hh = int(np.median(row[:, 3])) - top
+    n, _, stats, _ = cv2.connectedComponentsWithStats(door[top:].astype(np.uint8),
+                                                      connectivity=4)
+    return any(y < hh / 2 and y + dh > hh and dw * dh >= 0.06 * hh * hh
+               for _x, y, dw, dh, _a in stats[1:n])
+
+
 def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
               max_columns: int = 12, surroundings: bool = True, one_facade: bool = False
               ) -> dict[str, Any] | None:
@@ -195,6 +207,9 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))[:max_columns]
     rows = sorted(rows, key=lambda g: -np.median(boxes[g, 3]))[:max_floors]   # bottom first
     labels = np.argmax(prob, axis=2)
+    if len(rows) >= 2 and "door" in label_set.classes and _door_beside(
+            labels == label_set.index("door"), boxes[rows[0]]):
+        rows = rows[1:]     # the lowest windows stand beside a door: they are the ground floor's
     left_m, right_m, street = (_surroundings(labels, label_set, boxes) if surroundings
                                else (0.0, 0.0, 0.0))
     inner_w = w * max(0.05, 1 - left_m - right_m)    # the building between the side margins
