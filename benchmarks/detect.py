@@ -2,7 +2,7 @@
 :mod:`facadeforge.imaging.detect`): window precision / recall / F1 (IoU ≥ 0.5) on the CMP val
 split for the connected components of the argmax map (what the ``classifier`` bench method
 scores) and for steps 1–6 of :func:`~facadeforge.imaging.detect.detect_elements` (step 6,
-``behind=("balcony",)``, is what ``reconstruct`` runs with ``cmp6``).  The shipped
+``behind`` = the label set's ``windows_behind``, is what ``reconstruct`` runs with ``cmp6``).  The shipped
 ``cmp6`` model has not seen these facades.  Writes ``benchmarks/results/detect_cmp.json``.
 
     .venv/bin/python benchmarks/detect.py
@@ -30,9 +30,10 @@ STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
 _OFF = (("dip", 0.0), ("rel_area", 0.0), ("min_score", 0.0), ("row_ratio", float("inf")))
 
 
-def _steps(k: int) -> dict[str, object]:
-    """Options running only steps 1–``k`` (the defaults for the steps up to ``k``)."""
-    return {**dict(_OFF[k - 1:]), **({"behind": ("balcony",)} if k >= 6 else {})}
+def _steps(k: int, behind: tuple[str, ...]) -> dict[str, object]:
+    """Options running only steps 1–``k`` (the defaults for the steps up to ``k``; step 6
+    extends windows through ``behind``)."""
+    return {**dict(_OFF[k - 1:]), "behind": behind if k >= 6 else ()}
 
 
 def main() -> int:
@@ -60,7 +61,7 @@ def main() -> int:
                  np.array([o.as_array() for o in comps]).reshape(-1, 4)}
         for k, name in STEPS.items():
             t = time.perf_counter()
-            els = detect_elements(prob, ls.classes, **_steps(k))
+            els = detect_elements(prob, ls.classes, **_steps(k, ls.windows_behind))
             seconds[k] += time.perf_counter() - t
             found[name] = np.array([e.box for e in els if e.label == "window"],
                                    float).reshape(-1, 4)

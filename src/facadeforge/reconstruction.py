@@ -428,12 +428,13 @@ def _detect(prob, clf, gray, px_per_m, edges):
     fewer than :data:`MIN_ELEMENTS`), and what goes to ``report["detection"]``."""
     if prob is None:
         return None, {"source": "edges", "classifier": None, "found": 0}
+    from .datasets import LABEL_SETS
     from .imaging.detect import DETECTED_LABELS, detect_elements
     from .imaging.element_layout import element_layout
 
-    # CMP draws each window whole behind the balcony railing in front of it
+    known = LABEL_SETS.get(clf.label_set)     # a scribble GMM's classes follow no dataset
     elements = detect_elements(prob, clf.classes,
-                               behind=("balcony",) if clf.label_set == "cmp6" else ())
+                               behind=known.windows_behind if known is not None else ())
     info = {"classifier": {"kind": clf.kind, "label_set": clf.label_set},
             "found": len(elements),
             "by_label": dict(Counter(e.label for e in elements))}

@@ -159,3 +159,15 @@ def test_custom_set_defaults():
     assert s.from_dataset(np.array([10, 20, 30])).tolist() == [0, 1, IGNORE]
     # no background, no sky: everything non-building falls back to wall (or class 0)
     assert s.from_canonical(["sky", "door", "blind", "background"]).tolist() == [0, 0, 1, 0]
+
+
+def test_windows_behind_follows_each_dataset_convention():
+    """CMP draws windows whole behind balcony railings, RueMonge stops them at the railing."""
+    from facadeforge.datasets import get_label_set
+
+    assert get_label_set("cmp6").windows_behind == ("balcony",)
+    assert get_label_set("cmp12").windows_behind == ("balcony",)
+    assert get_label_set("ecp7").windows_behind == ()
+    with pytest.raises(InputError, match="windows_behind"):
+        LabelSet("x", ("wall", "window"), np.zeros((2, 3), np.uint8), {1: 0, 2: 1},
+                 windows_behind=("balcony",))

@@ -190,7 +190,7 @@ def train_convnet(smalls: Sequence[np.ndarray], labels: Sequence[np.ndarray], cl
         if progress:
             progress(f"epoch {epoch + 1}/{epochs}: loss {total_loss / per_epoch:.3f} "
                      f"({time.perf_counter() - t0:.0f} s)")
-    net.eval()
+    net.train(False)   # inference mode: batch norm uses its running statistics
     info = {"kind": "convnet", "label_set": label_set, "photos": len(smalls), "epochs": epochs,
             "batch": batch, "crop": crop, "lr": lr, "seed": seed, "steps": step,
             "class_weights": [round(float(w), 4) for w in weight],

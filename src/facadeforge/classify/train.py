@@ -114,7 +114,8 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
         lab = _small_labels(s.labels(), small.shape[:2])
         smalls.append(small)
         labels.append(lab)
-        picks.append(_sample_pixels(lab, k, per_image, rng))
+        if kind != "convnet":       # the network trains on whole crops, not sampled pixels
+            picks.append(_sample_pixels(lab, k, per_image, rng))
     if kind == "convnet":
         from .convnet_train import train_convnet
 
