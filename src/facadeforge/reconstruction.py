@@ -7,8 +7,8 @@
 2. ``rectify`` — vanishing points → homography (App. A), skipped with ``rectified=True``;
 3. ``symmetry`` / ``splits`` — MI repetition detection and floor/tile split lines (§2);
 4. ``classify`` / ``detect`` — better than the paper: the shipped pixel classifier
-   (``simon2011`` §4.3; ``classifier=``; ``cmp6`` for photos given as rectified, ``ecp7`` for
-   street photos) runs on the rectified photo, which is cropped to the
+   (``simon2011`` §4.3; ``classifier=``; ``cmp12`` for photos given as rectified, ``ecp7``
+   for street photos) runs on the rectified photo, which is cropped to the
    facade it finds (:func:`_facade_extent`: sky and neighbours around it become background),
    and its elements become boxes (:mod:`.imaging.detect`);
    when it finds at least :data:`MIN_ELEMENTS`, floors, tiles and tile refinements are laid
@@ -382,7 +382,7 @@ def _classifier(classifier, rectified: bool):
     from .classify import default_label_set, resolve_classifier
     from .imaging.detect import DETECTED_LABELS
 
-    clf = resolve_classifier(classifier, default_label_set(rectified))
+    clf = resolve_classifier(classifier, default_label_set(rectified, elements=True))
     if not set(DETECTED_LABELS) & set(clf.classes):
         raise InputError(f"classifier {clf!r} has none of the classes "
                          f"{', '.join(DETECTED_LABELS)}; pass one that labels windows")
@@ -476,7 +476,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         Run tile refinement (§3) on the paper's path; without it tiles stay wall leaves.
     classifier : PixelClassifier, path to a model file, None or False
         Pixel classifier whose elements structure the facade (module docstring, step 4);
-        ``None``: the shipped model (``cmp6`` with ``rectified``, else ``ecp7``:
+        ``None``: the shipped model (``cmp12`` with ``rectified``, else ``ecp7``:
         :func:`facadeforge.classify.default_label_set`); ``False``: the paper's edge-based
         path only.
 

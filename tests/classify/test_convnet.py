@@ -143,13 +143,16 @@ def test_training_without_torch_says_how_to_install(monkeypatch):
         train_convnet([img] * 8, [np.zeros((32, 32), np.uint8)] * 8, CLASSES, "cmp6")
 
 
-def test_shipped_defaults_prefer_the_convnet_where_one_is_shipped():
+def test_shipped_defaults_prefer_the_networks_where_they_are_shipped():
     from facadeforge.classify import default_classifier, shipped_model_path
 
-    assert shipped_model_path("cmp6").name == "convnet-cmp6.npz"
-    assert shipped_model_path("ecp7").name == "autocontext-ecp7.npz"   # no ecp7 convnet
+    assert shipped_model_path("cmp6").name == "ensemble-cmp6.npz"
+    assert shipped_model_path("ecp7").name == "autocontext-ecp7.npz"   # no ecp7 network
     assert shipped_model_path("cmp6", "autocontext").name == "autocontext-cmp6.npz"
-    assert default_classifier("cmp6").kind == "convnet"
+    shipped = default_classifier("cmp6")
+    assert shipped.kind == "ensemble" and shipped.label_set == "cmp6"
+    assert [(m.kind, m.label_set) for m in shipped.members] == [("convnet", "cmp6"),
+                                                                ("convnet", "cmp12")]
     with pytest.raises(InputError, match="no shipped convnet classifier"):
         default_classifier("ecp7", "convnet")
 
@@ -203,3 +206,49 @@ def test_training_learns_a_toy_facade():
                         lr=1e-2, seed=0)
     pred = clf.predict_small(imgs[0]).argmax(axis=2)
     assert (pred == labs[0]).mean() > 0.9
+
+
+def test_an_ensemble_averages_its_members_in_its_own_label_set(tmp_path):
+    from facadeforge.classify.ensemble import EnsembleClassifier
+    from facadeforge.datasets import get_label_set
+
+    cmp6, cmp12 = get_label_set("cmp6"), get_label_set("cmp12")
+    spec = ConvNetSpec(width=2, multipliers=(1, 2), rowcol=())
+    coarse = ConvNetClassifier(spec, random_weights(spec, 6, seed=1), cmp6.classes, "cmp6")
+    fine = ConvNetClassifier(spec, random_weights(spec, 12, seed=2), cmp12.classes, "cmp12")
+    ens = EnsembleClassifier([coarse, fine], "cmp6", {"command": "test"})
+    assert ens.classes == cmp6.classes and ens.label_set == "cmp6"
+    img = np.random.default_rng(1).integers(0, 255, (24, 40, 3), np.uint8)
+    want = (coarse.predict_proba(img)
+            + cmp6.project_proba(fine.predict_proba(img), cmp12.classes)) / 2
+    got = ens.predict_proba(img)
+    assert got.shape == (24, 40, 6)
+    np.testing.assert_allclose(got, want, atol=2e-3)   # averaged before the resize, not after
+    np.testing.assert_allclose(got.sum(axis=2), 1.0, atol=1e-4)
+    again = load_classifier(save_classifier(ens, tmp_path / "ens.npz"))
+    assert again.kind == "ensemble" and [m.label_set for m in again.members] == ["cmp6", "cmp12"]
+    assert again.meta["command"] == "test"
+    # the weights are stored as float16
+    np.testing.assert_allclose(again.predict_proba(img), got, atol=5e-3)
+    with pytest.raises(InputError, match="1 to"):
+        EnsembleClassifier([], "cmp6")
+    with pytest.raises(InputError, match="another ensemble"):
+        EnsembleClassifier([ens], "cmp6")
+
+
+def test_a_damaged_ensemble_file_is_refused_with_a_clear_error(tmp_path):
+    import json
+
+    from facadeforge.classify.ensemble import EnsembleClassifier
+
+    spec = ConvNetSpec(width=2, multipliers=(1, 2), rowcol=())
+    member = ConvNetClassifier(spec, random_weights(spec, 6), CLASSES, "cmp6")
+    path = save_classifier(EnsembleClassifier([member], "cmp6"), tmp_path / "e.npz")
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    meta = json.loads(arrays["__meta__"].tobytes())
+    meta["meta"]["members"][0]["kind"] = "ensemble"          # a member may not be an ensemble
+    arrays["__meta__"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    np.savez(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(ClassifierFileError, match="damaged"):
+        load_classifier(tmp_path / "bad.npz")

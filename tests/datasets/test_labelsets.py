@@ -171,3 +171,37 @@ def test_windows_behind_follows_each_dataset_convention():
     with pytest.raises(InputError, match="windows_behind"):
         LabelSet("x", ("wall", "window"), np.zeros((2, 3), np.uint8), {1: 0, 2: 1},
                  windows_behind=("balcony",))
+
+
+def test_project_proba_sums_fine_classes_into_the_merged_ones():
+    cmp12, cmp6 = get_label_set("cmp12"), get_label_set("cmp6")
+    rng = np.random.default_rng(0)
+    p = rng.dirichlet(np.ones(cmp12.num_classes), size=(4, 5)).astype(np.float32)
+    out = cmp6.project_proba(p, cmp12.classes, floor=0.0)
+    assert out.shape == (4, 5, 6) and out.dtype == np.float32
+    np.testing.assert_allclose(out.sum(axis=2), 1.0, rtol=1e-5)
+    c12 = list(cmp12.classes)
+    np.testing.assert_allclose(out[:, :, cmp6.index("window")],
+                               p[:, :, c12.index("window")] + p[:, :, c12.index("blind")],
+                               rtol=1e-5)
+    wall_parts = [c12.index(c) for c in ("wall", "cornice", "sill", "deco", "molding", "pillar")]
+    np.testing.assert_allclose(out[:, :, cmp6.index("wall")], p[:, :, wall_parts].sum(axis=2),
+                               rtol=1e-5)
+    # glass 0.3 + shutters 0.3 outweigh wall 0.4 once merged, as in the merged truth
+    q = np.zeros((1, 1, cmp12.num_classes), np.float32)
+    q[0, 0, [c12.index("window"), c12.index("blind"), c12.index("wall")]] = 0.3, 0.3, 0.4
+    assert np.argmax(q[0, 0]) == c12.index("wall")
+    assert np.argmax(cmp6.project_proba(q, cmp12.classes)[0, 0]) == cmp6.index("window")
+
+
+def test_project_proba_floors_classes_no_channel_reaches_and_keeps_its_own():
+    cmp6 = get_label_set("cmp6")
+    p = np.zeros((2, 2, 2), np.float32)
+    p[..., 0] = 1.0
+    out = cmp6.project_proba(p, ("window", "wall"))
+    assert out[..., cmp6.index("door")].min() > 0          # unlikely, not impossible
+    assert np.argmax(out, axis=2).tolist() == [[cmp6.index("window")] * 2] * 2
+    own = np.full((2, 2, 6), 1 / 6, np.float32)
+    assert cmp6.project_proba(own, cmp6.classes) is own    # already in this set: unchanged
+    with pytest.raises(InputError, match="one channel per class"):
+        cmp6.project_proba(own, ("window", "wall"))

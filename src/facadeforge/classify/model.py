@@ -173,4 +173,4 @@ def load_classifier(path: str | Path) -> PixelClassifier:
 
 def _load_kinds() -> None:
     """Import the implementations so they register themselves."""
-    from . import autocontext, convnet, forest, gmm  # noqa: F401
+    from . import autocontext, convnet, ensemble, forest, gmm  # noqa: F401

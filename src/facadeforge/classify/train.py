@@ -171,11 +171,13 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
 # ------------------------------------------------------------------------------------ CLI
 def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
-        "train-classifier", help="train a pixel classifier (forest, autocontext, convnet, gmm)",
+        "train-classifier",
+        help="train a pixel classifier (forest, autocontext, convnet, gmm, ensemble)",
         description="Train a pixel classifier for grammar parsing. forest, autocontext and "
                     "convnet learn from a labelled dataset's train split; gmm learns from one "
-                    "photo's scribbles.")
-    p.add_argument("--kind", default="autocontext", choices=(*TRAINABLE_KINDS, "gmm"))
+                    "photo's scribbles; ensemble averages trained models (--members).")
+    p.add_argument("--kind", default="autocontext",
+                   choices=(*TRAINABLE_KINDS, "gmm", "ensemble"))
     p.add_argument("--dataset", choices=("cmp", "ruemonge", "folder"),
                    help="dataset layout (forest, autocontext, convnet)")
     p.add_argument("--data", help="dataset folder (forest, autocontext, convnet)")
@@ -184,6 +186,8 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--labels", help="label set (default: the dataset's, cmp6 / ecp7)")
     p.add_argument("--image", help="photo the scribbles are drawn on (gmm)")
     p.add_argument("--scribbles", help="scribble PNG (gmm): strokes in the label set's colours")
+    p.add_argument("--members", nargs="+", metavar="MODEL",
+                   help="ensemble: model files to average (in --labels, default the first's)")
     p.add_argument("--stages", type=int, default=2, help="auto-context stages (default 2)")
     p.add_argument("--trees", type=int, default=10, help="trees per forest (default 10)")
     p.add_argument("--per-image", type=int, default=3000,
@@ -205,7 +209,16 @@ def cmd_train_classifier(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         raise InputError(f"-o {out}: folder {out.parent} does not exist; create it first")
     command = "facadeforge " + " ".join(sys.argv[1:]) if sys.argv else ""
-    if args.kind == "gmm":
+    if args.kind == "ensemble":
+        from .ensemble import EnsembleClassifier
+        from .model import load_classifier
+
+        if not args.members:
+            raise InputError("--kind ensemble needs --members MODEL.npz MODEL.npz …")
+        members = [load_classifier(m) for m in args.members]
+        clf = EnsembleClassifier(members, args.labels or members[0].label_set,
+                                 {"command": command})
+    elif args.kind == "gmm":
         from ..datasets import read_image
         from .gmm import train_gmm
 

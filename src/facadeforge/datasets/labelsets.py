@@ -325,6 +325,40 @@ class LabelSet:
                 "in facadeforge.model.Labels order")
         return table[arr.astype(np.intp)]
 
+    def project_proba(self, prob: np.ndarray, classes: Iterable[str], floor: float = 1e-3
+                      ) -> np.ndarray:
+        """Class probabilities over ``classes`` (canonical labels, e.g. a ``cmp12`` classifier's
+        or the few a scribble GMM was trained on) as probabilities over this set's classes.
+
+        Each source channel adds into the class its label maps to (:meth:`index`, through
+        :data:`CANONICAL_FALLBACK`): ``cmp12``'s blind into ``cmp6``'s window, its cornice, sill,
+        deco, molding and pillar into wall — the probability of a merged class is the sum of
+        its parts, as in the merged truth.  Every class then gets ``floor`` more and the rows
+        are renormalised, so a class no source channel reaches is unlikely, not impossible.
+        Probabilities already over this set's classes are returned as they are.
+
+        Parameters
+        ----------
+        prob : (H, W, K) float
+        classes : K canonical labels naming the channels of ``prob``
+
+        Returns
+        -------
+        (H, W, num_classes) float32
+        """
+        classes = tuple(classes)
+        prob = np.asarray(prob)
+        if prob.ndim != 3 or prob.shape[2] != len(classes):
+            raise InputError(f"label set {self.name!r}: probabilities of shape {prob.shape} do "
+                             f"not hold one channel per class of {list(classes)}")
+        if classes == self.classes:
+            return prob.astype(np.float32, copy=False)
+        out = np.full((*prob.shape[:2], self.num_classes), floor, np.float32)
+        for ch, name in enumerate(classes):
+            out[:, :, self.index(name)] += prob[:, :, ch]
+        out /= out.sum(axis=2, keepdims=True)
+        return out
+
     def to_canonical(self, index_map: np.ndarray) -> np.ndarray:
         """Canonical-index map (:data:`CANONICAL_INDEX`) of a class-index map.
 

@@ -76,18 +76,6 @@ class Parse:
         return _save(self, Path(out_dir))
 
 
-def _in_label_set(prob: np.ndarray, classes: tuple[str, ...], label_set) -> np.ndarray:
-    """Probabilities over ``classes`` (e.g. the few a scribble GMM was trained on) spread onto
-    the label set's channels; classes the classifier lacks get a small floor probability."""
-    if tuple(classes) == tuple(label_set.classes):
-        return prob
-    out = np.full((*prob.shape[:2], label_set.num_classes), 1e-3, np.float32)
-    for ch, name in enumerate(classes):
-        out[:, :, label_set.index(name)] += prob[:, :, ch]
-    out /= out.sum(axis=2, keepdims=True)
-    return out
-
-
 def _warp_prob(prob: np.ndarray, H: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Probabilities warped by pixel homography ``H`` into an image of ``shape``; pixels from
     outside the photo get a uniform distribution."""
@@ -185,7 +173,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
 
     def classify() -> tuple[np.ndarray, np.ndarray, float]:
         t = time.perf_counter()
-        prob = _in_label_set(clf.predict_proba(rgb), clf.classes, label_set)
+        prob = label_set.project_proba(clf.predict_proba(rgb), clf.classes)
         fallback = label_set.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
         return prob, fallback, time.perf_counter() - t
 
