@@ -1,5 +1,6 @@
 """Pixel classifiers compared: the §4.3.1 randomised forest (as in the thesis: 10 trees of depth
-18 on 15 × 15 patch tests) against the shipped models (auto-context forest, convnet), all trained
+18 on 15 × 15 patch tests) against the shipped models (auto-context forest, the ensemble of
+convnets and each of its members projected onto the same classes), all trained
 on the development train split and scored on the validation split of RueMonge (ecp7, as the
 thesis's ECP numbers) and CMP (cmp6).  The forest is trained here on each run; the others are
 the shipped files.  Writes ``benchmarks/results/classifiers.json``.
@@ -36,6 +37,7 @@ def score(clf, samples) -> dict:
 
 def main() -> int:
     from facadeforge.classify import SHIPPED_KINDS, default_classifier, shipped_model_path
+    from facadeforge.classify.ensemble import EnsembleClassifier
     from facadeforge.classify.train import train_classifier
     from facadeforge.evaluation.bench import provenance, save_result, select_samples
 
@@ -55,8 +57,11 @@ def main() -> int:
         }
         for kind in SHIPPED_KINDS:
             if shipped_model_path(ls.name, kind).is_file():
-                results[dataset][f"{kind} (shipped)"] = score(default_classifier(ls.name, kind),
-                                                              val)
+                clf = default_classifier(ls.name, kind)
+                results[dataset][f"{kind} (shipped)"] = score(clf, val)
+                for m in getattr(clf, "members", ()):   # each member alone, in the same classes
+                    results[dataset][f"  member {m.kind}-{m.label_set}"] = score(
+                        EnsembleClassifier([m], ls.name), val)
         print(dataset, {k: v["class_avg_accuracy"] for k, v in results[dataset].items()
                         if isinstance(v, dict)})
     save_result({"results": results, **provenance()},
