@@ -225,6 +225,12 @@ def test_an_ensemble_averages_its_members_in_its_own_label_set(tmp_path):
     assert got.shape == (24, 40, 6)
     np.testing.assert_allclose(got, want, atol=2e-3)   # averaged before the resize, not after
     np.testing.assert_allclose(got.sum(axis=2), 1.0, atol=1e-4)
+    from facadeforge.classify.features import ANALYSIS_SIDE, resize_proba
+
+    coarse_p = ens.predict_proba_coarse(img)        # the working scale, the photo's aspect
+    assert max(coarse_p.shape[:2]) == ANALYSIS_SIDE and coarse_p.shape[2] == 6
+    assert abs(coarse_p.shape[0] / coarse_p.shape[1] - 24 / 40) < 0.01
+    np.testing.assert_allclose(resize_proba(coarse_p, (24, 40)), got, atol=1e-5)
     again = load_classifier(save_classifier(ens, tmp_path / "ens.npz"))
     assert again.kind == "ensemble" and [m.label_set for m in again.members] == ["cmp6", "cmp12"]
     assert again.meta["command"] == "test"

@@ -82,8 +82,11 @@ class AutoContextClassifier(PixelClassifier):
             prob = trees.predict_proba(f.reshape(h * w, -1)).reshape(h, w, -1)
         return prob
 
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+        return self.predict_small(analysis_image(image))
+
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        return resize_proba(self.predict_small(analysis_image(image)), image.shape[:2])
+        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"tests": self.tests, "num_stages": np.asarray(len(self.stages))}

@@ -244,8 +244,11 @@ class ConvNetClassifier(PixelClassifier):
         x = pad_to(network_input(small), self.spec.stride)
         return softmax(forward(self.spec, self.weights, x))[:h, :w]
 
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+        return self.predict_small(analysis_image(image))
+
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        return resize_proba(self.predict_small(analysis_image(image)), image.shape[:2])
+        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {n: w.astype(np.float16) for n, w in self.weights.items()}

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..datasets import get_label_set
 from ..errors import InputError
-from .features import analysis_image, resize_proba
+from .features import resize_proba
 from .model import CLASSIFIER_KINDS, PixelClassifier, register_kind
 
 __all__ = ["EnsembleClassifier", "MAX_MEMBERS"]
@@ -53,17 +53,20 @@ class EnsembleClassifier(PixelClassifier):
         self.members = members
         self._target = target
 
-    def predict_small(self, small: np.ndarray) -> np.ndarray:
-        """Mean probabilities at the analysis scale (members that classify at that scale)."""
-        return sum(self._target.project_proba(m.predict_small(small), m.classes)
-                   for m in self.members) / len(self.members)
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+        """The members' probabilities at their working scale (the first member's size),
+        projected and averaged."""
+        out = None
+        for m in self.members:
+            p = self._target.project_proba(m.predict_proba_coarse(image), m.classes)
+            if out is None:
+                out = p.astype(np.float32, copy=True)
+            else:
+                out += p if p.shape == out.shape else resize_proba(p, out.shape[:2])
+        return out / len(self.members)
 
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        if all(hasattr(m, "predict_small") for m in self.members):
-            # one analysis image and one resize back for all members
-            return resize_proba(self.predict_small(analysis_image(image)), image.shape[:2])
-        return sum(self._target.project_proba(m.predict_proba(image), m.classes)
-                   for m in self.members) / len(self.members)
+        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {}

@@ -67,6 +67,13 @@ class PixelClassifier(ABC):
     def predict_proba(self, image: np.ndarray) -> np.ndarray:
         """``(H, W, K)`` float32 class probabilities of an ``(H, W, 3)`` uint8 RGB photo."""
 
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+        """Class probabilities at the scale the classifier works at: ``(h, w, K)`` float32 of
+        the photo's aspect ratio, before :meth:`predict_proba` resizes them to the photo.  For
+        callers that shrink them again (grammar parsing scores layouts on 256 pixels), it saves
+        the resize of K full-resolution channels.  Default: :meth:`predict_proba`."""
+        return self.predict_proba(image)
+
     def predict(self, image: np.ndarray) -> np.ndarray:
         """``(H, W)`` uint8 most probable class index (classifier-only labelling)."""
         return np.argmax(self.predict_proba(image), axis=2).astype(np.uint8)

@@ -39,7 +39,7 @@ from ..datasets import IGNORE, get_label_set
 from ..errors import InputError
 from ..model import Model, Shape
 from . import DEFAULT_BUDGET
-from .fit import FitResult, fit_grammar, grammar_path
+from .fit import ENERGY_SIDE, FitResult, fit_grammar, grammar_path
 
 __all__ = ["DEFAULT_BUDGET", "Parse", "parse", "write_fitted_rules"]
 
@@ -171,11 +171,20 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     rules, grammar_text = _load_grammar(str(gpath), *_stamp(gpath))
     timings["load"] = time.perf_counter() - t
 
-    def classify() -> tuple[np.ndarray, np.ndarray, float]:
+    def classify() -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """Probabilities at the classifier's own scale (the energy shrinks them to
+        ENERGY_SIDE anyway), the photo → probability pixel scaling, and the classifier's
+        labels in the photo frame."""
+        import cv2
+
         t = time.perf_counter()
-        prob = label_set.project_proba(clf.predict_proba(rgb), clf.classes)
-        fallback = label_set.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
-        return prob, fallback, time.perf_counter() - t
+        prob = label_set.project_proba(clf.predict_proba_coarse(rgb), clf.classes)
+        h, w = rgb.shape[:2]
+        to_prob = np.diag([prob.shape[1] / w, prob.shape[0] / h, 1.0])
+        top = np.argmax(prob, axis=2).astype(np.uint8)
+        fallback = label_set.to_canonical(cv2.resize(top, (w, h),
+                                                     interpolation=cv2.INTER_NEAREST))
+        return prob, to_prob, fallback, time.perf_counter() - t
 
     # The classifier and the rectification do not depend on each other: the classifier runs
     # in a second thread (its filters and tree loop release the GIL) while the main thread
@@ -194,9 +203,14 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
             rect_note = r.reason or "rectified"
             rect_img, H = (r.image, r.homography @ to_work) if r else (work, to_work)
         rectify_s = time.perf_counter() - t
-        prob, fallback, timings["classify"] = job.result()
+        prob, to_prob, fallback, timings["classify"] = job.result()
     t = time.perf_counter()
-    rect_prob = _warp_prob(prob, H, rect_img.shape[:2])
+    # straight into the energy's frame: the rectified facade at ENERGY_SIDE pixels
+    rh, rw = rect_img.shape[:2]
+    s = min(1.0, ENERGY_SIDE / max(rh, rw))
+    eh, ew = max(2, round(rh * s)), max(2, round(rw * s))
+    to_energy = np.diag([ew / rw, eh / rh, 1.0])
+    rect_prob = _warp_prob(prob, to_energy @ H @ np.linalg.inv(to_prob), (eh, ew))
     timings["rectify"] = rectify_s + time.perf_counter() - t
 
     t = time.perf_counter()
