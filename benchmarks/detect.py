@@ -25,7 +25,7 @@ STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
          3: "3. + fragments dropped (area < 0.3 median)", 4: "4. + weak evidence dropped "
          "(mean p < 0.5)", 5: "5. + row-consistent splits (width >= 1.8 row median) = "
          "detect_elements", 6: "6. + windows extended through the railing below them "
-         "(behind=balcony, as reconstruct with cmp6)"}
+         "(behind=balcony, as reconstruct on rectified photos)"}
 
 
 #: The options of detect_elements that switch steps 2–5 off, in step order.
