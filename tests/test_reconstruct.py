@@ -216,7 +216,9 @@ def test_image_kinds(kind):
     img = {"gray": g, "rgba": np.dstack([g, g, g, np.full_like(g, 255)]),
            "uint16": g.astype(np.uint16) * 257, "float": g / 255.0}[kind]
     rec = reconstruct(img, rectified=True, model=False)
-    assert rec.labels.shape == g.shape
+    # labels in the rectified frame (cropped to the facade the classifier sees) and the input's
+    assert rec.labels.shape == rec.rectified.shape[:2]
+    assert rec.labels_input().shape == g.shape
 
 
 def test_no_repetition_is_its_own_irreducible_facade():
