@@ -60,7 +60,7 @@ def main() -> int:
                 clf = default_classifier(ls.name, kind)
                 results[dataset][f"{kind} (shipped)"] = score(clf, val)
                 for m in getattr(clf, "members", ()):   # each member alone, in the same classes
-                    results[dataset][f"  member {m.kind}-{m.label_set}"] = score(
+                    results[dataset][f"member {m.kind}-{m.label_set}"] = score(
                         EnsembleClassifier([m], ls.name), val)
         print(dataset, {k: v["class_avg_accuracy"] for k, v in results[dataset].items()
                         if isinstance(v, dict)})

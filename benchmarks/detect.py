@@ -66,7 +66,7 @@ def main() -> int:
                  np.array([o.as_array() for o in comps]).reshape(-1, 4)}
         for k, name in STEPS.items():
             t = time.perf_counter()
-            els = detect_elements(prob, fine.classes, **_steps(k, fine.windows_behind))
+            els = detect_elements(prob, clf.classes, **_steps(k, fine.windows_behind))
             seconds[k] += time.perf_counter() - t
             found[name] = np.array([e.box for e in els if e.label == "window"],
                                    float).reshape(-1, 4)

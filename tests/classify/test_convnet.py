@@ -223,7 +223,7 @@ def test_an_ensemble_averages_its_members_in_its_own_label_set(tmp_path):
             + cmp6.project_proba(fine.predict_proba(img), cmp12.classes)) / 2
     got = ens.predict_proba(img)
     assert got.shape == (24, 40, 6)
-    np.testing.assert_allclose(got, want, atol=2e-3)   # averaged before the resize, not after
+    np.testing.assert_allclose(got, want, atol=2e-3)
     np.testing.assert_allclose(got.sum(axis=2), 1.0, atol=1e-4)
     from facadeforge.classify.features import ANALYSIS_SIDE, resize_proba
 
@@ -253,8 +253,19 @@ def test_a_damaged_ensemble_file_is_refused_with_a_clear_error(tmp_path):
     with np.load(path) as z:
         arrays = {k: z[k] for k in z.files}
     meta = json.loads(arrays["__meta__"].tobytes())
-    meta["meta"]["members"][0]["kind"] = "ensemble"          # a member may not be an ensemble
-    arrays["__meta__"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
-    np.savez(tmp_path / "bad.npz", **arrays)
-    with pytest.raises(ClassifierFileError, match="damaged"):
-        load_classifier(tmp_path / "bad.npz")
+
+    def damaged(edit, drop=()):
+        m = json.loads(json.dumps(meta))
+        edit(m["meta"])
+        bad = {k: a for k, a in arrays.items() if not k.startswith(drop) or not drop}
+        bad["__meta__"] = np.frombuffer(json.dumps(m).encode(), np.uint8)
+        np.savez(tmp_path / "bad.npz", **bad)
+        with pytest.raises(ClassifierFileError, match="damaged"):
+            load_classifier(tmp_path / "bad.npz")
+
+    damaged(lambda m: m["members"][0].update(kind="ensemble"))   # no nested ensembles
+    damaged(lambda m: m.update(members=[]))
+    damaged(lambda m: m.update(members="m0"))
+    damaged(lambda m: m["members"][0].update(classes=["bogus"] * 6))
+    damaged(lambda m: m["members"][0].update(classes=list(reversed(CLASSES))))  # reordered
+    damaged(lambda m: None, drop="m0.")                          # member arrays missing

@@ -88,3 +88,34 @@ def test_parse_with_a_scribble_gmm(photo, tmp_path):
 
     assert (labels == CANONICAL_INDEX["window"]).any()
     assert not (labels == CANONICAL_INDEX["balcony"]).any()  # a class the GMM never saw
+
+
+def test_coarse_probabilities_warp_straight_into_the_energy_frame():
+    """parse warps the classifier's working-scale probabilities by ``to_energy · H ·
+    to_prob⁻¹`` into the 256-pixel energy frame; that must agree with the long way round
+    (resize to the photo, warp there, area-shrink), here for a perspective homography."""
+    import cv2
+
+    from facadeforge.classify.features import resize_proba
+    from facadeforge.parsing.fit import energy_shape, shrink_proba
+    from facadeforge.parsing.parse import _warp_prob
+
+    h, w = 900, 1200                                          # the photo
+    yy, xx = np.mgrid[0:240, 0:320] / np.array([240.0, 320.0])[:, None, None]
+    stripes = np.stack([np.sin(6 * np.pi * xx) ** 2, np.cos(5 * np.pi * yy) ** 2, xx * yy], 2)
+    coarse = (stripes + 0.05) / (stripes + 0.05).sum(axis=2, keepdims=True)   # (240, 320, 3)
+    src = np.float32([[100, 80], [1100, 40], [1150, 880], [60, 820]])
+    rh, rw = 700, 1000                                        # the rectified facade
+    H = cv2.getPerspectiveTransform(src, np.float32([[0, 0], [rw, 0], [rw, rh], [0, rh]]))
+    to_prob = np.diag([320 / w, 240 / h, 1.0])
+    eh, ew = energy_shape(rh, rw)
+    to_energy = np.diag([ew / rw, eh / rh, 1.0])
+    short = _warp_prob(coarse.astype(np.float32), to_energy @ H @ np.linalg.inv(to_prob),
+                       (eh, ew))
+    long = shrink_proba(_warp_prob(resize_proba(coarse, (h, w)), H, (rh, rw)), 256)
+    assert short.shape == long.shape == (eh, ew, 3)
+    assert np.abs(short - long).mean() < 0.01
+    assert (np.argmax(short, 2) == np.argmax(long, 2)).mean() > 0.97
+    # the composition's order matters: the inverse left out samples the wrong pixels
+    wrong = _warp_prob(coarse.astype(np.float32), to_energy @ H @ to_prob, (eh, ew))
+    assert np.abs(wrong - long).mean() > 0.05

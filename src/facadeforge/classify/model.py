@@ -172,7 +172,8 @@ def load_classifier(path: str | Path) -> PixelClassifier:
         classes = tuple(str(c) for c in meta["classes"])
         return CLASSIFIER_KINDS[kind].from_arrays(arrays, classes, str(meta["label_set"]),
                                                   meta.get("meta", {}))
-    except (KeyError, ValueError, TypeError, IndexError, OverflowError, MemoryError) as exc:
+    except (KeyError, ValueError, TypeError, IndexError, OverflowError, MemoryError,
+            InputError) as exc:
         raise ClassifierFileError(f"classifier {path}: damaged or inconsistent model file "
                                   f"({exc}); train it again with 'facadeforge "
                                   "train-classifier'") from None

@@ -25,7 +25,8 @@ from .evolution import evolve
 from .layout import Layout, ParseGrammarError, SplitLayout
 from .search import SearchResult, hill_climb, parameters_of
 
-__all__ = ["DEFAULT_GRAMMAR", "GRAMMARS", "FitResult", "fit_grammar", "grammar_path",
+__all__ = ["DEFAULT_GRAMMAR", "GRAMMARS", "FitResult", "energy_shape", "fit_grammar",
+           "grammar_path", "shrink_proba",
            "SEARCH_METHODS"]
 
 GRAMMAR_DIR = Path(__file__).with_name("grammars")
@@ -62,14 +63,19 @@ class FitResult:
     height_m: float
 
 
-def _shrink(prob: np.ndarray, side: int) -> np.ndarray:
-    """Probabilities area-averaged to a long side of at most ``side`` pixels (float32)."""
-    h, w = prob.shape[:2]
+def energy_shape(h: int, w: int, side: int = ENERGY_SIDE) -> tuple[int, int]:
+    """``(h, w)`` of an image of ``h × w`` pixels shrunk to a long side of at most ``side``:
+    the frame the energy is computed in."""
     s = min(1.0, side / max(h, w))
-    if s >= 1.0:
+    return (h, w) if s >= 1.0 else (max(2, round(h * s)), max(2, round(w * s)))
+
+
+def shrink_proba(prob: np.ndarray, side: int) -> np.ndarray:
+    """Probabilities area-averaged to a long side of at most ``side`` pixels (float32)."""
+    shape = energy_shape(*prob.shape[:2], side)
+    if shape == prob.shape[:2]:
         return prob.astype(np.float32)
-    return resize_proba(prob, (max(2, round(h * s)), max(2, round(w * s))),
-                        interpolation=cv2.INTER_AREA, normalise=False)
+    return resize_proba(prob, shape, interpolation=cv2.INTER_AREA, normalise=False)
 
 
 def search_method(name: str):
@@ -89,7 +95,7 @@ def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "
     ``initialiser(prob, label_set) -> attrs or None`` measures a starting point that replaces
     the attribute defaults (:mod:`.init`)."""
     search = search_method(method)
-    small = _shrink(np.asarray(prob), ENERGY_SIDE)
+    small = shrink_proba(np.asarray(prob), ENERGY_SIDE)
     energy = SegmentationEnergy(small, label_set)
     layout = SplitLayout(rules)
     fixed = dict(fixed or {})

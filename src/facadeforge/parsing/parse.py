@@ -39,7 +39,14 @@ from ..datasets import IGNORE, get_label_set
 from ..errors import InputError
 from ..model import Model, Shape
 from . import DEFAULT_BUDGET
-from .fit import ENERGY_SIDE, FitResult, fit_grammar, grammar_path
+from .fit import (
+    ENERGY_SIDE,
+    FitResult,
+    energy_shape,
+    fit_grammar,
+    grammar_path,
+    shrink_proba,
+)
 
 __all__ = ["DEFAULT_BUDGET", "Parse", "parse", "write_fitted_rules"]
 
@@ -178,7 +185,10 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         import cv2
 
         t = time.perf_counter()
-        prob = label_set.project_proba(clf.predict_proba_coarse(rgb), clf.classes)
+        # area-averaged first when a classifier works at the photo's resolution (forest, GMM):
+        # the warp below samples bilinearly
+        prob = shrink_proba(label_set.project_proba(clf.predict_proba_coarse(rgb), clf.classes),
+                            2 * ENERGY_SIDE)
         h, w = rgb.shape[:2]
         to_prob = np.diag([prob.shape[1] / w, prob.shape[0] / h, 1.0])
         top = np.argmax(prob, axis=2).astype(np.uint8)
@@ -207,8 +217,7 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     t = time.perf_counter()
     # straight into the energy's frame: the rectified facade at ENERGY_SIDE pixels
     rh, rw = rect_img.shape[:2]
-    s = min(1.0, ENERGY_SIDE / max(rh, rw))
-    eh, ew = max(2, round(rh * s)), max(2, round(rw * s))
+    eh, ew = energy_shape(rh, rw)
     to_energy = np.diag([ew / rw, eh / rh, 1.0])
     rect_prob = _warp_prob(prob, to_energy @ H @ np.linalg.inv(to_prob), (eh, ew))
     timings["rectify"] = rectify_s + time.perf_counter() - t
