@@ -400,18 +400,14 @@ def _facade_extent(prob: np.ndarray, classes, min_keep: float = 0.5
         return None
     from scipy.ndimage import uniform_filter1d
 
+    from .imaging.runs import longest_run
+
     bg = prob[:, :, outside].sum(axis=2, dtype=np.float32)
     h, w = bg.shape
 
     def run(profile: np.ndarray) -> tuple[int, int]:
         profile = uniform_filter1d(profile, max(1, profile.size // 100), mode="nearest")
-        on = np.concatenate([[0], (profile < 0.5).astype(np.int8), [0]])
-        d = np.diff(on)
-        starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-        if not len(starts):
-            return 0, 0
-        k = int(np.argmax(ends - starts))
-        return int(starts[k]), int(ends[k])
+        return longest_run(profile < 0.5)
 
     x0, x1 = run(bg.mean(axis=0))
     if x1 - x0 < min_keep * w:

@@ -56,6 +56,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..datasets.folder import MIN_OBJECT_FRACTION
 from ..errors import InputError
+from .runs import runs
 
 __all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "row_split",
            "valley_split", "xy_cut"]
@@ -82,12 +83,6 @@ class Element:
     def area(self) -> int:
         x0, y0, x1, y1 = self.box
         return (x1 - x0) * (y1 - y0)
-
-
-def _runs(on: np.ndarray) -> list[tuple[int, int]]:
-    """``[start, end)`` of the runs of True."""
-    d = np.diff(np.concatenate([[0], on.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
 
 
 def _tighten(mask: np.ndarray, box: tuple[int, int, int, int]) -> tuple[int, int, int, int] | None:
@@ -124,10 +119,10 @@ def xy_cut(mask: np.ndarray, tol: float = 0.2, min_run: int = 3) -> list[tuple[i
         if depth < MAX_CUT_DEPTH:
             for axis in (1, 0):              # axis 1: profile per row (cut rows first)
                 prof = sub.mean(axis=axis)
-                runs = [r for r in _runs(prof > tol * prof.max()) if r[1] - r[0] >= min_run]
-                if len(runs) > 1:
+                parts = [r for r in runs(prof > tol * prof.max()) if r[1] - r[0] >= min_run]
+                if len(parts) > 1:
                     children = [(x0, y0 + a, x1, y0 + b) if axis == 1 else (x0 + a, y0, x0 + b, y1)
-                                for a, b in runs]
+                                for a, b in parts]
                     break
         if children:
             stack.extend((c, depth + 1) for c in children)

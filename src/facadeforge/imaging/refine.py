@@ -86,6 +86,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .runs import longest_run
 from .splits import to_gray
 
 __all__ = ["SPLIT_TYPES", "Region", "Tile", "elements", "leaves", "refine_tiles"]
@@ -237,18 +238,6 @@ class _Edges:
         return self.dx[y0:y1, pos] if vertical else self.dy[pos, x0:x1]
 
 
-def _longest_run(mask: np.ndarray, gap: int = 2) -> tuple[int, int]:
-    """``(start, end)`` of the longest run of ``True`` (gaps ≤ ``gap`` bridged); ``(0, 0)``."""
-    d = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    if starts.size == 0:
-        return 0, 0
-    brk = starts[1:] - ends[:-1] > gap
-    gs, ge = starts[np.r_[True, brk]], ends[np.r_[brk, True]]
-    i = int(np.argmax(ge - gs))
-    return int(gs[i]), int(ge[i])
-
-
 def _cluster_1d(values: np.ndarray, tol: float) -> np.ndarray:
     """Greedy 1-D clustering (sorted; a cluster spans ≤ ``tol``): each value → its cluster's
     median, rounded half up to an integer."""
@@ -321,7 +310,7 @@ def _candidates(edges: _Edges, box: tuple[int, int, int, int], thr: float,
         along = y0 if vertical else x0
         for side, i in zip(sides, (int(peak[0]), int(peak[-1]))):
             pos = lo + i
-            s, e = _longest_run(edges.response(box, vertical, pos) > thr)
+            s, e = longest_run(edges.response(box, vertical, pos) > thr, gap=2)
             out[side] = _Cand(side, pos, float(p[i]) / noise, (along + s, along + e))
     return out
 

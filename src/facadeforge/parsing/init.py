@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from ..datasets import LabelSet
+from ..imaging.runs import runs as runs_of
 
 __all__ = ["GRID_ATTRIBUTES", "SURROUNDING_ATTRIBUTES", "grid_seed", "initialiser_for",
            "pinned_for", "window_boxes"]
@@ -135,16 +136,12 @@ def _arcade_seed(band: np.ndarray, label_set: LabelSet, left: list[float], win_w
     bw = band.shape[1]
     runs: dict[tuple[int, int], int] = {}       # (x0, x1) → the first column standing on it
     door_share = [0.0] * len(left)
+    open_runs = runs_of(share >= 0.4)
     for j, x in enumerate(left):
         cx = int(round((x + win_w / 2) * w))
         if not 0 <= cx < bw or share[cx] < 0.4:
             continue
-        x0 = cx
-        while x0 > 0 and share[x0 - 1] >= 0.4:
-            x0 -= 1
-        x1 = cx + 1
-        while x1 < bw and share[x1] >= 0.4:
-            x1 += 1
+        x0, x1 = next((a, b) for a, b in open_runs if a <= cx < b)
         runs.setdefault((x0, x1), j)
         n_open = max(1, int(opening[:, x0:x1].sum()))   # the door's share of the opening
         if "door" in kinds:
