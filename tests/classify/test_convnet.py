@@ -269,3 +269,30 @@ def test_a_damaged_ensemble_file_is_refused_with_a_clear_error(tmp_path):
     damaged(lambda m: m["members"][0].update(classes=["bogus"] * 6))
     damaged(lambda m: m["members"][0].update(classes=list(reversed(CLASSES))))  # reordered
     damaged(lambda m: None, drop="m0.")                          # member arrays missing
+
+
+def test_cli_combines_models_into_an_ensemble(tmp_path, capsys):
+    from facadeforge.cli import main
+    from facadeforge.datasets import get_label_set
+
+    spec = ConvNetSpec(width=2, multipliers=(1, 2), rowcol=())
+    cmp12 = get_label_set("cmp12")
+    a = save_classifier(ConvNetClassifier(spec, random_weights(spec, 6), CLASSES, "cmp6"),
+                        tmp_path / "a.npz")
+    b = save_classifier(ConvNetClassifier(spec, random_weights(spec, 12), cmp12.classes,
+                                          "cmp12"), tmp_path / "b.npz")
+    out = tmp_path / "ens.npz"
+    assert main(["train-classifier", "--kind", "ensemble", "--members", str(a), str(b),
+                 "-o", str(out)]) == 0
+    ens = load_classifier(out)
+    assert ens.kind == "ensemble" and ens.label_set == "cmp6"      # the first member's set
+    assert ens.meta["command"].startswith("facadeforge")        # from sys.argv
+    capsys.readouterr()
+    for bad, says in ((["--members", str(tmp_path / "missing.npz")], "no such file"),
+                      ([], "needs --members"),
+                      (["--members", str(out)], "another ensemble")):
+        assert main(["train-classifier", "--kind", "ensemble", *bad,
+                     "-o", str(tmp_path / "x.npz")]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and says in err, err
+    assert not (tmp_path / "x.npz").exists()
