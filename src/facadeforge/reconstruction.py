@@ -93,13 +93,9 @@ class Reconstruction:
     def labels_input(self) -> np.ndarray:
         """The label map warped back into the input photo's pixel frame (nearest neighbour;
         0 = background outside the rectified facade)."""
-        import cv2
+        from .frames import warp
 
-        h, w = self.photo.shape[:2]
-        half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
-        hcv = np.linalg.inv(half) @ self.inverse @ half
-        return cv2.warpPerspective(self.labels, hcv, (w, h), flags=cv2.INTER_NEAREST,
-                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return warp(self.labels, self.inverse, self.photo.shape[:2], nearest=True)
 
     def windows(self, label: str = "window", frame: str = "rectified") -> list[list[float]]:
         """Boxes ``[x0, y0, x1, y1]`` of the leaves labelled ``label``: rectified pixels, or
@@ -341,13 +337,9 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
 
 def _covered(photo_shape, homography: np.ndarray, shape) -> np.ndarray | None:
     """(H, W) bool: the rectified pixels the input photo covers (``None``: all of them)."""
-    import cv2
+    from .frames import warp
 
-    half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
-    hcv = np.linalg.inv(half) @ homography @ half
-    ones = np.ones(photo_shape[:2], np.uint8)
-    covered = cv2.warpPerspective(ones, hcv, (shape[1], shape[0]), flags=cv2.INTER_NEAREST,
-                                  borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    covered = warp(np.ones(photo_shape[:2], np.uint8), homography, shape, nearest=True) > 0
     return None if covered.all() else covered
 
 

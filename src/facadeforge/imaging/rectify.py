@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..frames import warp
 
 __all__ = ["Rectification", "detect_segments", "rectify", "rectifying_homography",
            "segment_geometry", "to_rgb8", "vanishing_points", "warped_bounds"]
@@ -355,16 +356,6 @@ def warped_bounds(H: np.ndarray, image_shape: tuple[int, ...]) -> tuple[int, int
     return max(int(np.ceil(q[:, 1].max())), 1), max(int(np.ceil(q[:, 0].max())), 1)
 
 
-def _warp(image: np.ndarray, H: np.ndarray, out_hw: tuple[int, int]) -> np.ndarray:
-    """warpPerspective with the module's +0.5 pixel-centre convention."""
-    cv2 = _cv2()
-    half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
-    Hcv = np.linalg.inv(half) @ H @ half
-    return cv2.warpPerspective(image, Hcv, (int(out_hw[1]), int(out_hw[0])),
-                               flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                               borderValue=(0, 0, 0))
-
-
 # ================================================================================ rectify
 @dataclass
 class Rectification:
@@ -460,7 +451,7 @@ def rectify(image: np.ndarray, *, crop: bool = True, rng: np.random.Generator | 
         box = (x0, y0, x1, y1)
         H = np.array([[1, 0, -x0], [0, 1, -y0], [0, 0, 1.0]]) @ H
         out_w, out_h = x1 - x0, y1 - y0
-    warped = _warp(rgb, H, (out_h, out_w))
+    warped = warp(rgb, H, (out_h, out_w))
     lengths, _ = segment_geometry(segs)
     frac = float(lengths[inl].sum() / max(lengths.sum(), 1e-12))
     conf = np.sqrt(frac)

@@ -86,20 +86,11 @@ class Parse:
 def _warp_prob(prob: np.ndarray, H: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Probabilities warped by pixel homography ``H`` into an image of ``shape``; pixels from
     outside the photo get a uniform distribution."""
-    import cv2
+    from ..frames import warp
 
-    half = np.array([[1, 0, 0.5], [0, 1, 0.5], [0, 0, 1.0]])
-    hcv = np.linalg.inv(half) @ H @ half
-    h, w = shape
-    k = prob.shape[2]
-    out = np.empty((h, w, k), np.float32)
-    for c0 in range(0, k, 4):
-        c1 = min(k, c0 + 4)
-        out[:, :, c0:c1] = cv2.warpPerspective(
-            np.ascontiguousarray(prob[:, :, c0:c1]), hcv, (w, h), flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT, borderValue=0).reshape(h, w, c1 - c0)
+    out = warp(prob.astype(np.float32, copy=False), H, shape)
     s = out.sum(axis=2, keepdims=True)
-    return np.where(s > 1e-6, out / np.maximum(s, 1e-6), 1.0 / k).astype(np.float32)
+    return np.where(s > 1e-6, out / np.maximum(s, 1e-6), 1.0 / prob.shape[2]).astype(np.float32)
 
 
 def _literal(v: Any) -> str:
