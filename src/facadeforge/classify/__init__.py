@@ -28,8 +28,8 @@ from .model import (
     save_classifier,
 )
 
-__all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "SHIPPED_KINDS",
-           "ClassifierFileError", "PixelClassifier", "default_classifier", "default_label_set", "load_classifier",
+__all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "SHIPPED_KINDS", "ClassifierFileError",
+           "PixelClassifier", "default_classifier", "default_label_set", "load_classifier",
            "resolve_classifier", "save_classifier", "shipped_model_path"]
 
 #: Folder of the shipped models.
@@ -76,8 +76,8 @@ def default_label_set(rectified: bool, elements: bool = False) -> str:
     labels railings balcony as RueMonge does.  On the RueMonge validation photos
     ``reconstruct`` scored window F1 0.54 with ``ecp7`` against 0.17 with the auto-context
     ``cmp6`` forest, whose windows take in the railings in front of them; the ``cmp6``
-    convnet that replaced it generalises better (first four photos: 0.57 against ``ecp7``'s
-    0.51), so the choice stands on the classes, not on the windows.
+    networks that replaced it generalise better (first four photos: the convnet 0.57, the
+    ensemble 0.56, ``ecp7`` 0.51), so the choice stands on the classes, not on the windows.
 
     ``elements``: for element detection (``reconstruct``), rectified photos get CMP's twelve
     classes (``cmp12``), in which a window's glass is apart from its shutters and sills:

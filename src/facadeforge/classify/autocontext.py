@@ -28,7 +28,6 @@ from .features import (
     context_features,
     draw_patch_tests,
     patch_tests,
-    resize_proba,
 )
 from .forest import TreeEnsemble, check_tests
 from .model import PixelClassifier, register_kind
@@ -84,9 +83,6 @@ class AutoContextClassifier(PixelClassifier):
 
     def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
         return self.predict_small(analysis_image(image))
-
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {"tests": self.tests, "num_stages": np.asarray(len(self.stages))}

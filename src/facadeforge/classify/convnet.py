@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import InputError
-from .features import analysis_image, resize_proba
+from .features import analysis_image
 from .model import PixelClassifier, register_kind
 
 __all__ = ["ConvNetClassifier", "ConvNetSpec", "fold_batchnorm", "network_input"]
@@ -246,9 +246,6 @@ class ConvNetClassifier(PixelClassifier):
 
     def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
         return self.predict_small(analysis_image(image))
-
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {n: w.astype(np.float16) for n, w in self.weights.items()}

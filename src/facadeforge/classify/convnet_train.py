@@ -1,8 +1,8 @@
-"""Training the facade U-Net of :mod:`.convnet` with PyTorch on a CPU (or a GPU when present).
+"""Training the facade U-Net of :mod:`.convnet` with PyTorch, on the CPU.
 
 PyTorch is needed for training only; it comes with the ``train`` extra (``make train-env``
-builds ``.venv-train`` with it; elsewhere ``pip install 'facadeforge[train]'``).  The trained network is
-exported with batch norm folded into its convolutions and saved like every other classifier,
+builds ``.venv-train`` with it; elsewhere ``pip install 'facadeforge[train]'``).  The
+trained network is exported with batch norm folded into its convolutions and saved like every other classifier,
 so using it needs numpy alone.
 
 Recipe (the whole of it; seeded, so a model is reproduced by its command up to the
@@ -29,12 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from ..datasets import IGNORE
 from ..errors import InputError
 from .convnet import ConvNetClassifier, ConvNetSpec, fold_batchnorm, network_input
 
 __all__ = ["require_torch", "train_convnet"]
-
-IGNORE = 255
 
 
 def require_torch():

@@ -70,9 +70,6 @@ class EnsembleClassifier(PixelClassifier):
                 out += p if p.shape == out.shape else resize_proba(p, out.shape[:2])
         return out / len(self.members)
 
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        return resize_proba(self.predict_proba_coarse(image), image.shape[:2])
-
     def to_arrays(self) -> dict[str, np.ndarray]:
         out = {}
         for i, m in enumerate(self.members):

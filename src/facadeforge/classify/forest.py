@@ -22,7 +22,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from .features import analysis_image, draw_patch_tests, patch_tests, resize_proba
+from .features import analysis_image, draw_patch_tests, patch_tests
 from .model import PixelClassifier, register_kind
 
 __all__ = ["ForestClassifier", "TreeEnsemble", "grow_forest"]
@@ -192,12 +192,11 @@ class ForestClassifier(PixelClassifier):
         """96 tests in a 15 × 15 patch (the thesis's patch size) at analysis scale."""
         return draw_patch_tests(96, radius=7, seed=seed)
 
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
         small = analysis_image(image)
         f = self.features(small, self.tests)
         h, w = small.shape[:2]
-        p = self.trees.predict_proba(f.reshape(h * w, -1)).reshape(h, w, -1)
-        return resize_proba(p, image.shape[:2])
+        return self.trees.predict_proba(f.reshape(h * w, -1)).reshape(h, w, -1)
 
     def to_arrays(self) -> dict[str, np.ndarray]:
         return {"tests": self.tests, **self.trees.to_arrays("t_")}

@@ -149,8 +149,9 @@ class GMMClassifier(PixelClassifier):
                 comp[i, j] = self._log_norm[i, j] - 0.5 * (z0 * z0 + z1 * z1 + z2 * z2)
         return _logsumexp(comp, axis=1).T
 
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        """``(H, W, C)`` float32 posteriors ``p(c_i | f_x)`` of eq. 4.13 (equal class priors).
+    def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+        """``(H, W, C)`` float32 posteriors ``p(c_i | f_x)`` of eq. 4.13 (equal class priors), at
+        the photo's own scale (the posterior is per colour: there is no working scale).
 
         ``image`` is ``(H, W, 3)`` uint8 RGB; grey ``(H, W)``, RGBA, 16-bit and float images are
         converted with :func:`~facadeforge.imaging.rectify.to_rgb8`.  The posterior depends on

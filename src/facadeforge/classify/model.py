@@ -2,10 +2,12 @@
 
 A pixel classifier gives every pixel of a facade photo a probability per class — the *image
 support* of grammar-driven parsing (``simon2011`` §4.2.1, eq. 4.4).  Every kind (the randomised
-forest of §4.3.1, the scribble GMM of §4.3.2, the auto-context forest) implements
-:class:`PixelClassifier`: ``predict_proba(image) -> (H, W, K) float32`` in the photo's own pixel
-frame, rows summing to one, with ``classes`` naming the K channels by canonical label
-(:class:`~facadeforge.model.Labels`) in the order of the label set it was trained in.
+forest of §4.3.1, the scribble GMM of §4.3.2, the auto-context forest, the convnet, an
+ensemble) implements :class:`PixelClassifier`'s ``predict_proba_coarse(image) -> (h, w, K)
+float32`` at the scale it works at (the photo's aspect ratio), and gets ``predict_proba(image)
+-> (H, W, K)`` in the photo's own pixel frame from it; rows sum to one, and ``classes`` names
+the K channels by canonical label (:class:`~facadeforge.model.Labels`) in the order of the label
+set it was trained in.
 
 File format (``.npz``, written by :func:`save_classifier`, read by :func:`load_classifier`): plain
 numeric arrays plus one JSON document in the array ``__meta__`` (kind, classes, label set, how the
@@ -64,15 +66,19 @@ class PixelClassifier(ABC):
         return len(self.classes)
 
     @abstractmethod
-    def predict_proba(self, image: np.ndarray) -> np.ndarray:
-        """``(H, W, K)`` float32 class probabilities of an ``(H, W, 3)`` uint8 RGB photo."""
-
     def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
-        """Class probabilities at the scale the classifier works at: ``(h, w, K)`` float32 of
-        the photo's aspect ratio, before :meth:`predict_proba` resizes them to the photo.  For
-        callers that shrink them again (grammar parsing scores layouts on 256 pixels), it saves
-        the resize of K full-resolution channels.  Default: :meth:`predict_proba`."""
-        return self.predict_proba(image)
+        """Class probabilities of an ``(H, W, 3)`` uint8 RGB photo at the scale the classifier
+        works at: ``(h, w, K)`` float32 of the photo's aspect ratio (the analysis scale for the
+        forests and networks, the photo's own for a GMM).  Callers that shrink them again
+        (grammar parsing scores layouts on 256 pixels) skip the resize of K full-resolution
+        channels."""
+
+    def predict_proba(self, image: np.ndarray) -> np.ndarray:
+        """``(H, W, K)`` float32 class probabilities in the photo's own pixel frame."""
+        from .features import resize_proba
+
+        p = self.predict_proba_coarse(image)
+        return p if p.shape[:2] == image.shape[:2] else resize_proba(p, image.shape[:2])
 
     def predict(self, image: np.ndarray) -> np.ndarray:
         """``(H, W)`` uint8 most probable class index (classifier-only labelling)."""

@@ -34,9 +34,10 @@ Why this exists
        as CMP): windows extended down through the balcony rows below them, by at most a third
        of their height (by their whole height it lost F1).
 
-    Tried on the same split and not kept (no gain): splitting boxes wider than 1.7 median widths, splitting at full-height mullions
-    (CMP marks some mullioned windows as one window and others as two), completing the grid of
-    window rows × columns, and snapping box edges to image edges.
+    Tried on the same split and not kept (no gain): splitting boxes wider than 1.7 median
+    widths, splitting at full-height mullions (CMP marks some mullioned windows as one window
+    and others as two), completing the grid of window rows × columns, and snapping box edges to
+    image edges.
 
 Boxes are ``(x0, y0, x1, y1)`` pixels with exclusive ends, rows down, in the frame of the
 probabilities.  Boxes of one class never overlap (both cuts partition); across classes, the

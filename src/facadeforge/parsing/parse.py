@@ -3,12 +3,13 @@
 Stages (``report.json`` times each):
 
 1. **load** the photo (any format Pillow reads; gray, RGBA and 16-bit are converted);
-2. **classify**: the pixel classifier's probabilities in the photo frame (§4.2.1) — a model
-   file (``--classifier``) or the shipped model (``cmp6`` for rectified photos, ``ecp7``,
-   trained on Parisian street photos, otherwise; :func:`~facadeforge.classify.default_classifier`);
+2. **classify**: the pixel classifier's probabilities (§4.2.1) at the scale it works at — a
+   model file (``--classifier``) or the shipped model (``cmp6`` for rectified photos, ``ecp7``,
+   trained on Parisian street photos, otherwise;
+   :func:`~facadeforge.classify.default_classifier`);
 3. **rectify** (unless ``--rectified``): vanishing points → homography (Müller 2007 App. A, as
    ``reconstruct`` does), found while the classifier runs in a second thread; the
-   probabilities are warped into the rectified frame;
+   probabilities are warped straight into the rectified frame at the energy's scale;
 4. **search**: the parse grammar's parameters minimising the §4.2.2 energy (hill climbing or the
    evolutionary search) within a budget of derivations;
 5. **derive**: the engine derives the fitted rules into the shape tree and the 3D model.
@@ -182,9 +183,8 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
                             2 * ENERGY_SIDE)
         h, w = rgb.shape[:2]
         to_prob = np.diag([prob.shape[1] / w, prob.shape[0] / h, 1.0])
-        top = np.argmax(prob, axis=2).astype(np.uint8)
-        fallback = label_set.to_canonical(cv2.resize(top, (w, h),
-                                                     interpolation=cv2.INTER_NEAREST))
+        top = label_set.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
+        fallback = cv2.resize(top, (w, h), interpolation=cv2.INTER_NEAREST)
         return prob, to_prob, fallback, time.perf_counter() - t
 
     # The classifier and the rectification do not depend on each other: the classifier runs
