@@ -46,6 +46,7 @@ class SegmentationEnergy:
         self.label_set = label_set
         self.shape = prob.shape[:2]
         cost = -np.log(np.clip(prob, eps, 1.0)).astype(np.float64)
+        self.cost = cost   # (H, W, K) per-pixel −log p
         h, w, k = cost.shape
         integral = np.zeros((k, h + 1, w + 1), np.float64)
         integral[:, 1:, 1:] = cost.transpose(2, 0, 1).cumsum(axis=1).cumsum(axis=2)

@@ -20,6 +20,7 @@ import numpy as np
 from ..classify.features import resize_proba
 from ..datasets import LabelSet
 from ..errors import InputError
+from .differentiate import differentiate as differentiate_instances
 from .energy import SegmentationEnergy
 from .evolution import evolve
 from .layout import Layout, ParseGrammarError, SplitLayout
@@ -89,11 +90,12 @@ SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb, "evolution": evolve}
 
 def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "hill",
                 budget: int = 1500, seed: int = 0, fixed: Mapping[str, Any] | None = None,
-                initialiser=None, **options: Any) -> FitResult:
+                initialiser=None, differentiate: bool = True, **options: Any) -> FitResult:
     """Fit the parse grammar ``rules`` (loaded) to ``(H, W, K)`` probabilities of a rectified
     facade; ``fixed`` pins attributes (e.g. ``facadeWidth`` when the width is known);
     ``initialiser(prob, label_set) -> attrs or None`` measures a starting point that replaces
-    the attribute defaults (:mod:`.init`)."""
+    the attribute defaults (:mod:`.init`); with ``differentiate`` (and a grammar that declares
+    it) each element instance is then fitted on its own (:mod:`.differentiate`)."""
     search = search_method(method)
     small = shrink_proba(np.asarray(prob), ENERGY_SIDE)
     energy = SegmentationEnergy(small, label_set)
@@ -125,6 +127,10 @@ def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "
     result = search(objective, params, budget=budget, seed=seed, **options)
     best = {**fixed, **result.attrs}
     w, h = size_of(best)
+    if differentiate:
+        refined = differentiate_instances(energy, layout, best, w, h, params)
+        if refined is not None:
+            best = refined
     lay = layout.derive(w, h, best)
-    return FitResult(best, lay, result, energy.per_pixel(result.energy), energy.rasterize(lay),
+    return FitResult(best, lay, result, energy.per_pixel(energy(lay)), energy.rasterize(lay),
                      w, h)

@@ -161,6 +161,7 @@ class SplitLayout:
                           for f in by_arity.values()}
         self._overrides: dict[str, Any] = {}
         self._attr_cache: dict[str, Any] = {}
+        self._array_keys: dict[str, tuple] = {}
         self._memo: dict[tuple, list[tuple]] = {}
         self._pieces: dict[tuple, list] = {}
         self._rule_attrs: dict[str, tuple[str, ...]] = {}
@@ -189,6 +190,17 @@ class SplitLayout:
         self._attr_cache[name] = value
         return value
 
+    def _attr_key(self, name: str):
+        """The attribute's value as a memo key: an array by its contents (once per
+        derivation), anything else as it is."""
+        value = self.attr_value(name)
+        if type(value) is not np.ndarray:
+            return value
+        key = self._array_keys.get(name)
+        if key is None:
+            key = self._array_keys[name] = (value.shape, value.dtype.str, value.tobytes())
+        return key
+
     # ------------------------------------------------------------------ derivation
     def derive(self, width: float, height: float, attrs: Mapping[str, Any] | None = None
                ) -> Layout:
@@ -197,6 +209,7 @@ class SplitLayout:
             raise InputError(f"layout size {width} x {height} must be positive")
         self._overrides = dict(attrs or {})
         self._attr_cache = {}
+        self._array_keys = {}
         self._sig = {}
         self._count = 0
         if len(self._memo) > MEMO_SIZE:
@@ -255,7 +268,7 @@ class SplitLayout:
         if k in self._sig:
             return self._sig[k]
         try:
-            values = tuple(map(self.attr_value, reads(owner)))
+            values = tuple(map(self._attr_key, reads(owner)))
             sig = (values, tuple(map(type, values)))   # typed, as _typed, but two C loops
         except CGARuntimeError:
             sig = None

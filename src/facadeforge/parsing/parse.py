@@ -99,6 +99,8 @@ def _literal(v: Any) -> str:
         return "true" if v else "false"
     if isinstance(v, str):
         return json.dumps(v)
+    if isinstance(v, np.ndarray | list | tuple):   # a 1-D array attribute
+        return "[" + ", ".join(_literal(x) for x in np.ravel(v).tolist()) + "]"
     f = float(v)
     return str(int(f)) if f.is_integer() else repr(f)   # exact: rules.cga derives the same
 

@@ -1,0 +1,405 @@
+"""Differentiation: each element instance fitted on its own after the consistent search.
+
+``simon2011`` §3.2.3 separates *consistency* (instances of a rule share their choices: every
+window of a facade the same size, columns aligned) from *differentiation* (instances may
+differ).  The consistent search (§4.1.1, :mod:`.fit`) finds the facade's grid — floors, window
+columns, one window size — which is what makes grammar parsing robust to a noisy classifier.
+Real facades then differ per instance: a window a little wider, a missing one, a balcony in
+front of some windows only, a running balcony that stops short of the corners.  The oracle
+experiment (truth as the classifier) shows how much the consistent space leaves behind, and on
+the CMP facades the consistent fit loses most to the classifier on windows and balconies.
+
+A grammar opts in by declaring ``differentiated``, ``windowCells`` and ``bandCells``
+(``grammars/grid.cga`` explains their layout).  With the consistent attributes fixed, the
+energy of §4.2.2 separates over instances: moving one window's edges only changes the pixels
+between its old and new box.  So each instance is fitted exactly and cheaply on the integral
+image of its cost change ``−log p(new label) + log p(current label)``:
+
+1. **running balcony bands** (per floor): top edge and the wall left and right of the band,
+   or no band;
+2. **window openings** (per floor and column): their four edges by coordinate descent within
+   their cell — half-way to the neighbouring openings and inside their floor — or no window;
+3. **balconies in front of openings**: a balcony from below the window's bottom up into it, at
+   least as wide as the window (the grammar's guard, now per instance and wider than its
+   window where the photo says so).
+
+The results are written into the grammar's own attributes, derived by the same layout code as
+the search (and by the engine for the model), and kept only if the derived layout's energy is
+lower than the consistent one's.  A few milliseconds per facade.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from .energy import SegmentationEnergy
+from .layout import Layout, SplitLayout
+from .search import Objective, Parameter, coordinate_sweep
+
+__all__ = ["DIFFERENTIATION_ATTRIBUTES", "differentiate", "supports_differentiation"]
+
+#: Attributes a grammar declares to be differentiated (``grid.cga``).
+DIFFERENTIATION_ATTRIBUTES = frozenset({"differentiated", "windowCells", "bandCells",
+                                        "shopCells"})
+#: Values per window opening and per band in ``windowCells`` / ``bandCells``.
+WINDOW_VALUES, BAND_VALUES, SHOP_VALUES = 7, 3, 3
+#: Derivations the door's polish may spend.
+DOOR_BUDGET = 80
+#: How far (fraction of its size) an edge may move in one direction.
+SPAN = 0.5
+#: Coordinate-descent rounds over an instance's edges.
+ROUNDS = 3
+_EPS = 1e-6
+
+
+def supports_differentiation(layout: SplitLayout) -> bool:
+    return DIFFERENTIATION_ATTRIBUTES <= set(layout.attr_defs)
+
+
+def _grid_size(layout: SplitLayout) -> tuple[int, int]:
+    """``(upper floor placeholders, column placeholders)`` the grammar declares."""
+    names = layout.attr_defs
+    floors = 1 + sum(1 for n in names if n.startswith("floor") and n[5:].isdigit())
+    columns = sum(1 for n in names if n.startswith("column") and n[6:].isdigit())
+    return floors, columns
+
+
+class _Frame:
+    """Layout metres ↔ energy pixels (x right, y up from the bottom ↔ rows down from the top)."""
+
+    def __init__(self, energy: SegmentationEnergy, width: float, height: float):
+        self.h, self.w = energy.shape
+        self.sx = self.w / width
+        self.sy = self.h / height
+        self.height = height
+
+    def box(self, b) -> tuple[float, float, float, float]:
+        """Float pixel box ``r0, c0, r1, c1`` of a layout box ``x0, y0, x1, y1``."""
+        x0, y0, x1, y1 = b
+        return ((self.height - y1) * self.sy, x0 * self.sx, (self.height - y0) * self.sy,
+                x1 * self.sx)
+
+
+def _integral(d: np.ndarray) -> np.ndarray:
+    s = np.zeros((d.shape[0] + 1, d.shape[1] + 1))
+    s[1:, 1:] = d.cumsum(0).cumsum(1)
+    return s
+
+
+def _box_sum(s: np.ndarray, r0: int, c0: int, r1: int, c1: int) -> float:
+    return float(s[r1, c1] - s[r0, c1] - s[r1, c0] + s[r0, c0])
+
+
+def _box_sums(s: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    r0, c0, r1, c1 = boxes.T
+    return s[r1, c1] - s[r0, c1] - s[r1, c0] + s[r0, c0]
+
+
+def _descend(s: np.ndarray, box: list[int], bounds: tuple[int, int, int, int],
+             movable: tuple[bool, bool, bool, bool], span: tuple[int, int]
+             ) -> tuple[list[int], float]:
+    """Coordinate descent of a box's edges on integral image ``s`` (minimum cost): each edge
+    in turn to its best position within ``span`` (rows, columns) of where it started and
+    inside ``bounds``, until no edge moves."""
+    start = list(box)
+    best = _box_sum(s, *box)
+    for _ in range(ROUNDS):
+        moved = False
+        for i in range(4):
+            if not movable[i]:
+                continue
+            d = span[i % 2]
+            lo = max(start[i] - d, bounds[i % 2])
+            hi = min(start[i] + d, bounds[2 + i % 2])
+            if hi < lo:
+                continue
+            cand = np.tile(np.asarray(box, np.intp), (hi - lo + 1, 1))
+            cand[:, i] = np.arange(lo, hi + 1)
+            e = _box_sums(s, cand)
+            e[(cand[:, 2] - cand[:, 0] < 1) | (cand[:, 3] - cand[:, 1] < 1)] = np.inf
+            k = int(np.argmin(e))
+            if e[k] < best - 1e-9:
+                best, box, moved = float(e[k]), [int(v) for v in cand[k]], True
+        if not moved:
+            break
+    return box, best
+
+
+def _in_region(box, region) -> list[int]:
+    """A global pixel box in the coordinates of ``region`` (r0, c0, r1, c1), clipped to it."""
+    h, w = region[2] - region[0], region[3] - region[1]
+    return [min(max(box[0] - region[0], 0), h), min(max(box[1] - region[1], 0), w),
+            min(max(box[2] - region[0], 0), h), min(max(box[3] - region[1], 0), w)]
+
+
+def _gain(cost: np.ndarray, raster: np.ndarray, channel: int, region) -> np.ndarray:
+    """Integral image, over ``region`` (r0, c0, r1, c1), of what labelling a pixel ``channel``
+    instead of its label in ``raster`` changes the energy by."""
+    r0, c0, r1, c1 = region
+    c = cost[r0:r1, c0:c1]
+    cur = np.take_along_axis(c, raster[r0:r1, c0:c1, None].astype(np.intp), 2)[..., 0]
+    return _integral(c[..., channel] - cur)
+
+
+def _openings(lay: Layout, ground_top_m: float) -> list[tuple[np.ndarray, float]]:
+    """Upper-floor window openings: ``(box, balcony share)`` — a window leaf together with the
+    balcony leaf directly below it over the same width (the grammar's guard)."""
+    boxes, labels = lay.boxes, lay.labels
+    balconies = [b for b, lab in zip(boxes, labels) if lab == "balcony"]
+    out = []
+    for b, lab in zip(boxes, labels):
+        if lab != "window" or b[1] < ground_top_m - _EPS or b[2] - b[0] <= _EPS:
+            continue
+        box = b.copy()
+        for g in balconies:
+            if (abs(g[0] - b[0]) < _EPS and abs(g[2] - b[2]) < _EPS
+                    and abs(g[3] - b[1]) < _EPS):
+                box[1] = g[1]
+                break
+        out.append((box, float((b[1] - box[1]) / max(box[3] - box[1], _EPS))))
+    return out
+
+
+def _ranks(values: list[float]) -> dict[float, int]:
+    distinct = sorted({round(v, 6) for v in values})
+    return {v: i for i, v in enumerate(distinct)}
+
+
+def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[str, Any],
+                  width: float, height: float, params: Sequence[Parameter] = ()
+                  ) -> dict[str, Any] | None:
+    """Attributes of the consistent fit ``attrs`` plus per-instance ``windowCells``,
+    ``bandCells`` and ``shopCells`` fitted to ``energy`` (module docstring), or ``None`` when
+    the grammar does not declare them or nothing is gained; ``params`` are the searched
+    parameters (the door's are polished among them).  Each stage is kept only if the
+    derived layout's energy is lower than before it."""
+    if not supports_differentiation(layout):
+        return None
+    n_floors, n_columns = _grid_size(layout)
+    base = {**attrs, "differentiated": True,
+            "windowCells": np.zeros(n_floors * n_columns * WINDOW_VALUES),
+            "bandCells": np.zeros(n_floors * BAND_VALUES), "shopCells": np.zeros(2 * SHOP_VALUES)}
+    for f in range(n_floors):   # the consistent guards, per instance
+        if attrs.get(f"guard{f + 1}"):
+            base["windowCells"][f * n_columns * WINDOW_VALUES + 4::WINDOW_VALUES][:n_columns] = \
+                float(attrs["guardFrac"])
+    consistent = layout.derive(width, height, attrs)
+    lay = layout.derive(width, height, base)
+    if len(lay.labels) != len(consistent.labels) or not np.allclose(lay.boxes, consistent.boxes,
+                                                                     atol=1e-6):
+        return None   # the grammar's differentiated form does not start from the consistent one
+    e_start = e_best = energy(consistent)
+    best = base
+    for stage in (_upper_floors, _ground_floor):
+        cand = stage(energy, layout, best, width, height, n_columns, params)
+        if cand is None:
+            continue
+        e = energy(layout.derive(width, height, cand))
+        if e < e_best - 1e-9:
+            best, e_best = cand, e
+    return best if e_best < e_start - 1e-9 else None
+
+
+def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
+                  width: float, height: float, n_columns: int, params=()
+                  ) -> dict[str, Any] | None:
+    """Stages 1–3 of the module docstring: bands, window openings and their balconies."""
+    attrs = base
+    nf, nc = int(attrs["nFloors"]), int(attrs["nColumns"])
+    window_cells = base["windowCells"].copy()
+    band_cells = base["bandCells"].copy()
+    base = {**base, "windowCells": window_cells, "bandCells": band_cells}
+    lay = layout.derive(width, height, base)
+    frame = _Frame(energy, width, height)
+    cost = energy.cost
+    ground_top = float(attrs["groundTop"]) * height
+
+    # 1. running balcony bands
+    openings = _openings(lay, ground_top)
+    if not openings:
+        return None
+    rows = _ranks([b[1] for b, _ in openings])
+    cols = _ranks([b[0] for b, _ in openings])
+    if len(rows) != nf or len(cols) != nc:
+        return None   # an empty floor or column: the placeholders cannot be told apart
+    body_bottom = {}   # floor index → bottom of its body (metres), the band's top
+    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
+    for b, _ in openings:
+        fb_h = (b[3] - b[1]) / max(wh, _EPS)
+        body_bottom[rows[round(b[1], 6)]] = b[1] - sill * fb_h
+    raster = energy.rasterize(lay)
+    x_lo = float(attrs.get("leftMargin", 0.0)) * width
+    x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
+    wall = energy.label_set.index("wall")
+    bal = energy.label_set.index("balcony")
+    win = energy.label_set.index("window")
+    changed = False
+    for b, lab in zip(lay.boxes, lay.labels):
+        if (lab != "balcony" or abs(b[0] - x_lo) > _EPS or abs(b[2] - x_hi) > _EPS
+                or b[3] - b[1] <= _EPS):
+            continue
+        f = next((k for k, y in body_bottom.items() if abs(y - b[3]) < 1e-5), None)
+        if f is None:
+            continue
+        r0f, c0f, r1f, c1f = frame.box(b)
+        box = [round(r0f), round(c0f), round(r1f), round(c1f)]
+        under = raster.copy()
+        under[box[0]:box[2], box[1]:box[3]] = wall
+        s = _integral(cost[..., bal] - np.take_along_axis(cost, under[..., None].astype(np.int64),
+                                                          2)[..., 0])
+        span = (max(1, int(SPAN * (box[2] - box[0]))), max(1, int(SPAN * (box[3] - box[1]))))
+        new, e = _descend(s, box, (0, box[1], box[2], box[3]), (True, True, False, True), span)
+        k = f * BAND_VALUES
+        if e >= 0:   # no band is better
+            band_cells[k] = -1.0
+        else:
+            band_cells[k] = (new[2] - new[0]) / max(r1f - r0f, _EPS) - 1.0
+            band_cells[k + 1] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
+            band_cells[k + 2] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
+        changed = True
+    if changed:
+        lay = layout.derive(width, height, base)
+        openings = _openings(lay, ground_top)
+        rows = _ranks([b[1] for b, _ in openings])
+        if len(rows) != nf or len(_ranks([b[0] for b, _ in openings])) != nc:
+            return None
+
+    # 2–3. window openings and their balconies
+    raster = energy.rasterize(lay)
+    by_floor: dict[int, list] = {}
+    for b, g in openings:
+        by_floor.setdefault(rows[round(b[1], 6)], []).append((b, g))
+    for f, row in by_floor.items():
+        row.sort(key=lambda o: o[0][0])
+        for i, (b, g) in enumerate(row):
+            j = cols[round(b[0], 6)]
+            r0f, c0f, r1f, c1f = frame.box(b)
+            o_w, o_h = c1f - c0f, r1f - r0f
+            fb_h = o_h / max(wh, _EPS)
+            body_top = r1f + sill * fb_h - fb_h   # the floor body holding the opening (rows)
+            body_bot = r1f + sill * fb_h
+            left = c0f - 0.5 * (c0f - frame.box(row[i - 1][0])[3]) if i else x_lo * frame.sx
+            right = (c1f + 0.5 * (frame.box(row[i + 1][0])[1] - c1f) if i + 1 < len(row)
+                     else x_hi * frame.sx)
+            bounds = (max(0, int(np.ceil(body_top - 1e-6))), max(0, int(np.ceil(left - 1e-6))),
+                      min(frame.h, int(body_bot + 1e-6)), min(frame.w, int(right + 1e-6)))
+            if bounds[2] - bounds[0] < 2 or bounds[3] - bounds[1] < 2:
+                continue
+            # everything below in the cell's own pixels: local integral images
+            oy, ox = bounds[0], bounds[1]
+            local = (0, 0, bounds[2] - oy, bounds[3] - ox)
+
+            box = [round(r0f), round(c0f), round(r1f), round(c1f)]
+            under = raster.copy()
+            under[box[0]:box[2], box[1]:box[3]] = wall
+            # the window part of the opening, refined as a window against what lies under it
+            s_win = _gain(cost, under, win, bounds)
+            wbox = _in_region([box[0], box[1], round(r1f - g * o_h), box[3]], bounds)
+            span = (max(1, int(SPAN * max(wbox[2] - wbox[0], 1))), max(1, int(SPAN * o_w)))
+            if wbox[2] - wbox[0] < 1 or wbox[3] - wbox[1] < 1:
+                wbox = _in_region(box, bounds)
+                e_win = _box_sum(s_win, *wbox)
+            else:
+                wbox, e_win = _descend(s_win, wbox, local, (True, True, True, True), span)
+            k = ((f * n_columns) + j) * WINDOW_VALUES
+            if e_win >= 0 or wbox[2] - wbox[0] < 1 or wbox[3] - wbox[1] < 1:   # no window here
+                window_cells[k:k + WINDOW_VALUES] = (0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+                raster = under
+                continue
+            wr0, wc0, wr1, wc1 = wbox
+            painted = under.copy()
+            painted[wr0 + oy:wr1 + oy, wc0 + ox:wc1 + ox] = win
+            # a balcony from below the window's bottom up into it, at least as wide as the window
+            s_bal = _gain(cost, painted, bal, bounds)
+            h_w = wr1 - wr0
+            below = np.arange(0, max(0, min(local[2] - wr1, int(0.6 * h_w))) + 1)
+            above = np.arange(0, int(0.8 * h_w) + 1)
+            lower = s_bal[wr1 + below, wc1] - s_bal[wr1 + below, wc0]
+            upper = s_bal[wr1 - above, wc1] - s_bal[wr1 - above, wc0]
+            sums = lower[:, None] - upper[None, :]
+            sums[0, 0] = np.inf
+            kb, ka = np.unravel_index(int(np.argmin(sums)), sums.shape)
+            bbox = None
+            if sums[kb, ka] < 0:
+                bbox, _ = _descend(s_bal, [wr1 - int(above[ka]), wc0, wr1 + int(below[kb]), wc1],
+                                   (wr0 + 1, 0, local[2], local[3]), (True, True, True, True),
+                                   (max(1, int(SPAN * h_w)), max(1, int(SPAN * (wc1 - wc0)))))
+                # the balcony spans the whole opening: never narrower than the window
+                bbox = [bbox[0], min(bbox[1], wc0), max(bbox[2], wr1), max(bbox[3], wc1)]
+            top = wr0
+            if bbox is None:
+                bottom, oc0, oc1, share = wr1, wc0, wc1, 0.0
+            else:
+                bottom, oc0, oc1 = bbox[2], bbox[1], bbox[3]
+                share = (bottom - bbox[0]) / max(bottom - top, 1)
+            window_cells[k] = (oc0 + ox - c0f) / max(o_w, _EPS)
+            window_cells[k + 1] = (oc1 + ox - c1f) / max(o_w, _EPS)
+            window_cells[k + 2] = (r1f - bottom - oy) / max(o_h, _EPS)   # y up: bottom edge
+            window_cells[k + 3] = (r0f - top - oy) / max(o_h, _EPS)
+            window_cells[k + 4] = share
+            window_cells[k + 5] = (wc0 - oc0) / max(oc1 - oc0, 1)
+            window_cells[k + 6] = (oc1 - wc1) / max(oc1 - oc0, 1)
+            if bbox is not None:
+                painted[wr0 + oy:bbox[0] + oy, oc0 + ox:oc1 + ox] = wall
+                painted[wr0 + oy:bbox[0] + oy, wc0 + ox:wc1 + ox] = win
+                painted[bbox[0] + oy:bbox[2] + oy, oc0 + ox:oc1 + ox] = bal
+            raster = painted
+    return {**base, "windowCells": window_cells, "bandCells": band_cells}
+
+
+def _ground_floor(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[str, Any],
+                  width: float, height: float, n_columns: int,
+                  params: Sequence[Parameter] = ()) -> dict[str, Any] | None:
+    """The ground floor's one door (its consistent attributes, polished on the derived energy)
+    and, on a shops ground floor, the wall beside and above each shop."""
+    if attrs.get("groundKind") not in ("shops", "wall"):
+        return None
+    door_params = [p for p in params if p.name in ("doorPosition", "doorWidth", "doorHeight")]
+    out = dict(attrs)
+    if door_params:
+        obj = Objective(lambda a: energy(layout.derive(width, height, {**out, **a})), DOOR_BUDGET)
+        cur = {p.name: out[p.name] for p in door_params}
+        e = obj(cur)
+        rng = np.random.default_rng(0)
+        for span in (0.1, 0.03, 0.01):
+            if obj.left <= 0:
+                break
+            cur, e = coordinate_sweep(obj, door_params, cur, e, span, 9, rng)
+        out.update(cur)
+    if out.get("groundKind") != "shops":
+        return out
+    lay = layout.derive(width, height, out)
+    frame = _Frame(energy, width, height)
+    ground = float(out["groundTop"]) * height
+    doors = [b for b, lab in zip(lay.boxes, lay.labels) if lab == "door" and b[3] <= ground + _EPS]
+    door_x = 0.5 * (doors[0][0] + doors[0][2]) if doors else 0.5 * width
+    raster = energy.rasterize(lay)
+    cost = energy.cost
+    wall = energy.label_set.index("wall")
+    shop = energy.label_set.index("shop")
+    cells = np.zeros(2 * SHOP_VALUES)
+    for b, lab in zip(lay.boxes, lay.labels):
+        if lab != "shop" or b[3] > ground + _EPS or b[2] - b[0] <= _EPS:
+            continue
+        i = 0 if 0.5 * (b[0] + b[2]) < door_x else 1
+        r0f, c0f, r1f, c1f = frame.box(b)
+        box = [round(r0f), round(c0f), round(r1f), round(c1f)]
+        if box[2] - box[0] < 2 or box[3] - box[1] < 2:
+            continue
+        under = raster.copy()
+        under[box[0]:box[2], box[1]:box[3]] = wall
+        s_shop = _integral(cost[..., shop] - cost[..., wall])
+        span = (max(1, int(SPAN * (box[2] - box[0]))), max(1, int(SPAN * (box[3] - box[1]))))
+        new, e = _descend(s_shop, box, tuple(box), (True, True, False, True), span)
+        k = i * SHOP_VALUES
+        if e >= 0:   # wall, not a shop
+            cells[k + 2] = 1.0
+            continue
+        cells[k] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
+        cells[k + 1] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
+        cells[k + 2] = max(0.0, (new[0] - r0f) / max(r1f - r0f, _EPS))
+    out["shopCells"] = cells
+    return out
