@@ -8,6 +8,7 @@
 - :mod:`.search` — hill climbing (Algorithm 4.1) over the ``@Range``/``@Enum`` parameters;
 - :mod:`.evolution` — the evolutionary search of §5.2 (islands, SPEA-II);
 - :mod:`.init` — search seeds measured from the classifier's window grid;
+- :mod:`.differentiate` — each element instance fitted on its own after the consistent search;
 - :mod:`.mrf` — the MRF-Potts baseline of §4.4.1;
 - ``grammars/`` — built-in parse grammars: ``grid`` (default), ``haussmann``, ``generic``.
 """

@@ -16,7 +16,7 @@ between its old and new box.  So each instance is fitted exactly and cheaply on 
 image of its cost change ``−log p(new label) + log p(current label)``:
 
 1. **running balcony bands** (per floor): top edge and the wall left and right of the band,
-   or no band;
+   or no band — and a band on a floor the consistent fit gave none, where the photo has one;
 2. **window openings** (per floor and column): their four edges by coordinate descent within
    their cell — half-way to the neighbouring openings and inside their floor — or no window;
 3. **balconies in front of openings**: a balcony from below the window's bottom up into it, at
@@ -225,40 +225,55 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     cols = _ranks([b[0] for b, _ in openings])
     if len(rows) != nf or len(cols) != nc:
         return None   # an empty floor or column: the placeholders cannot be told apart
-    body_bottom = {}   # floor index → bottom of its body (metres), the band's top
+    body = {}   # floor index → (bottom, height) of its body in metres; the band is below
     sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
     for b, _ in openings:
         fb_h = (b[3] - b[1]) / max(wh, _EPS)
-        body_bottom[rows[round(b[1], 6)]] = b[1] - sill * fb_h
+        body[rows[round(b[1], 6)]] = (b[1] - sill * fb_h, fb_h)
     raster = energy.rasterize(lay)
     x_lo = float(attrs.get("leftMargin", 0.0)) * width
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
     wall = energy.label_set.index("wall")
     bal = energy.label_set.index("balcony")
     win = energy.label_set.index("window")
-    changed = False
+    bands = {}   # floor index → its band's box (metres)
     for b, lab in zip(lay.boxes, lay.labels):
-        if (lab != "balcony" or abs(b[0] - x_lo) > _EPS or abs(b[2] - x_hi) > _EPS
-                or b[3] - b[1] <= _EPS):
-            continue
-        f = next((k for k, y in body_bottom.items() if abs(y - b[3]) < 1e-5), None)
-        if f is None:
-            continue
+        if (lab == "balcony" and abs(b[0] - x_lo) < _EPS and abs(b[2] - x_hi) < _EPS
+                and b[3] - b[1] > _EPS):
+            f = next((k for k, (y, _) in body.items() if abs(y - b[3]) < 1e-5), None)
+            if f is not None:
+                bands[f] = b
+    frac = float(attrs["balconyFrac"])
+    changed = False
+    for f, (bottom, fb_h) in sorted(body.items()):
+        if f in bands:
+            b = bands[f]
+            unit = (b[3] - b[1]) / max(frac, _EPS)   # the floor's height: the band's unit
+        else:   # a band the consistent fit did not choose, as tall as the others would be,
+            unit = fb_h   # from the bottom of the floor (all body without one) upwards
+            b = np.array([x_lo, bottom, x_hi, bottom + frac * unit])
+            if frac * unit <= _EPS:
+                continue
         r0f, c0f, r1f, c1f = frame.box(b)
         box = [round(r0f), round(c0f), round(r1f), round(c1f)]
+        if box[0] < 0 or box[2] > frame.h or box[2] - box[0] < 1 or box[3] - box[1] < 1:
+            continue
         under = raster.copy()
-        under[box[0]:box[2], box[1]:box[3]] = wall
-        s = _integral(cost[..., bal] - np.take_along_axis(cost, under[..., None].astype(np.int64),
-                                                          2)[..., 0])
+        if f in bands:
+            under[box[0]:box[2], box[1]:box[3]] = wall
+        s = _gain(cost, under, bal, (0, 0, frame.h, frame.w))
         span = (max(1, int(SPAN * (box[2] - box[0]))), max(1, int(SPAN * (box[3] - box[1]))))
         new, e = _descend(s, box, (0, box[1], box[2], box[3]), (True, True, False, True), span)
         k = f * BAND_VALUES
+        unit_px = frac * unit * frame.sy
         if e >= 0:   # no band is better
-            band_cells[k] = -1.0
-        else:
-            band_cells[k] = (new[2] - new[0]) / max(r1f - r0f, _EPS) - 1.0
-            band_cells[k + 1] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
-            band_cells[k + 2] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
+            if f in bands:
+                band_cells[k] = -1.0
+                changed = True
+            continue
+        band_cells[k] = (new[2] - new[0]) / max(unit_px, _EPS) - (1.0 if f in bands else 0.0)
+        band_cells[k + 1] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
+        band_cells[k + 2] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
         changed = True
     if changed:
         lay = layout.derive(width, height, base)

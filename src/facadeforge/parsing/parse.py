@@ -11,7 +11,8 @@ Stages (``report.json`` times each):
    ``reconstruct`` does), found while the classifier runs in a second thread; the
    probabilities are warped straight into the rectified frame at the energy's scale;
 4. **search**: the parse grammar's parameters minimising the §4.2.2 energy (hill climbing or the
-   evolutionary search) within a budget of derivations;
+   evolutionary search) within a budget of derivations, then each element instance fitted on
+   its own where the grammar allows it (:mod:`.differentiate`, §3.2.3);
 5. **derive**: the engine derives the fitted rules into the shape tree and the 3D model.
 
 OUTDIR: ``labels.png`` (rectified frame) and ``labels_input.png`` (photo frame; outside the

@@ -1,0 +1,121 @@
+"""Differentiation after the consistent fit: per-instance windows, balconies, bands and shops."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from facadeforge.datasets import get_label_set
+from facadeforge.engine import load_rules
+from facadeforge.parsing.differentiate import differentiate, supports_differentiation
+from facadeforge.parsing.energy import SegmentationEnergy
+from facadeforge.parsing.fit import fit_grammar, grammar_path
+from facadeforge.parsing.layout import SplitLayout
+from facadeforge.parsing.parse import write_fitted_rules
+from facadeforge.parsing.search import parameters_of
+
+CMP6 = get_label_set("cmp6")
+W, H = 15.0, 20.0
+SHAPE = (200, 150)
+
+
+@pytest.fixture(scope="module")
+def grid():
+    rules = load_rules(grammar_path("grid"))
+    attrs = {p.name: p.default for p in parameters_of(rules)}
+    attrs.update(balcony2=True, guard3=True, groundKind="shops", facadeWidth=W)
+    return rules, SplitLayout(rules), attrs
+
+
+def _prob(truth: np.ndarray, p: float = 0.8) -> np.ndarray:
+    prob = np.full((*truth.shape, CMP6.num_classes), (1 - p) / (CMP6.num_classes - 1),
+                   np.float32)
+    np.put_along_axis(prob, truth[..., None].astype(np.int64), p, axis=2)
+    return prob
+
+
+def _uniform_energy() -> SegmentationEnergy:
+    return SegmentationEnergy(np.full((*SHAPE, CMP6.num_classes), 1 / 6, np.float32), CMP6)
+
+
+def test_zero_cells_derive_the_consistent_layout(grid):
+    rules, layout, attrs = grid
+    rng = np.random.default_rng(1)
+    params = parameters_of(rules)
+    for _ in range(20):
+        a = {p.name: (p.choices[rng.integers(len(p.choices))] if p.discrete
+                      else rng.uniform(p.lo, p.hi)) for p in params}
+        a["facadeWidth"] = W
+        consistent = layout.derive(W, H, a)
+        flat = layout.derive(W, H, {**a, "differentiated": True,
+                                    "windowCells": np.zeros(10 * 12 * 7),
+                                    "bandCells": np.zeros(30), "shopCells": np.zeros(6)})
+        # guards are per instance once differentiated: zero cells mean no guard
+        if not any(a[f"guard{i}"] for i in range(1, 11)):
+            assert flat.labels == consistent.labels
+            assert np.allclose(flat.boxes, consistent.boxes)
+
+
+def test_instances_that_differ_are_found(grid):
+    rules, layout, attrs = grid
+    consistent = layout.derive(W, H, attrs)
+    energy0 = _uniform_energy()
+    truth = energy0.rasterize(consistent)
+    win, wall, bal, shop = (CMP6.index(c) for c in ("window", "wall", "balcony", "shop"))
+    boxes = [b for b, lab in zip(energy0.pixel_boxes(consistent), consistent.labels)
+             if lab == "window"]
+    r0, c0, r1, c1 = boxes[-1]           # the top floor's last window: missing
+    truth[r0:r1, c0:c1] = wall
+    r0, c0, r1, c1 = boxes[-3]           # a wider window
+    truth[r0:r1, c0 - 2:c1 + 2] = win
+    r0, c0, r1, c1 = boxes[-7]           # a balcony in front of one window, wider than it
+    truth[r1 - 4:r1 + 2, c0 - 2:c1 + 2] = bal
+    shops = np.argwhere(truth == shop)   # the shops stop below the ground floor's top
+    truth[shops[:, 0].min():shops[:, 0].min() + 5][truth[shops[:, 0].min():
+                                                        shops[:, 0].min() + 5] == shop] = wall
+    energy = SegmentationEnergy(_prob(truth), CMP6)
+    out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
+    assert out is not None and out["differentiated"] is True
+    before = (energy.rasterize(consistent) == truth).mean()
+    lay = layout.derive(W, H, out)
+    after = (energy.rasterize(lay) == truth).mean()
+    assert energy(lay) < energy(consistent)
+    assert before < 0.985 and after > 0.995, (before, after)
+
+
+def test_never_worse_and_none_without_the_attributes(grid):
+    rules, layout, attrs = grid
+    rng = np.random.default_rng(0)
+    prob = rng.dirichlet(np.ones(CMP6.num_classes), SHAPE).astype(np.float32)
+    energy = SegmentationEnergy(prob, CMP6)
+    out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
+    if out is not None:
+        assert energy(layout.derive(W, H, out)) < energy(layout.derive(W, H, attrs))
+    generic = SplitLayout(load_rules(grammar_path("generic")))
+    assert not supports_differentiation(generic)
+    assert differentiate(energy, generic, {"facadeWidth": W}, W, H) is None
+
+
+def test_fitted_rules_with_arrays_derive_the_same_layout(grid, tmp_path):
+    rules, layout, attrs = grid
+    cells = np.zeros(10 * 12 * 7)
+    cells[0:7] = (-0.2, 0.1, 0.05, -0.1, 0.3, 0.1, 0.05)
+    fitted = {**attrs, "differentiated": True, "windowCells": cells,
+              "bandCells": np.array([0.0, 0.0, 0.0, -0.5, 0.1, 0.2] + [0.0] * 24),
+              "shopCells": np.array([0.1, 0.0, 0.2, 0.0, 0.1, 0.0])}
+    path = tmp_path / "fitted.cga"
+    path.write_text(write_fitted_rules(grammar_path("grid").read_text(), fitted))
+    own = SplitLayout(load_rules(path)).derive(W, H)   # the file's own defaults
+    expected = layout.derive(W, H, fitted)
+    assert own.labels == expected.labels
+    assert np.allclose(own.boxes, expected.boxes)
+
+
+def test_fit_grammar_differentiates_only_when_asked(grid):
+    rules, layout, attrs = grid
+    truth = _uniform_energy().rasterize(layout.derive(W, H, attrs))
+    prob = _prob(truth)
+    on = fit_grammar(prob, CMP6, rules, method="hill", budget=60, seed=0)
+    off = fit_grammar(prob, CMP6, rules, method="hill", budget=60, seed=0, differentiate=False)
+    assert "windowCells" not in off.attrs
+    assert on.energy_per_pixel <= off.energy_per_pixel
