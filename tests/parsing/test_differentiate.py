@@ -49,7 +49,8 @@ def test_zero_cells_derive_the_consistent_layout(grid):
         consistent = layout.derive(W, H, a)
         flat = layout.derive(W, H, {**a, "differentiated": True,
                                     "windowCells": np.zeros(10 * 12 * 7),
-                                    "bandCells": np.zeros(30), "shopCells": np.zeros(6)})
+                                    "bandCells": np.zeros(30), "shopCells": np.zeros(6),
+                                    "archCells": np.zeros(48)})
         # guards are per instance once differentiated: zero cells mean no guard
         if not any(a[f"guard{i}"] for i in range(1, 11)):
             assert flat.labels == consistent.labels
@@ -102,7 +103,8 @@ def test_fitted_rules_with_arrays_derive_the_same_layout(grid, tmp_path):
     cells[0:7] = (-0.2, 0.1, 0.05, -0.1, 0.3, 0.1, 0.05)
     fitted = {**attrs, "differentiated": True, "windowCells": cells,
               "bandCells": np.array([0.0, 0.0, 0.0, -0.5, 0.1, 0.2] + [0.0] * 24),
-              "shopCells": np.array([0.1, 0.0, 0.2, 0.0, 0.1, 0.0])}
+              "shopCells": np.array([0.1, 0.0, 0.2, 0.0, 0.1, 0.0]),
+              "archCells": np.zeros(48)}
     path = tmp_path / "fitted.cga"
     path.write_text(write_fitted_rules(grammar_path("grid").read_text(), fitted))
     own = SplitLayout(load_rules(path)).derive(W, H)   # the file's own defaults

@@ -23,6 +23,10 @@ image of its cost change ``−log p(new label) + log p(current label)``:
    least as wide as the window (the grammar's guard, now per instance and wider than its
    window where the photo says so).
 
+On the ground floor: the door's attributes polished on the derived energy and each shop's
+wall beside and above it; in an arcade, each opening's edges, height and kind (shop, door,
+window or none).
+
 The results are written into the grammar's own attributes, derived by the same layout code as
 the search (and by the engine for the model), and kept only if the derived layout's energy is
 lower than the consistent one's.  A few milliseconds per facade.
@@ -43,9 +47,11 @@ __all__ = ["DIFFERENTIATION_ATTRIBUTES", "differentiate", "supports_differentiat
 
 #: Attributes a grammar declares to be differentiated (``grid.cga``).
 DIFFERENTIATION_ATTRIBUTES = frozenset({"differentiated", "windowCells", "bandCells",
-                                        "shopCells"})
+                                        "shopCells", "archCells"})
 #: Values per window opening and per band in ``windowCells`` / ``bandCells``.
-WINDOW_VALUES, BAND_VALUES, SHOP_VALUES = 7, 3, 3
+WINDOW_VALUES, BAND_VALUES, SHOP_VALUES, ARCH_VALUES = 7, 3, 3, 4
+#: Kinds an arcade opening may take, by their code in ``archCells`` (4 = wall, no opening).
+ARCH_KINDS = {1: "shop", 2: "door", 3: "window"}
 #: Derivations the door's polish may spend.
 DOOR_BUDGET = 80
 #: How far (fraction of its size) an edge may move in one direction.
@@ -181,7 +187,8 @@ def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mappin
     n_floors, n_columns = _grid_size(layout)
     base = {**attrs, "differentiated": True,
             "windowCells": np.zeros(n_floors * n_columns * WINDOW_VALUES),
-            "bandCells": np.zeros(n_floors * BAND_VALUES), "shopCells": np.zeros(2 * SHOP_VALUES)}
+            "bandCells": np.zeros(n_floors * BAND_VALUES), "shopCells": np.zeros(2 * SHOP_VALUES),
+            "archCells": np.zeros(n_columns * ARCH_VALUES)}
     for f in range(n_floors):   # the consistent guards, per instance
         if attrs.get(f"guard{f + 1}"):
             base["windowCells"][f * n_columns * WINDOW_VALUES + 4::WINDOW_VALUES][:n_columns] = \
@@ -193,7 +200,7 @@ def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mappin
         return None   # the grammar's differentiated form does not start from the consistent one
     e_start = e_best = energy(consistent)
     best = base
-    for stage in (_upper_floors, _ground_floor):
+    for stage in (_upper_floors, _ground_floor, _arcade):
         cand = stage(energy, layout, best, width, height, n_columns, params)
         if cand is None:
             continue
@@ -418,3 +425,64 @@ def _ground_floor(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[s
         cells[k + 2] = max(0.0, (new[0] - r0f) / max(r1f - r0f, _EPS))
     out["shopCells"] = cells
     return out
+
+
+def _arcade(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[str, Any],
+            width: float, height: float, n_columns: int,
+            params: Sequence[Parameter] = ()) -> dict[str, Any] | None:
+    """Each opening of an arcade ground floor: its left, right and top edges inside its cell
+    and its kind — the shop, door or window that explains its pixels best, or wall."""
+    if attrs.get("groundKind") != "arcade":
+        return None
+    lay = layout.derive(width, height, attrs)
+    frame = _Frame(energy, width, height)
+    ground = float(attrs["groundTop"]) * height
+    kinds = set(ARCH_KINDS.values())
+    arches = sorted((b for b, lab in zip(lay.boxes, lay.labels)
+                     if lab in kinds and b[3] <= ground + _EPS and b[2] - b[0] > _EPS
+                     and b[3] - b[1] > _EPS), key=lambda b: b[0])
+    if len(arches) != int(attrs["nColumns"]):
+        return None   # an empty opening: the placeholders cannot be told apart
+    cost = energy.cost
+    wall = energy.label_set.index("wall")
+    raster = energy.rasterize(lay)
+    x_lo = float(attrs.get("leftMargin", 0.0)) * width * frame.sx
+    x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width * frame.sx
+    top_row = max(0, int(np.ceil((height - ground) * frame.sy - 1e-6)))
+    cells = np.zeros(n_columns * ARCH_VALUES)
+    pixel = [frame.box(b) for b in arches]
+    for j, (r0f, c0f, r1f, c1f) in enumerate(pixel):
+        left = 0.5 * (pixel[j - 1][3] + c0f) if j else x_lo
+        right = 0.5 * (c1f + pixel[j + 1][1]) if j + 1 < len(pixel) else x_hi
+        bounds = (top_row, max(0, int(np.ceil(left - 1e-6))), min(frame.h, round(r1f)),
+                  min(frame.w, int(right + 1e-6)))
+        if bounds[2] - bounds[0] < 2 or bounds[3] - bounds[1] < 2:
+            continue
+        box = [round(r0f), round(c0f), round(r1f), round(c1f)]
+        under = raster.copy()
+        under[box[0]:box[2], box[1]:box[3]] = wall
+        start = _in_region(box, bounds)
+        if start[2] - start[0] < 1 or start[3] - start[1] < 1:
+            continue
+        span = (max(1, int(SPAN * (start[2] - start[0]))), max(1, int(SPAN * (start[3] -
+                                                                          start[1]))))
+        best = (0.0, 4, start)   # wall: no opening
+        for code, name in ARCH_KINDS.items():
+            s_k = _gain(cost, under, energy.label_set.index(name), bounds)
+            new, e = _descend(s_k, start, (0, 0, bounds[2] - bounds[0], bounds[3] - bounds[1]),
+                              (True, True, False, True), span)
+            if e < best[0] - 1e-9:
+                best = (e, code, new)
+        _, code, new = best
+        k = j * ARCH_VALUES
+        cells[k + 3] = code
+        raster = under
+        if code == 4:
+            continue
+        oy, ox = bounds[0], bounds[1]
+        cells[k] = (new[1] + ox - c0f) / max(c1f - c0f, _EPS)
+        cells[k + 1] = (new[3] + ox - c1f) / max(c1f - c0f, _EPS)
+        cells[k + 2] = (r1f - (new[0] + oy)) / max(r1f - r0f, _EPS) - 1.0
+        raster[new[0] + oy:new[2] + oy, new[1] + ox:new[3] + ox] = \
+            energy.label_set.index(ARCH_KINDS[code])
+    return {**attrs, "archCells": cells}
