@@ -55,7 +55,7 @@ ARCH_KINDS = {1: "shop", 2: "door", 3: "window"}
 #: Derivations the door's polish may spend.
 DOOR_BUDGET = 80
 #: How far (fraction of its size) an edge may move in one direction.
-SPAN = 0.5
+SPAN = 0.7
 #: Coordinate-descent rounds over an instance's edges.
 ROUNDS = 3
 _EPS = 1e-6
