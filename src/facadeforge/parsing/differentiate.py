@@ -9,8 +9,8 @@ front of some windows only, a running balcony that stops short of the corners.  
 experiment (truth as the classifier) shows how much the consistent space leaves behind, and on
 the CMP facades the consistent fit loses most to the classifier on windows and balconies.
 
-A grammar opts in by declaring ``differentiated``, ``windowCells`` and ``bandCells``
-(``grammars/grid.cga`` explains their layout).  With the consistent attributes fixed, the
+A grammar opts in by declaring the array attributes of :data:`DIFFERENTIATION_ATTRIBUTES`
+(``grammars/grid.cga`` explains which entry moves which edge).  With the consistent attributes fixed, the
 energy of §4.2.2 separates over instances: moving one window's edges only changes the pixels
 between its old and new box.  So each instance is fitted exactly and cheaply on the integral
 image of its cost change ``−log p(new label) + log p(current label)``:
@@ -29,7 +29,8 @@ window or none).
 
 The results are written into the grammar's own attributes, derived by the same layout code as
 the search (and by the engine for the model), and kept only if the derived layout's energy is
-lower than the consistent one's.  A few milliseconds per facade.
+lower than before the stage.  About 0.05 s per facade on the CMP validation facades (at most
+0.25 s), against about 1.3 s for the consistent search.
 """
 
 from __future__ import annotations
@@ -178,9 +179,9 @@ def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mappin
                   width: float, height: float, params: Sequence[Parameter] = ()
                   ) -> dict[str, Any] | None:
     """Attributes of the consistent fit ``attrs`` plus per-instance ``windowCells``,
-    ``bandCells`` and ``shopCells`` fitted to ``energy`` (module docstring), or ``None`` when
-    the grammar does not declare them or nothing is gained; ``params`` are the searched
-    parameters (the door's are polished among them).  Each stage is kept only if the
+    ``bandCells``, ``shopCells`` and ``archCells`` fitted to ``energy`` (module docstring), or
+    ``None`` when the grammar does not declare them or nothing is gained; ``params`` are the
+    searched parameters (the door's are polished among them).  Each stage is kept only if the
     derived layout's energy is lower than before it."""
     if not supports_differentiation(layout):
         return None
