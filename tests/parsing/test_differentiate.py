@@ -121,3 +121,27 @@ def test_fit_grammar_differentiates_only_when_asked(grid):
     off = fit_grammar(prob, CMP6, rules, method="hill", budget=60, seed=0, differentiate=False)
     assert "windowCells" not in off.attrs
     assert on.energy_per_pixel <= off.energy_per_pixel
+
+
+def test_instances_are_told_apart_when_a_column_runs_off_the_facade(grid):
+    """A column placeholder past the facade's right edge derives no window, so the windows can
+    no longer be matched to placeholders by their rank; the grammar's own probe still tells
+    every opening's floor and column, and a missing window is still found."""
+    rules, layout, attrs = grid
+    attrs = {**attrs, "nColumns": 6.0, "column6": 0.995}
+    consistent = layout.derive(W, H, attrs)
+    energy0 = _uniform_energy()
+    truth = energy0.rasterize(consistent)
+    wall = CMP6.index("wall")
+    windows = [b for b, lab in zip(energy0.pixel_boxes(consistent), consistent.labels)
+               if lab == "window" and b[3] - b[1] > 0 and b[2] - b[0] > 0]
+    assert len(windows) == 4 * 5 + 4          # five whole windows per floor, a sliver in the 6th
+    r0, c0, r1, c1 = windows[2]               # the first floor's third window: missing
+    truth[r0:r1, c0:c1] = wall
+    energy = SegmentationEnergy(_prob(truth), CMP6)
+    out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
+    assert out is not None
+    lay = layout.derive(W, H, out)
+    assert (energy.rasterize(lay) == truth).mean() > 0.995
+    # the missing window is written into its own cell: floor 1, column 3
+    assert out["windowCells"][(0 * 12 + 2) * 7 + 1] == -1.0

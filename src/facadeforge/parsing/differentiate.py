@@ -59,6 +59,8 @@ DOOR_BUDGET = 80
 SPAN = 0.7
 #: Coordinate-descent rounds over an instance's edges.
 ROUNDS = 3
+#: Width change (in units of the instance's width) that tells instances apart (:func:`_instances`).
+PROBE = 1e-4
 _EPS = 1e-6
 
 
@@ -151,14 +153,15 @@ def _gain(cost: np.ndarray, raster: np.ndarray, channel: int, region) -> np.ndar
     return _integral(c[..., channel] - cur)
 
 
-def _openings(lay: Layout, ground_top_m: float) -> list[tuple[np.ndarray, float]]:
-    """Upper-floor window openings: ``(box, balcony share)`` — a window leaf together with the
-    balcony leaf directly below it over the same width (the grammar's guard)."""
+def _openings(lay: Layout, ground_top_m: float) -> list[tuple[int, np.ndarray, float]]:
+    """Upper-floor window openings: ``(leaf index, box, balcony share)`` — a window leaf together
+    with the balcony leaf directly below it over the same width (the grammar's guard)."""
     boxes, labels = lay.boxes, lay.labels
     balconies = [b for b, lab in zip(boxes, labels) if lab == "balcony"]
     out = []
-    for b, lab in zip(boxes, labels):
-        if lab != "window" or b[1] < ground_top_m - _EPS or b[2] - b[0] <= _EPS:
+    for i, (b, lab) in enumerate(zip(boxes, labels)):
+        if (lab != "window" or b[1] < ground_top_m - _EPS or b[2] - b[0] <= _EPS
+                or b[3] - b[1] <= _EPS):
             continue
         box = b.copy()
         for g in balconies:
@@ -166,13 +169,50 @@ def _openings(lay: Layout, ground_top_m: float) -> list[tuple[np.ndarray, float]
                     and abs(g[3] - b[1]) < _EPS):
                 box[1] = g[1]
                 break
-        out.append((box, float((b[1] - box[1]) / max(box[3] - box[1], _EPS))))
+        out.append((i, box, float((b[1] - box[1]) / max(box[3] - box[1], _EPS))))
     return out
 
 
-def _ranks(values: list[float]) -> dict[float, int]:
-    distinct = sorted({round(v, 6) for v in values})
-    return {v: i for i, v in enumerate(distinct)}
+def _instances(layout: SplitLayout, width: float, height: float, attrs: Mapping[str, Any],
+               lay: Layout, name: str, stride: int, unit_m: float) -> dict[int, int]:
+    """Which instance of the array attribute ``name`` (``stride`` values each, value 1 widening
+    the instance by that many units of ``unit_m`` metres) each leaf of ``lay`` is: leaf index →
+    instance index.
+
+    The grammar itself is asked: every instance is widened by its own tiny amount
+    (:data:`PROBE` × (index + 1) units) and the layout derived once more; a leaf whose width grew
+    by such an amount belongs to that instance.  Placeholders that derive empty, columns that
+    overlap or run off the facade and floors of zero height are then no obstacle — which
+    matching leaves to instances by their rank among the positions could not handle (a fifth of
+    the CMP validation facades).  Leaves clipped by their split (the width change is not a
+    whole multiple) and layouts whose leaves change are left out."""
+    cells = np.array(attrs[name], dtype=float)
+    n = cells.size // stride
+    if n == 0 or unit_m <= _EPS:
+        return {}
+    cells[1::stride] += PROBE * (1.0 + np.arange(n))
+    probe = layout.derive(width, height, {**attrs, name: cells})
+    if list(probe.labels) != list(lay.labels):
+        return {}
+    grow = ((probe.boxes[:, 2] - probe.boxes[:, 0]) - (lay.boxes[:, 2] - lay.boxes[:, 0])) / (
+        PROBE * unit_m)
+    out = {}
+    for i, d in enumerate(grow):
+        k = int(round(d))
+        if 1 <= k <= n and abs(d - k) < 0.05:
+            out[i] = k - 1
+    return out
+
+
+def _cells(layout: SplitLayout, width: float, height: float, attrs: Mapping[str, Any],
+           lay: Layout, ground_top_m: float, unit_m: float
+           ) -> list[tuple[tuple[int, int], np.ndarray, float]]:
+    """The upper-floor openings of ``lay`` as ``((floor, column), box, balcony share)``, indices
+    from 0, each told apart by the grammar (:func:`_instances` on ``windowCells``)."""
+    n_columns = _grid_size(layout)[1]
+    which = _instances(layout, width, height, attrs, lay, "windowCells", WINDOW_VALUES, unit_m)
+    return [(divmod(which[i], n_columns), b, g) for i, b, g in _openings(lay, ground_top_m)
+            if i in which]
 
 
 def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[str, Any],
@@ -216,7 +256,6 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
                   ) -> dict[str, Any] | None:
     """Stages 1–3 of the module docstring: bands, window openings and their balconies."""
     attrs = base
-    nf, nc = int(attrs["nFloors"]), int(attrs["nColumns"])
     window_cells = base["windowCells"].copy()
     band_cells = base["bandCells"].copy()
     base = {**base, "windowCells": window_cells, "bandCells": band_cells}
@@ -226,18 +265,15 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     ground_top = float(attrs["groundTop"]) * height
 
     # 1. running balcony bands
-    openings = _openings(lay, ground_top)
+    window_m = float(attrs["windowWidth"]) * width
+    openings = _cells(layout, width, height, base, lay, ground_top, window_m)
     if not openings:
         return None
-    rows = _ranks([b[1] for b, _ in openings])
-    cols = _ranks([b[0] for b, _ in openings])
-    if len(rows) != nf or len(cols) != nc:
-        return None   # an empty floor or column: the placeholders cannot be told apart
     body = {}   # floor index → (bottom, height) of its body in metres; the band is below
     sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
-    for b, _ in openings:
+    for (f, _), b, _ in openings:
         fb_h = (b[3] - b[1]) / max(wh, _EPS)
-        body[rows[round(b[1], 6)]] = (b[1] - sill * fb_h, fb_h)
+        body[f] = (b[1] - sill * fb_h, fb_h)
     raster = energy.rasterize(lay)
     x_lo = float(attrs.get("leftMargin", 0.0)) * width
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
@@ -285,20 +321,16 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
         changed = True
     if changed:
         lay = layout.derive(width, height, base)
-        openings = _openings(lay, ground_top)
-        rows = _ranks([b[1] for b, _ in openings])
-        if len(rows) != nf or len(_ranks([b[0] for b, _ in openings])) != nc:
-            return None
+        openings = _cells(layout, width, height, base, lay, ground_top, window_m)
 
     # 2–3. window openings and their balconies
     raster = energy.rasterize(lay)
     by_floor: dict[int, list] = {}
-    for b, g in openings:
-        by_floor.setdefault(rows[round(b[1], 6)], []).append((b, g))
+    for (f, j), b, g in openings:
+        by_floor.setdefault(f, []).append((b, g, j))
     for f, row in by_floor.items():
         row.sort(key=lambda o: o[0][0])
-        for i, (b, g) in enumerate(row):
-            j = cols[round(b[0], 6)]
+        for i, (b, g, j) in enumerate(row):
             r0f, c0f, r1f, c1f = frame.box(b)
             o_w, o_h = c1f - c0f, r1f - r0f
             fb_h = o_h / max(wh, _EPS)
@@ -439,11 +471,14 @@ def _arcade(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[str, An
     frame = _Frame(energy, width, height)
     ground = float(attrs["groundTop"]) * height
     kinds = set(ARCH_KINDS.values())
-    arches = sorted((b for b, lab in zip(lay.boxes, lay.labels)
-                     if lab in kinds and b[3] <= ground + _EPS and b[2] - b[0] > _EPS
-                     and b[3] - b[1] > _EPS), key=lambda b: b[0])
-    if len(arches) != int(attrs["nColumns"]):
-        return None   # an empty opening: the placeholders cannot be told apart
+    which = _instances(layout, width, height, attrs, lay, "archCells", ARCH_VALUES,
+                       float(attrs["arcadeWidth"]) * width)
+    arches = sorted(((lay.boxes[i], j) for i, j in which.items()
+                     if lay.labels[i] in kinds and lay.boxes[i][3] <= ground + _EPS
+                     and lay.boxes[i][2] - lay.boxes[i][0] > _EPS
+                     and lay.boxes[i][3] - lay.boxes[i][1] > _EPS), key=lambda o: o[0][0])
+    if not arches:
+        return None
     cost = energy.cost
     wall = energy.label_set.index("wall")
     raster = energy.rasterize(lay)
@@ -451,10 +486,11 @@ def _arcade(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[str, An
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width * frame.sx
     top_row = max(0, int(np.ceil((height - ground) * frame.sy - 1e-6)))
     cells = np.zeros(n_columns * ARCH_VALUES)
-    pixel = [frame.box(b) for b in arches]
-    for j, (r0f, c0f, r1f, c1f) in enumerate(pixel):
-        left = 0.5 * (pixel[j - 1][3] + c0f) if j else x_lo
-        right = 0.5 * (c1f + pixel[j + 1][1]) if j + 1 < len(pixel) else x_hi
+    pixel = [frame.box(b) for b, _ in arches]
+    for i, (r0f, c0f, r1f, c1f) in enumerate(pixel):
+        j = arches[i][1]
+        left = 0.5 * (pixel[i - 1][3] + c0f) if i else x_lo
+        right = 0.5 * (c1f + pixel[i + 1][1]) if i + 1 < len(pixel) else x_hi
         bounds = (top_row, max(0, int(np.ceil(left - 1e-6))), min(frame.h, round(r1f)),
                   min(frame.w, int(right + 1e-6)))
         if bounds[2] - bounds[0] < 2 or bounds[3] - bounds[1] < 2:
