@@ -166,3 +166,19 @@ def test_windows_beside_a_door_are_the_ground_floor():
     assert seed["doorWidth"] > 0 and abs(seed["doorWidth"] - 16 / 160) < 0.02
     lab[160:200, 72:88] = CMP6.index("wall")                # without the door: four floors
     assert grid_seed(_prob(lab), CMP6)["nFloors"] == 4
+
+
+def test_a_door_under_the_middle_window_keeps_its_column():
+    """Two rows of windows, the lower beside a door that stands under the upper row's middle
+    window: the upper row alone gives the columns, so the door's column is one (with the door
+    in it) rather than lost for having a single window."""
+    lab = np.full((120, 200), CMP6.index("wall"), np.uint8)
+    xs = [15, 55, 95, 135, 175]
+    for x in xs:
+        lab[20:50, x - 8:x + 8] = CMP6.index("window")      # the upper row: five windows
+    for x in xs[:2] + xs[3:]:
+        lab[72:102, x - 8:x + 8] = CMP6.index("window")     # the lower row: four beside a door
+    lab[68:120, 87:103] = CMP6.index("door")
+    seed = grid_seed(_prob(lab), CMP6)
+    assert seed["nFloors"] == 1 and seed["nColumns"] == 5
+    assert seed["groundKind"] == "arcade" and seed["doorColumn"] == 3

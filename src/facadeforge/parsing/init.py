@@ -207,6 +207,10 @@ def grid_seed(prob: np.ndarray, label_set: LabelSet, max_floors: int = 10,
     if len(rows) >= 2 and "door" in label_set.classes and _door_beside(
             labels == label_set.index("door"), boxes[rows[0]]):
         rows = rows[1:]     # the lowest windows stand beside a door: they are the ground floor's
+        if len(rows) == 1:  # one floor above it: its windows alone are the columns (the door's
+            upper = rows[0]  # column has a window above it only, and is a column all the same)
+            cols = [upper[g] for g in _groups(boxes[upper, 0], boxes[upper, 2])][:max_columns]
+            cols = sorted(cols, key=lambda g: np.median(boxes[g, 0]))
     left_m, right_m, street = (_surroundings(labels, label_set, boxes) if surroundings
                                else (0.0, 0.0, 0.0))
     inner_w = w * max(0.05, 1 - left_m - right_m)    # the building between the side margins
