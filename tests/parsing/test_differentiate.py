@@ -145,3 +145,31 @@ def test_instances_are_told_apart_when_a_column_runs_off_the_facade(grid):
     assert (energy.rasterize(lay) == truth).mean() > 0.995
     # the missing window is written into its own cell: floor 1, column 3
     assert out["windowCells"][(0 * 12 + 2) * 7 + 1] == -1.0
+
+
+def test_separate_balconies_replace_a_running_band(grid):
+    """Floor 2 has a running band in the consistent fit, but the photo shows one balcony in
+    front of each window (the band's pixels between them are wall): the band is removed and
+    each window gets its own balcony, reaching down over where the band was."""
+    rules, layout, attrs = grid
+    consistent = layout.derive(W, H, attrs)
+    energy0 = _uniform_energy()
+    truth = energy0.rasterize(consistent)
+    wall, bal = CMP6.index("wall"), CMP6.index("balcony")
+    pix = energy0.pixel_boxes(consistent)
+    band = next(b for b, lab in zip(pix, consistent.labels) if lab == "balcony"
+                and b[3] - b[1] > 100)                      # the running band: full width
+    r0, c0, r1, c1 = band
+    truth[r0:r1, c0:c1] = wall
+    above = [b for b, lab in zip(pix, consistent.labels) if lab == "window" and 0 < r0 - b[2] < 12]
+    assert len(above) == 5
+    for w0, x0, w1, x1 in above:                            # a balcony per window, from the
+        truth[w1 - 3:r1, x0 - 2:x1 + 2] = bal               # band's foot up into the window
+    energy = SegmentationEnergy(_prob(truth), CMP6)
+    out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
+    assert out is not None
+    lay = layout.derive(W, H, out)
+    before = (energy.rasterize(consistent) == truth).mean()
+    after = (energy.rasterize(lay) == truth).mean()
+    assert after > 0.995 and before < 0.98, (before, after)
+    assert out["bandCells"][(2 - 1) * 3] == -1.0             # floor 2's band is gone

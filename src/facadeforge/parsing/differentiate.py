@@ -254,11 +254,77 @@ def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mappin
 def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
                   width: float, height: float, n_columns: int, params=()
                   ) -> dict[str, Any] | None:
-    """Stages 1–3 of the module docstring: bands, window openings and their balconies."""
+    """Stages 1–3 of the module docstring: bands, window openings and their balconies.
+
+    A floor with a running band is fitted twice: with its band, and with the band removed and
+    a balcony in front of each window instead (where a band is better than bare wall but the
+    photo shows separate balconies); per floor the one with the lower energy over the floor's
+    rows is kept."""
+    banded = _bands(energy, layout, base, width, height)
+    if banded is None:
+        return None
+    with_bands = _windows(energy, layout, banded, width, height, n_columns)
+    cells = banded["bandCells"]
+    ground_top = float(base["groundTop"]) * height
+    frac = float(base["balconyFrac"])
+    floors = sorted(f for f in range(cells.size // BAND_VALUES)
+                    if frac * (float(base.get(f"balcony{f + 1}", False)) + cells[f * BAND_VALUES])
+                    > _EPS)
+    if not floors:
+        return with_bands
+    bare_cells = cells.copy()
+    bare_cells[[f * BAND_VALUES for f in floors]] = -1.0
+    bare = {**banded, "bandCells": bare_cells}
+    spans = _floor_rows(energy, layout, bare, width, height, ground_top)
+    without = _windows(energy, layout, bare, width, height, n_columns)
+    row_a = _row_energy(energy, layout.derive(width, height, with_bands), width, height)
+    row_b = _row_energy(energy, layout.derive(width, height, without), width, height)
+    best = {**with_bands, "windowCells": with_bands["windowCells"].copy(),
+            "bandCells": with_bands["bandCells"].copy()}
+    per_floor = n_columns * WINDOW_VALUES
+    for f in floors:
+        if f not in spans:
+            continue
+        r0, r1 = spans[f]
+        if row_b[r0:r1].sum() < row_a[r0:r1].sum() - 1e-9:
+            best["bandCells"][f * BAND_VALUES:(f + 1) * BAND_VALUES] = \
+                without["bandCells"][f * BAND_VALUES:(f + 1) * BAND_VALUES]
+            best["windowCells"][f * per_floor:(f + 1) * per_floor] = \
+                without["windowCells"][f * per_floor:(f + 1) * per_floor]
+    return best
+
+
+def _row_energy(energy: SegmentationEnergy, lay: Layout, width: float, height: float
+                ) -> np.ndarray:
+    """The energy of ``lay`` summed over each pixel row."""
+    raster = energy.rasterize(lay)
+    return np.take_along_axis(energy.cost, raster[..., None].astype(np.intp), 2)[..., 0].sum(1)
+
+
+def _floor_rows(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[str, Any],
+                width: float, height: float, ground_top: float) -> dict[int, tuple[int, int]]:
+    """Pixel rows ``[r0, r1)`` of each upper floor without a band (its body is the floor),
+    from its openings."""
+    lay = layout.derive(width, height, attrs)
+    frame = _Frame(energy, width, height)
+    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
+    out = {}
+    for (f, _), b, _ in _cells(layout, width, height, attrs, lay, ground_top,
+                               float(attrs["windowWidth"]) * width):
+        fb_h = (b[3] - b[1]) / max(wh, _EPS)
+        bottom = b[1] - sill * fb_h
+        r0, _, r1, _ = frame.box((0.0, bottom, width, bottom + fb_h))
+        out[f] = (max(0, round(r0)), min(frame.h, round(r1)))
+    return out
+
+
+def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
+           width: float, height: float) -> dict[str, Any] | None:
+    """Stage 1: each floor's running balcony band (``bandCells``), or ``None`` without
+    openings to place the floors by."""
     attrs = base
-    window_cells = base["windowCells"].copy()
     band_cells = base["bandCells"].copy()
-    base = {**base, "windowCells": window_cells, "bandCells": band_cells}
+    base = {**base, "bandCells": band_cells}
     lay = layout.derive(width, height, base)
     frame = _Frame(energy, width, height)
     cost = energy.cost
@@ -279,7 +345,6 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
     wall = energy.label_set.index("wall")
     bal = energy.label_set.index("balcony")
-    win = energy.label_set.index("window")
     bands = {}   # floor index → its band's box (metres)
     for b, lab in zip(lay.boxes, lay.labels):
         if (lab == "balcony" and abs(b[0] - x_lo) < _EPS and abs(b[2] - x_hi) < _EPS
@@ -288,7 +353,6 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
             if f is not None:
                 bands[f] = b
     frac = float(attrs["balconyFrac"])
-    changed = False
     for f, (bottom, fb_h) in sorted(body.items()):
         if f in bands:
             b = bands[f]
@@ -313,17 +377,32 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
         if e >= 0:   # no band is better
             if f in bands:
                 band_cells[k] = -1.0
-                changed = True
             continue
         band_cells[k] = (new[2] - new[0]) / max(unit_px, _EPS) - (1.0 if f in bands else 0.0)
         band_cells[k + 1] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
         band_cells[k + 2] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
-        changed = True
-    if changed:
-        lay = layout.derive(width, height, base)
-        openings = _cells(layout, width, height, base, lay, ground_top, window_m)
+    return base
 
-    # 2–3. window openings and their balconies
+
+def _windows(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
+             width: float, height: float, n_columns: int) -> dict[str, Any]:
+    """Stages 2–3: each window opening's edges, or no window, and the balcony in front of it
+    (``windowCells``)."""
+    attrs = base
+    window_cells = base["windowCells"].copy()
+    base = {**base, "windowCells": window_cells}
+    lay = layout.derive(width, height, base)
+    frame = _Frame(energy, width, height)
+    cost = energy.cost
+    ground_top = float(attrs["groundTop"]) * height
+    openings = _cells(layout, width, height, base, lay, ground_top,
+                      float(attrs["windowWidth"]) * width)
+    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
+    x_lo = float(attrs.get("leftMargin", 0.0)) * width
+    x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
+    wall = energy.label_set.index("wall")
+    bal = energy.label_set.index("balcony")
+    win = energy.label_set.index("window")
     raster = energy.rasterize(lay)
     by_floor: dict[int, list] = {}
     for (f, j), b, g in openings:
@@ -402,7 +481,7 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
                 painted[wr0 + oy:bbox[0] + oy, wc0 + ox:wc1 + ox] = win
                 painted[bbox[0] + oy:bbox[2] + oy, oc0 + ox:oc1 + ox] = bal
             raster = painted
-    return {**base, "windowCells": window_cells, "bandCells": band_cells}
+    return base
 
 
 def _ground_floor(energy: SegmentationEnergy, layout: SplitLayout, attrs: dict[str, Any],
