@@ -163,7 +163,7 @@ def test_separate_balconies_replace_a_running_band(grid):
     truth[r0:r1, c0:c1] = wall
     above = [b for b, lab in zip(pix, consistent.labels) if lab == "window" and 0 < r0 - b[2] < 12]
     assert len(above) == 5
-    for w0, x0, w1, x1 in above:                            # a balcony per window, from the
+    for _, x0, w1, x1 in above:                             # a balcony per window, from the
         truth[w1 - 3:r1, x0 - 2:x1 + 2] = bal               # band's foot up into the window
     energy = SegmentationEnergy(_prob(truth), CMP6)
     out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
