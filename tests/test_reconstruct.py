@@ -15,6 +15,8 @@ from facadeforge.datasets.synthetic import generate
 from facadeforge.engine import derive_facade
 from facadeforge.evaluation.metrics import match_boxes
 from facadeforge.exchange import load
+from facadeforge.exchange.raster import LABEL_INDEX
+from facadeforge.model.shape import INSERT
 from facadeforge.reconstruction import load_depths, reconstruct
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -70,7 +72,15 @@ def test_label_maps_in_both_frames(result, synthetic):
     labels = np.asarray(Image.open(out / "labels.png"))
     assert labels.shape[:2] == rec.rectified.shape[:2]
     photo = np.asarray(Image.open(synthetic[0]))
-    assert np.asarray(Image.open(out / "labels_input.png")).shape[:2] == photo.shape[:2]
+    inputs = np.asarray(Image.open(out / "labels_input.png"))
+    assert inputs.shape[:2] == photo.shape[:2]
+    # the balconies of the Haussmann facade (palette PNGs of label indices), painted whole
+    # over the windows behind them (balcony boxes never overlap each other)
+    balcony = LABEL_INDEX["balcony"]
+    assert (inputs == balcony).mean() > 0.005 and (labels == rec.labels).all()
+    boxes = rec.windows("balcony")
+    assert boxes and (labels == balcony).sum() == sum((x1 - x0) * (y1 - y0)
+                                                      for x0, y0, x1, y1 in boxes)
 
 
 def test_windows_found_on_synthetic_facade(result, paper_result, synthetic):
@@ -159,6 +169,11 @@ def test_shape_tree_json_round_trips(result):
     tree = Shape.from_dict(json.loads((out / "shape_tree.json").read_text()))
     assert [s.label for s in tree.leaves()] == [s.label for s in rec.tree.leaves()]
     assert tree.dump() == rec.tree.dump()
+    # balconies hang outside the partition, matched with the library's balconies
+    inserted = [s for s in tree.walk() if s.operator == INSERT]
+    assert inserted and {s.label for s in inserted} == {"balcony"}
+    assert all(s.tags["element"].startswith("balcony_") and s.tags["depth"] > 0
+               for s in inserted)
 
 
 @pytest.mark.parametrize("path", ["classifier", "edges"])
@@ -175,6 +190,8 @@ def test_rules_derive_back_into_the_layout(result, paper_result, path):
     want = [s for s in rec.tree.leaves() if s.label != "wall"]
     got = [s for s in model.root.leaves() if s.label != "wall"]
     assert want and len(got) == len(want)
+    # the Haussmann facade's balconies (the edge path finds none)
+    assert ("balcony" in {s.label for s in want}) == (path == "classifier")
     for s in want:
         assert any(g.label == s.label and np.abs(g.scope.origin[:2] - s.scope.origin[:2]).max()
                    <= tol and np.abs(g.scope.size[:2] - s.scope.size[:2]).max() <= tol
@@ -186,6 +203,13 @@ def test_model_files_load_back(result):
     for name in ("model.glb", "model.obj", "model.city.json"):
         models = load(out / name)
         assert sum(p.mesh.n_faces for m in models for p in m.parts) > 0, name
+        # the library balconies, in front of the facade plane (z > 0 in the engine's frame)
+        balconies = [p for m in models for p in m.parts if p.label == "balcony"]
+        assert balconies and sum(p.mesh.n_faces for p in balconies) > 0, name
+    city = json.loads((out / "model.city.json").read_text())
+    surfaces = [s for o in city["CityObjects"].values() for g in o.get("geometry", [])
+                for s in g["semantics"]["surfaces"] if s["facadeforge_label"] == "balcony"]
+    assert surfaces and {s["type"] for s in surfaces} == {"WallSurface"}
 
 
 def test_depths_file_overrides_and_rejects(tmp_path):
@@ -273,6 +297,7 @@ def test_cli_reconstruct(synthetic, tmp_path, capsys):
                  str(meta["facade_size_m"][0]), "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "floors" in text and "symmetry" in text
+    assert " balconies, " in text and "balconys" not in text
     assert (out / "rules.cga").is_file()
 
 

@@ -163,10 +163,17 @@ def cmd_render(args) -> int:
     return 0
 
 
+def _plural(word: str, n: int) -> str:
+    """``word`` for ``n`` things (``balcony`` → ``balconies``)."""
+    if n == 1:
+        return word
+    return word[:-1] + "ies" if word.endswith("y") and word[-2:-1] not in "aeiou" else word + "s"
+
+
 def _summary(rec, out) -> str:
     r = rec.report
     f = r["facade"]
-    els = ", ".join(f"{n} {k}{'' if n == 1 else 's'}" for k, n in sorted(r["elements"].items())
+    els = ", ".join(f"{n} {_plural(k, n)}" for k, n in sorted(r["elements"].items())
                     ) or "no elements"
     d = r["detection"]
     src = (f"the {d['classifier']['label_set']} {d['classifier']['kind']} classifier"

@@ -13,12 +13,15 @@
    and its elements become boxes (:mod:`.imaging.detect`);
    when it finds at least :data:`MIN_ELEMENTS`, floors, tiles and tile refinements are laid
    around them (:mod:`.imaging.element_layout`) instead of steps 3's lines and 6 — on the CMP
-   val split this raises window F1 from 0.08 to 0.68 (README, *Benchmarks*);
+   val split this raises window F1 from 0.08 to 0.68 (README, *Benchmarks*); balconies
+   become boxes too and are hung, outside the partition, on the tile or floor they stand in
+   front of (:mod:`.imaging.shape_tree`; CMP val balcony IoU 0 → 0.56);
 5. ``cluster`` — groups of similar floors and tiles (§2.3's groups);
 6. ``refine`` — tile refinement with split synchronisation (§3), on the paper's path
    (``classifier=False``, or too few elements detected);
 7. ``match`` — element matching per cluster by MI against the element library (§4), among the
-   library elements of the detected class when the classifier gave one;
+   library elements of the detected class when the classifier gave one (balconies among the
+   library's balconies, per cluster of the tile or floor they hang on);
 8. ``tree`` / ``rules`` — the shape tree and its size-independent CGA rules (§5);
 9. ``model`` — the rules derived by our engine on the facade rectangle, textured with the
    cluster-averaged rectified photo (§4: "backprojection of the original textures").
@@ -45,7 +48,7 @@ import numpy as np
 
 from .errors import InputError
 from .model.model import Model
-from .model.shape import Shape
+from .model.shape import INSERT, Shape
 from .photo import MAX_ANALYSIS_SIDE, MIN_SIDE, analysis_copy, as_rgb, check_facade_size, check_size
 
 __all__ = ["DEFAULT_DEPTHS", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE", "Reconstruction",
@@ -236,25 +239,30 @@ def _refine(gray, structure, tile_c, owner, boxes):
     return regions
 
 
-def _match(gray, regions, tile_c, n_floors):
-    """Element type per element-leaf cluster (§4 eq. 8), kinds restricted per floor."""
+def _match(gray, regions, tile_c, floor_c, fronts=()):
+    """Element type per element-leaf cluster (§4 eq. 8), kinds restricted per floor; protruding
+    elements (balconies, ``fronts`` as in :attr:`~.imaging.element_layout.ElementLayout.fronts`)
+    per cluster of the tile or floor they hang on."""
     from .imaging.matching import match_elements
     from .imaging.refine import element_leaves
 
-    groups: dict[tuple[str, int, str], list] = {}
+    groups: dict[tuple[str, str, str], list] = {}
     for i, row in enumerate(regions):
         for j, region in enumerate(row):
             for leaf in element_leaves(region):
-                key = ("G" if i == n_floors - 1 else "U", tile_c[i][j], leaf.label)
+                key = ("G" if i == len(regions) - 1 else "U", leaf.label, f"T{tile_c[i][j]}")
                 groups.setdefault(key, []).append(leaf)
+    for i, hung in enumerate(fronts):
+        for j, leaf in hung:
+            host = f"F{floor_c[i]}" if j is None else f"T{tile_c[i][j]}"
+            groups.setdefault(("P", leaf.label, host), []).append(leaf)
     chosen: dict[int, str] = {}
-    keys = sorted(groups)
     # one matching per floor kind and known label: an element the classifier called a door is
-    # matched among the library's doors; unlabelled ones (edge path) among the floor's kinds
-    for kinds_key in sorted({(k[0], k[2]) for k in keys}):
-        sel = [k for k in keys if (k[0], k[2]) == kinds_key]
-        floor_kind, label = kinds_key
-        kinds = {label} if label else GROUND_KINDS if floor_kind == "G" else UPPER_KINDS
+    # matched among the library's doors (a balcony among its balconies); unlabelled ones (edge
+    # path) among the floor's kinds
+    for kind, label in sorted({k[:2] for k in groups}):
+        sel = sorted(k for k in groups if k[:2] == (kind, label))
+        kinds = {label} if label else GROUND_KINDS if kind == "G" else UPPER_KINDS
         boxes, cl = [], []
         for ci, k in enumerate(sel):
             for leaf in groups[k]:
@@ -417,20 +425,21 @@ def _detect(prob, clf, gray, px_per_m, edges):
     if prob is None:
         return None, {"source": "edges", "classifier": None, "found": 0}
     from .datasets import LABEL_SETS
-    from .imaging.detect import DETECTED_LABELS, detect_elements
+    from .imaging.detect import DETECTED_LABELS, detect_elements, detect_protruding
     from .imaging.element_layout import element_layout
 
     known = LABEL_SETS.get(clf.label_set)     # a scribble GMM's classes follow no dataset
     elements = detect_elements(prob, clf.classes,
                                behind=known.windows_behind if known is not None else ())
+    fronts = detect_protruding(prob, clf.classes)
     info = {"classifier": {"kind": clf.kind, "label_set": clf.label_set},
-            "found": len(elements),
-            "by_label": dict(Counter(e.label for e in elements))}
+            "found": len(elements), "protruding": len(fronts),
+            "by_label": dict(Counter(e.label for e in elements + fronts))}
     if len(elements) < MIN_ELEMENTS:
         return None, {"source": "edges", **info}
     detected = [c for c in DETECTED_LABELS if c in clf.classes]
     occupancy = prob[:, :, [clf.classes.index(c) for c in detected]].sum(axis=2)
-    layout = element_layout(elements, gray, occupancy, float(px_per_m[1]), edges)
+    layout = element_layout(elements, gray, occupancy, float(px_per_m[1]), edges, fronts)
     return layout, {"source": "classifier", **info}
 
 
@@ -554,12 +563,13 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     # derive every element back within CLUSTER_TOLERANCE of where it was found
     from .imaging.element_layout import refine_clusters
 
+    fronts = layout.fronts if layout is not None else []
     floor_c, tile_c = refine_clusters(structure.floors, structure.tiles, regions, floor_c, tile_c,
-                                      tol=CLUSTER_TOLERANCE * max(gray.shape))
+                                      tol=CLUSTER_TOLERANCE * max(gray.shape), fronts=fronts)
     timings["refine"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    chosen = _match(gray, regions, tile_c, len(structure.floors)) if regions else {}
+    chosen = _match(gray, regions, tile_c, floor_c, fronts) if regions else {}
     timings["match"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -569,7 +579,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     tree = build_shape_tree(frame, structure.floors, structure.tiles, floor_c, tile_c,
                             regions=regions, leaf_info=_leaf_info(chosen, depth_map),
                             floor_confidence=structure.confidences["floors"],
-                            tile_confidence=structure.confidences["tiles"])
+                            tile_confidence=structure.confidences["tiles"], fronts=fronts)
     from .exchange.raster import label_map
 
     labels = label_map(tree, size=rect_img.shape[:2])
@@ -654,7 +664,8 @@ def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:
 
 def structure_image(rec: Reconstruction) -> np.ndarray:
     """``structure.png``: the rectified photo with floors and tiles drawn, a translucent colour
-    per tile cluster and the elements outlined."""
+    per tile cluster and the elements outlined (blue; balconies and other inserted elements
+    orange)."""
     import cv2
 
     img = rec.rectified.astype(np.float32).copy()
@@ -676,7 +687,8 @@ def structure_image(rec: Reconstruction) -> np.ndarray:
         elif node.symbol == "Tile":
             cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (255, 210, 0), thick)
         elif not node.children and node.label not in ("", "wall"):
-            cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (40, 120, 255), thick)
+            colour = (255, 140, 0) if node.operator == INSERT else (40, 120, 255)
+            cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), colour, thick)
     return out
 
 

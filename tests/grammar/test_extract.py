@@ -11,7 +11,7 @@ from facadeforge.engine import derive_facade
 from facadeforge.errors import InputError
 from facadeforge.grammar.extract import extract_rules
 from facadeforge.model.scope import Scope
-from facadeforge.model.shape import Shape
+from facadeforge.model.shape import INSERT, Shape
 
 _AXIS_OF = {"left": "x", "right": "x", "dual-x": "x", "top": "y", "bottom": "y", "dual-y": "y"}
 
@@ -220,6 +220,58 @@ def test_two_repeated_runs_both_keep_their_counts():
     rules = extract_rules(tree)
     assert "{ ~3.5 : Floor_F2 }*" in rules and "{ ~3 : Floor_F1 }* }" in rules
     assert round_trip(tree) < 1e-3
+
+
+# -- inserted shapes (balconies) ------------------------------------------------------------------
+
+def _hang(host: Shape, x, y, w, h, content, k=0) -> None:
+    """Insert a leaf at ``(x, y, w, h)`` (facade metres) in front of ``host``, outside its
+    partition, as :mod:`facadeforge.imaging.shape_tree` hangs balconies."""
+    s = Shape("Region", Scope((x, y, 0.0), np.eye(3), (w, h, 0.0)), operator=INSERT,
+              params={"index": k})
+    s.tags = {"cluster": f"{host.tags['cluster']}.p{k}"}
+    s.parent = host
+    host.children.append(s)
+    _fill(s, content)
+
+
+def _balcony_facade() -> Shape:
+    """Three floors of four window tiles: the lower two with a balcony before every window
+    (hanging 0.1 m below the floor line), the top one with a band running in front of all."""
+    tree = regular(3, 4)
+    balcony = {"label": "balcony", "depth": 0.9}
+    for floor in tree.children[:2]:
+        for tile in floor.children[1:-1]:
+            x, y = tile.scope.origin[:2]
+            _hang(tile, x + 0.4, y - 0.1, 1.7, 1.2, balcony)
+    top = tree.children[2]
+    _hang(top, 0.8, float(top.scope.origin[1]), 10.0, 1.0, balcony)
+    return tree
+
+
+def test_inserted_balconies_become_branches_before_the_split():
+    tree = _balcony_facade()
+    rules = extract_rules(tree)
+    assert ("Tile_T2_v1 -->\n\t[ t('0.16, -0.1, 0) s('0.68, 1.2, '1) Balcony_T2_p0 ]\n"
+            "\tsplit(x) {") in rules
+    assert "[ t('0.069, 0, 0) s('0.8621, 1, '1) Balcony_F1_p0 ]" in rules
+    assert "Tile_T2_v2 --> split(x)" in rules          # the top floor's tiles: no balcony
+    assert round_trip(tree) < 1e-3
+    model = derive_facade(rules, *tree.scope.size[:2])
+    assert labels(model) == {"wall": 42, "window": 12, "balcony": 9}
+    balcony = next(s for s in model.root.leaves() if s.label == "balcony")
+    assert balcony.scope.size[2] == pytest.approx(0.9)       # in front of the facade plane
+
+
+def test_inserted_balconies_adapt_to_a_wider_facade():
+    tree = _balcony_facade()
+    W, H = float(tree.scope.size[0]), float(tree.scope.size[1])
+    wide = derive_facade(extract_rules(tree), 1.5 * W, H)
+    assert wide.warnings == []
+    assert labels(wide)["balcony"] == 2 * 6 + 1       # one per window tile, one band
+    band = max((s for s in wide.root.leaves() if s.label == "balcony"),
+               key=lambda s: s.scope.size[0])
+    assert band.scope.size[0] == pytest.approx(1.5 * 10.0, rel=1e-3)   # its share of the floor
 
 
 # -- size independence ----------------------------------------------------------------------------

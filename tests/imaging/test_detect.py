@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from facadeforge import InputError
-from facadeforge.imaging.detect import Element, detect_elements, row_split, valley_split, xy_cut
+from facadeforge.imaging.detect import (
+    Element,
+    detect_elements,
+    detect_protruding,
+    row_split,
+    valley_split,
+    xy_cut,
+)
 from facadeforge.imaging.element_layout import element_layout, element_region, refine_clusters
 from facadeforge.imaging.refine import SPLIT_TYPES, leaves
 
@@ -249,3 +256,56 @@ def test_windows_extend_through_the_railing_in_front_of_them():
     prob[44:60, 5:35] = (1, 0, 0)         # the railing ends after 4 rows: so does the window
     through = detect_elements(prob, classes, labels=("window",), behind=("balcony",))
     assert [e.box for e in through] == [(10, 10, 30, 44)]
+
+
+# -- balconies: protruding elements ----------------------------------------------------------
+
+def test_detect_protruding_finds_a_band_and_per_window_balconies(balcony_scene):
+    sc = balcony_scene
+    fronts = detect_protruding(sc.prob, sc.classes)
+    assert [(e.label, e.box) for e in fronts] == [("balcony", b) for b in sc.balconies]
+    # the windows behind them are all still found, reaching down behind the railings
+    windows = detect_elements(sc.prob, sc.classes, behind=("balcony",))
+    assert len(windows) == 8 and {e.label for e in windows} == {"window"}
+    for e, truth in zip(windows, sc.windows):
+        assert e.box[:3] == truth[:3] and truth[3] - 3 <= e.box[3] <= truth[3]
+    # balconies overlap the windows: in detect_elements' cross-class step they would be lost
+    assert all(any(_overlaps(f.box, w.box) for w in windows) for f in fronts)
+    mixed = detect_elements(sc.prob, sc.classes, labels=("window", "balcony"),
+                            behind=("balcony",))
+    assert len(mixed) < len(windows) + len(fronts)
+    no_balcony = tuple("roof" if c == "balcony" else c for c in sc.classes)
+    assert detect_protruding(sc.prob, no_balcony) == []     # a classifier without balconies
+
+
+def _overlaps(a, b) -> bool:
+    return min(a[2], b[2]) > max(a[0], b[0]) and min(a[3], b[3]) > max(a[1], b[1])
+
+
+def test_layout_hangs_balconies_on_their_floor_or_tile_and_keeps_lines_off_them(balcony_scene):
+    sc = balcony_scene
+    windows = detect_elements(sc.prob, sc.classes, behind=("balcony",))
+    fronts = detect_protruding(sc.prob, sc.classes)
+    gray = np.full(sc.prob.shape[:2], 0.5)
+    lay = element_layout(windows, gray, np.zeros(gray.shape), 20.0, fronts=fronts)
+    plain = element_layout(windows, gray, np.zeros(gray.shape), 20.0)
+    # the floor line runs under the band's slab, not through its railing
+    assert len(lay.floors) == len(plain.floors) == 2
+    assert sc.band[3] <= lay.floors[1][0] < sc.windows[4][1] and plain.floors[1][0] < sc.band[3]
+    # the band hangs on the upper floor, each per-window balcony on its window's tile
+    assert [(j, r.box) for j, r in lay.fronts[0]] == [(None, sc.band)]
+    assert [(j, r.box) for j, r in lay.fronts[1]] == list(zip((1, 2), sc.per_window))
+    assert all(r.role == "element" and r.label == "balcony" for _, r in lay.fronts[1])
+    # the windows behind them are whole element leaves of the partition
+    found = sorted(leaf.box for row in lay.regions for r in row for leaf in leaves(r)
+                   if leaf.role == "element")
+    assert found == sorted(e.box for e in windows)
+    # a tile with a balcony is not clustered with one without
+    floor_c, tile_c = refine_clusters(lay.floors, lay.tiles, lay.regions, [0, 0],
+                                      [[0] * len(r) for r in lay.tiles], tol=2.0,
+                                      fronts=lay.fronts)
+    assert tile_c[1][1] == tile_c[1][2] != tile_c[1][0]
+    no_fronts = refine_clusters(lay.floors, lay.tiles, lay.regions, [0, 0],
+                                [[0] * len(r) for r in lay.tiles], tol=2.0)[1]
+    assert no_fronts[1][0] == no_fronts[1][1]
+    assert floor_c[0] != floor_c[1]

@@ -2,10 +2,11 @@
 
 A layout is projected into the x/y frame of its root scope (the facade plane: x to the right,
 y up), or into the world x/y plane when there is no root.  :func:`label_map` samples each pixel
-at its centre and paints leaf shapes in order, later shapes over earlier ones, with the index of
-their canonical label (:data:`LABEL_INDEX`, the order of :class:`~facadeforge.model.Labels`).
-Unlabelled leaves get the label guessed from their symbol, else ``other``.  Row 0 of the array is
-the top of the facade.
+at its centre and paints leaf shapes in order (of a shape tree: :meth:`Shape.painting_order`,
+inserted shapes such as balconies over the partition), later shapes over earlier ones, with the
+index of their canonical label (:data:`LABEL_INDEX`, the order of
+:class:`~facadeforge.model.Labels`).  Unlabelled leaves get the label guessed from their symbol,
+else ``other``.  Row 0 of the array is the top of the facade.
 """
 
 from __future__ import annotations
@@ -100,7 +101,7 @@ def _layout(source: Source) -> _Layout:
 
 def _shape_items(root: Shape) -> list[_Item]:
     items = []
-    for leaf in root.leaves():
+    for leaf in root.painting_order():          # inserted shapes (balconies) in front
         if leaf.geometry is not None and leaf.geometry.n_faces:
             polys = leaf.geometry.polygons()
         elif leaf.scope.size[0] > 0 and leaf.scope.size[1] > 0:

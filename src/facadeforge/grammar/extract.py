@@ -19,7 +19,12 @@ dimensions and the repetition of the photo and derive on facades of any size:
   (``Tile_T3_v2``) instead of failing;
 - leaves: a flat coloured (or photo-textured) rectangle, or, with a depth, the scope set to that
   depth and translated behind the facade plane for recesses (§5 rule 15) with the matched element
-  asset or a box inserted; per-class depths are editable ``attr``\\ s (``window_depth``).
+  asset or a box inserted; per-class depths are editable ``attr``\\ s (``window_depth``);
+- shapes inserted in front of a shape outside its partition (``operator="insert"``: balconies,
+  §4's library elements standing before a tile or floor) become branches
+  ``[ t('x, y, 0) s('w, h, '1) Balcony_T3_p0 ]`` ahead of the shape's split: ``x`` and ``w``
+  fractions of the host's width (a balcony band keeps its share of a wider floor), ``y`` and
+  ``h`` metres above the host's bottom, averaged over the cluster members like split sizes.
 
 Rule names start with the leaf's label (``Window_T3_1``, ``Wall_T1``), so the engine's
 rule-name label inference gives the derived leaves the photo's labels; where it would not, the
@@ -33,9 +38,11 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ..errors import InputError
 from ..model.labels import label_for_name
-from ..model.shape import Shape
+from ..model.shape import INSERT, Shape
 
 __all__ = ["MAX_NODES", "extract_rules"]
 
@@ -73,6 +80,8 @@ class _Group:
     depths: list[float] = field(default_factory=list)
     size_sums: list[float] = field(default_factory=list)   # per child position, over members
     name: str = ""
+    inserts: tuple[int, ...] = ()
+    insert_sums: list[list[float]] = field(default_factory=list)   # per insert: x, y, w, h
 
     @property
     def leaf(self) -> bool:
@@ -122,8 +131,9 @@ def extract_rules(tree: Shape, *, texture: str | None = None, name: str = "facad
 # -- grouping -------------------------------------------------------------------------------------
 
 def _ordered_children(node: Shape) -> tuple[list[Shape], str]:
-    """Children by increasing coordinate along their split axis, and that axis."""
-    kids = list(node.children)
+    """The partition's children (not the inserted ones) by increasing coordinate along their
+    split axis, and that axis."""
+    kids = [c for c in node.children if c.operator != INSERT]
     axis = next((c.params.get("axis") for c in kids if c.params.get("axis") in _AXES), None)
     if axis is None:   # infer: children spanning the parent's full width are stacked in y
         w = float(node.scope.size[0])
@@ -155,29 +165,51 @@ def _leaf_depth(node: Shape, label: str, depths: Mapping[str, float]) -> float:
     return _as_depth(d)
 
 
+def _inserts(node: Shape) -> list[Shape]:
+    """The shapes inserted in front of ``node`` (not in its partition), left to right."""
+    found = [c for c in node.children if c.operator == INSERT]
+    return sorted(found, key=lambda c: (float(c.scope.origin[0]), float(c.scope.origin[1])))
+
+
+def _placement(host: Shape, shape: Shape) -> list[float]:
+    """``shape``'s rectangle in ``host``: x and width as fractions of the host's width, y (above
+    the host's bottom) and height in metres."""
+    w = max(float(host.scope.size[0]), 1e-9)
+    x0, y0, x1, y1 = _rect(shape) - np.tile(_rect(host)[:2], 2)
+    return [x0 / w, y0, (x1 - x0) / w, y1 - y0]
+
+
+def _rect(shape: Shape) -> np.ndarray:
+    """``x0, y0, x1, y1`` of the scope's corners (facade frame)."""
+    c = shape.scope.corners()
+    return np.array([c[:, 0].min(), c[:, 1].min(), c[:, 0].max(), c[:, 1].max()])
+
+
 def _group(tree: Shape, depths: Mapping[str, float]) -> tuple[dict[int, _Group], int]:
     """Post-order: every node's group is keyed by its symbol, cluster and the groups of its
-    children, so cluster members with another sub-hierarchy fall into a variant group."""
-    order: list[tuple[Shape, list[Shape], str | None]] = []
+    children and inserted shapes, so cluster members with another sub-hierarchy fall into a
+    variant group."""
+    order: list[tuple[Shape, list[Shape], str | None, list[Shape]]] = []
     for count, node in enumerate(tree.walk(), 1):   # pre-order; processed in reverse = post-order
         if count > MAX_NODES:
             raise InputError(f"shape tree has more than {MAX_NODES} nodes; extract rules from a "
                              "smaller facade")
         kids, axis = _ordered_children(node) if node.children else ([], None)
-        order.append((node, kids, axis))
+        order.append((node, kids, axis if kids else None, _inserts(node)))
     gid_of: dict[int, int] = {}
     keys: dict[tuple, int] = {}
     groups: dict[int, _Group] = {}
-    for node, kids, axis in reversed(order):
+    for node, kids, axis, inserts in reversed(order):
         cluster = node.tags.get("cluster")
         cluster = None if cluster is None else str(cluster)
+        insert_ids = tuple(gid_of[id(c)] for c in inserts)
         if kids:
             child_ids = tuple(gid_of[id(c)] for c in kids)
             split = kids[0].params.get("split")
             split = split if split in _SINGLE + _DUAL else None
             # unclustered internal shapes are one-offs: their sizes are never averaged
             key = ("node", node.symbol, cluster if cluster is not None else f"#{id(node)}",
-                   axis, split, child_ids)
+                   axis, split, child_ids, insert_ids)
             label, asset, depth = "", None, 0.0
         else:
             child_ids, split = (), None
@@ -186,13 +218,14 @@ def _group(tree: Shape, depths: Mapping[str, float]) -> tuple[dict[int, _Group],
             asset = str(asset) if isinstance(asset, str) and asset.strip() else None
             depth = _leaf_depth(node, label, depths)
             sign = 0 if depth == 0.0 else (1 if depth > 0 else -1)
-            key = ("leaf", node.symbol, cluster, label, asset, sign)
+            key = ("leaf", node.symbol, cluster, label, asset, sign, insert_ids)
         gid = keys.get(key)
         if gid is None:
             gid = keys[key] = len(keys)
             groups[gid] = _Group(node.symbol, cluster, children=child_ids, axis=axis,
                                  split=split, label=label, asset=asset,
-                                 size_sums=[0.0] * len(kids))
+                                 size_sums=[0.0] * len(kids), inserts=insert_ids,
+                                 insert_sums=[[0.0] * 4 for _ in inserts])
         g = groups[gid]
         g.members.append(node)
         if kids:
@@ -201,6 +234,8 @@ def _group(tree: Shape, depths: Mapping[str, float]) -> tuple[dict[int, _Group],
                 g.size_sums[j] += max(float(c.scope.size[k]), 0.0)
         else:
             g.depths.append(depth)
+        for sums, c in zip(g.insert_sums, inserts):
+            sums[:] = [a + b for a, b in zip(sums, _placement(node, c))]
         gid_of[id(node)] = gid
     return groups, gid_of[id(tree)]
 
@@ -235,7 +270,7 @@ def _bfs(groups: dict[int, _Group], root: int) -> list[int]:
         nxt = []
         for gid in queue:
             out.append(gid)
-            for c in groups[gid].children:
+            for c in groups[gid].children + groups[gid].inserts:
                 if c not in seen:
                     seen.add(c)
                     nxt.append(c)
@@ -290,8 +325,8 @@ def _depth_attrs(groups: dict[int, _Group], depths: Mapping[str, float]) -> dict
 
 # -- sizes ----------------------------------------------------------------------------------------
 
-def _num(v: float) -> str:
-    s = f"{v:.3f}".rstrip("0").rstrip(".")
+def _num(v: float, digits: int = 3) -> str:
+    s = f"{v:.{digits}f}".rstrip("0").rstrip(".")
     return "0" if s in ("-0", "") else s
 
 
@@ -331,6 +366,17 @@ def _items(g: _Group, groups: dict[int, _Group]) -> list[str]:
         else:   # a further repeat: floating, repeating inside (top-level repeats share by size)
             out.append(f"~{_num(total)} : split({g.axis}) {{ {{ ~{_num(total / length)} : "
                        f"{rule} }}* }}")
+    return out
+
+
+def _insert_branches(g: _Group, groups: dict[int, _Group]) -> list[str]:
+    """``[ t('x, y, 0) s('w, h, '1) Rule ]`` per inserted shape, sizes averaged over the
+    members (module docstring)."""
+    out = []
+    for gid, sums in zip(g.inserts, g.insert_sums):
+        x, y, w, h = (v / len(g.members) for v in sums)
+        out.append(f"[ t('{_num(x, 4)}, {_num(y)}, 0) s('{_num(w, 4)}, {_num(h)}, '1) "
+                   f"{groups[gid].name} ]")
     return out
 
 
@@ -414,6 +460,12 @@ def _emit(groups: dict[int, _Group], root: int, attrs: dict[str, float], texture
         if g.cluster is not None and gid != root:
             extra = f", {len(g.members)} shapes" if len(g.members) > 1 else ""
             lines.append(f"# cluster {_comment(g.cluster)}{extra}")
+        branches = _insert_branches(g, groups)
+        if branches:                  # one branch a line, then the shape's own operations
+            if head != "\t":
+                lines.append(f"{g.name} -->")
+            lines += ["\t" + b for b in branches]
+            head = "\t"
         if g.leaf:
             lines.append(head + _leaf_ops(g, attrs, textured))
         else:

@@ -1,4 +1,5 @@
-"""Facade elements (windows, doors, shops) as boxes from a pixel classifier's probabilities.
+"""Facade elements (windows, doors, shops; balconies in front of them) as boxes from a pixel
+classifier's probabilities.
 
 Why this exists
     Müller et al. 2007 find windows from image edges alone (§2–3); on the varied facades of
@@ -44,6 +45,14 @@ probabilities.  Boxes of one class never overlap (both cuts partition); across c
 weaker of two overlapping boxes is dropped, so the boxes are disjoint (:mod:`.element_layout`
 lays split lines between them).  The parameters were chosen on the CMP val split, so the F1
 measured there is not a held-out result.
+
+Balconies (:data:`PROTRUDING_LABELS`) stand in front of the wall and of the windows' feet:
+:func:`detect_protruding` gives their boxes by steps 1–4 with the same parameters — a band
+running along a floor is one box, the XY-cut separates the balconies of single windows — and
+keeps them apart from the other elements, which they overlap (a window behind a railing stays
+a window).  On the 60 CMP val facades their boxes reach a balcony IoU of 0.561 against the
+truth (the classifier's own balcony pixels: 0.551), box F1 0.45 (IoU ≥ 0.5); leaving step 2
+out (0.551, F1 0.43) or a looser XY-cut (``xy_tol=0.3``: 0.575, F1 0.40) was not better.
 """
 
 from __future__ import annotations
@@ -59,11 +68,13 @@ from ..datasets.folder import MIN_OBJECT_FRACTION
 from ..errors import InputError
 from .runs import runs
 
-__all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "Element", "detect_elements", "row_split",
-           "valley_split", "xy_cut"]
+__all__ = ["DETECTED_LABELS", "MIN_ELEMENT_FRACTION", "PROTRUDING_LABELS", "Element",
+           "detect_elements", "detect_protruding", "row_split", "valley_split", "xy_cut"]
 
-#: Canonical labels detected as elements (others, such as balconies, overlap them).
+#: Canonical labels detected as elements, disjoint boxes (split lines run between them).
 DETECTED_LABELS: tuple[str, ...] = ("window", "door", "shop")
+#: Canonical labels detected as elements in front of the wall, overlapping the others.
+PROTRUDING_LABELS: tuple[str, ...] = ("balcony",)
 #: Boxes smaller than this fraction of the image are noise (the benchmark's object threshold,
 #: :data:`facadeforge.datasets.folder.MIN_OBJECT_FRACTION`, so no scored object is lost).
 MIN_ELEMENT_FRACTION: float = MIN_OBJECT_FRACTION
@@ -241,6 +252,57 @@ def _extend_down(e: Element, front: np.ndarray) -> Element:
     return e if n == 0 else Element(e.label, (x0, y0, x1, y1 + n), e.score)
 
 
+@dataclass(frozen=True)
+class _Steps:
+    """Parameters of steps 1–4 (module docstring) on an image of ``shape`` ``(H, W)``."""
+
+    shape: tuple[int, int]
+    xy_tol: float | None
+    dip: float
+    rel_area: float
+    min_score: float
+    min_prob: float
+
+    @property
+    def min_px(self) -> int:
+        return max(2, int(0.005 * max(self.shape)))
+
+    @property
+    def min_area(self) -> float:
+        return MIN_ELEMENT_FRACTION * self.shape[0] * self.shape[1]
+
+
+def _checked(prob: np.ndarray, classes: Sequence[str], who: str) -> tuple[np.ndarray, np.ndarray]:
+    """``prob`` as an array with one channel per class, and its argmax map."""
+    p = np.asarray(prob)
+    if p.ndim != 3 or p.shape[2] != len(classes):
+        raise InputError(f"{who}: probabilities of shape {p.shape} do not hold one "
+                         f"channel per class of {list(classes)}")
+    return p, np.argmax(p, axis=2)
+
+
+def _class_elements(p: np.ndarray, argmax: np.ndarray, classes: Sequence[str], label: str,
+                    steps: _Steps) -> list[Element]:
+    """Steps 1–4 of the module docstring on one class: its boxes, none overlapping another."""
+    if label not in classes:
+        return []
+    c = list(classes).index(label)
+    mask = argmax == c
+    if steps.min_prob > 0:
+        mask &= p[:, :, c] > steps.min_prob
+    if not mask.any():
+        return []
+    pc = p[:, :, c].astype(np.float32)
+    start = xy_cut(mask, steps.xy_tol) if steps.xy_tol is not None else _components(mask)
+    boxes = [part for b in start for part in valley_split(pc, mask, b, steps.dip, steps.min_px)]
+    els = [Element(label, b, float(pc[b[1]:b[3], b[0]:b[2]].mean())) for b in boxes]
+    els = [e for e in els if e.area >= steps.min_area]
+    if len(els) >= 3:
+        med = float(np.median([e.area for e in els]))
+        els = [e for e in els if e.area >= steps.rel_area * med]
+    return [e for e in els if e.score >= steps.min_score]
+
+
 def detect_elements(prob: np.ndarray, classes: Sequence[str],
                     labels: Sequence[str] = DETECTED_LABELS, *, xy_tol: float | None = 0.2,
                     dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
@@ -279,34 +341,13 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
     list of Element
         Top to bottom, then left to right.
     """
-    p = np.asarray(prob)
-    if p.ndim != 3 or p.shape[2] != len(classes):
-        raise InputError(f"detect_elements: probabilities of shape {p.shape} do not hold one "
-                         f"channel per class of {list(classes)}")
-    h, w = p.shape[:2]
-    argmax = np.argmax(p, axis=2)
-    min_px = max(2, int(0.005 * max(h, w)))
-    min_area = MIN_ELEMENT_FRACTION * h * w
+    p, argmax = _checked(prob, classes, "detect_elements")
+    steps = _Steps(p.shape[:2], xy_tol, dip, rel_area, min_score, min_prob)
     found: list[Element] = []
     for label in labels:
-        if label not in classes:
-            continue
-        c = list(classes).index(label)
-        mask = argmax == c
-        if min_prob > 0:
-            mask &= p[:, :, c] > min_prob
-        if not mask.any():
-            continue
-        pc = p[:, :, c].astype(np.float32)
-        start = xy_cut(mask, xy_tol) if xy_tol is not None else _components(mask)
-        boxes = [part for b in start for part in valley_split(pc, mask, b, dip, min_px)]
-        els = [Element(label, b, float(pc[b[1]:b[3], b[0]:b[2]].mean())) for b in boxes]
-        els = [e for e in els if e.area >= min_area]
-        if len(els) >= 3:
-            med = float(np.median([e.area for e in els]))
-            els = [e for e in els if e.area >= rel_area * med]
-        els = [e for e in els if e.score >= min_score]
-        if label == "window":                   # the parts pass step 4's test too
+        els = _class_elements(p, argmax, classes, label, steps)
+        if label == "window" and els:           # the parts pass step 4's test too
+            pc = p[:, :, list(classes).index(label)].astype(np.float32)
             els = [e for e in row_split(els, pc, row_ratio) if e.score >= min_score]
             occluders = [list(classes).index(b) for b in behind if b in classes]
             if occluders:
@@ -318,3 +359,29 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         if not any(_overlap(e.box, k.box) for k in kept):
             kept.append(e)
     return sorted(kept, key=lambda e: (e.box[1], e.box[0], e.label))
+
+
+def detect_protruding(prob: np.ndarray, classes: Sequence[str],
+                      labels: Sequence[str] = PROTRUDING_LABELS, *, xy_tol: float | None = 0.2,
+                      dip: float = 0.7, rel_area: float = 0.3, min_score: float = 0.5,
+                      min_prob: float = 0.0) -> list[Element]:
+    """Boxes of the elements that stand in front of the wall (balconies) from class
+    probabilities: steps 1–4 of the module docstring, nothing dropped for overlapping the
+    boxes of :func:`detect_elements` (a balcony stands in front of its window's foot).
+
+    Parameters
+    ----------
+    prob, classes, xy_tol, dip, rel_area, min_score, min_prob
+        As for :func:`detect_elements`: ``(H, W, K)`` class probabilities, their K canonical
+        labels, and the options of steps 1–4.
+    labels : canonical labels to detect (those ``classes`` lacks are not)
+
+    Returns
+    -------
+    list of Element
+        Top to bottom, then left to right; boxes of one class never overlap each other.
+    """
+    p, argmax = _checked(prob, classes, "detect_protruding")
+    steps = _Steps(p.shape[:2], xy_tol, dip, rel_area, min_score, min_prob)
+    found = [e for label in labels for e in _class_elements(p, argmax, classes, label, steps)]
+    return sorted(found, key=lambda e: (e.box[1], e.box[0], e.label))

@@ -25,12 +25,22 @@ elements are known the order can be reversed: split lines must run through wall,
 
 Every line gets a confidence: how clearly it runs through wall, ``1 − mean P(element)`` along
 it (the summed probability of the detected classes).
+
+Elements that stand in front of the wall (balconies, :func:`~.detect.detect_protruding`) are
+not part of the partition: a balcony hides the foot of the window behind it, which stays whole
+(CMP's convention and the 3D reality).  They only move a floor line out of their way — into
+the longest part of its gap that no balcony covers, so that a line runs under the balcony's
+slab rather than through its railing — and are hung on the shape they stand in front of
+(:attr:`ElementLayout.fronts`): the tile holding at least :data:`HOST_SHARE` of the balcony's
+width when that tile is split around an element (a balcony per window), else the floor (a
+balcony band running in front of several tiles).  The floor is the one holding the balcony's
+centre row.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -43,19 +53,26 @@ __all__ = ["ElementLayout", "element_layout", "element_region", "refine_clusters
 
 #: Fraction of a gap on each side where no line is placed (lines sit in the gap's middle).
 GAP_MARGIN: float = 0.2
+#: Share of a balcony's width that must lie in one tile for the balcony to hang on that tile
+#: (less: it runs in front of several tiles and hangs on the floor).
+HOST_SHARE: float = 0.9
 
 
 @dataclass
 class ElementLayout:
     """Floors ``(y0, y1)`` top to bottom, per floor its tiles ``(x0, x1)``, per tile a
-    :class:`~.refine.Region` tree (``None`` = plain wall), and the line confidences in the
-    layout of :class:`~.splits.FacadeStructure` (``{"floors": [...], "tiles": [[...]]}``)."""
+    :class:`~.refine.Region` tree (``None`` = plain wall), the line confidences in the
+    layout of :class:`~.splits.FacadeStructure` (``{"floors": [...], "tiles": [[...]]}``) and,
+    per floor, the protruding elements in front of it as ``(tile index or None, leaf)``
+    pairs (``None``: hung on the floor; the leaf a :class:`~.refine.Region` of role
+    ``"element"``, left to right)."""
 
     floors: list[tuple[int, int]]
     tiles: list[list[tuple[int, int]]]
     regions: list[list[Region | None]]
     confidences: dict[str, list]
     floor_period_px: float = 0.0   # storey height: median of the floors between two lines
+    fronts: list[list[tuple[int | None, Region]]] = field(default_factory=list)
 
 
 def _gaps(spans: Sequence[tuple[int, int]]) -> list[tuple[int, int]]:
@@ -81,6 +98,40 @@ def _line_in_gap(cost: np.ndarray, gap: tuple[int, int]) -> int:
     m = int(GAP_MARGIN * (b - a))
     lo, hi = a + m, max(a + m + 1, b - m)
     return lo + int(np.argmin(cost[lo:hi]))
+
+
+def _free_part(gap: tuple[int, int], spans: Sequence[tuple[int, int]]) -> tuple[int, int]:
+    """The longest part of ``gap`` that no span covers (the gap itself when they cover it all)."""
+    a, b = gap
+    inside = [(max(s, a), min(e, b)) for s, e in spans if s < b and e > a]
+    if not inside:
+        return gap
+    free = [g for g in _gaps([(a - 1, a), *inside, (b, b + 1)]) if g[1] > g[0]]
+    return max(free, key=lambda g: g[1] - g[0]) if free else gap
+
+
+def _host(e: Element, tiles: Sequence[tuple[int, int]],
+          regions: Sequence[Region | None]) -> int | None:
+    """Index of the tile ``e`` stands in front of, or ``None`` (module docstring)."""
+    x0, _, x1, _ = e.box
+    for j, (a, b) in enumerate(tiles):
+        split = regions[j] is not None and regions[j].children   # a tile that is split
+        if split and min(x1, b) - max(x0, a) >= HOST_SHARE * (x1 - x0):
+            return j
+    return None
+
+
+def _hang(fronts: Sequence[Element], floors: Sequence[tuple[int, int]],
+          tiles: Sequence[Sequence[tuple[int, int]]], regions: Sequence[Sequence[Region | None]]
+          ) -> list[list[tuple[int | None, Region]]]:
+    """:attr:`ElementLayout.fronts` of protruding elements (module docstring)."""
+    out: list[list[tuple[int | None, Region]]] = [[] for _ in floors]
+    starts = [y0 for y0, _ in floors]
+    for e in sorted(fronts, key=lambda e: (e.box[0], e.box[1])):
+        i = max(0, int(np.searchsorted(starts, (e.box[1] + e.box[3]) / 2, side="right")) - 1)
+        leaf = Region(box=e.box, role="element", label=e.label, strength=e.score)
+        out[i].append((_host(e, tiles[i], regions[i]), leaf))
+    return out
 
 
 def element_region(box: tuple[int, int, int, int], elements: Sequence[Element]) -> Region:
@@ -143,8 +194,8 @@ def _peel(inner: Region, box, axis: str, a: int, b: int, strength: float) -> Reg
 
 
 def element_layout(elements: Sequence[Element], gray: np.ndarray, occupancy: np.ndarray,
-                   px_per_m: float, edges: tuple[np.ndarray, np.ndarray] | None = None
-                   ) -> ElementLayout:
+                   px_per_m: float, edges: tuple[np.ndarray, np.ndarray] | None = None,
+                   fronts: Sequence[Element] = ()) -> ElementLayout:
     """Floors, tiles and tile refinements around ``elements`` (module docstring).
 
     Parameters
@@ -158,12 +209,17 @@ def element_layout(elements: Sequence[Element], gray: np.ndarray, occupancy: np.
         Scale for the interest functions' smoothing (σ = 0.1 m).
     edges : (hor, ver), optional
         :func:`~.splits.edge_maps` of ``gray`` when the caller has them already.
+    fronts : protruding elements (:func:`~.detect.detect_protruding`), pixel boxes of ``gray``
+        Balconies: they may overlap ``elements`` and are hung on tiles and floors (module
+        docstring).
     """
     h, w = gray.shape
     hor, ver = edge_maps(gray) if edges is None else edges
     sigma = max(1.0, 0.1 * px_per_m)
     ver_y, _ = interest_functions(hor, ver, sigma_px=sigma)
-    lines = [_line_in_gap(ver_y, g) for g in _gaps([(e.box[1], e.box[3]) for e in elements])]
+    railings = [(e.box[1], e.box[3]) for e in fronts]
+    lines = [_line_in_gap(ver_y, _free_part(g, railings))
+             for g in _gaps([(e.box[1], e.box[3]) for e in elements])]
     edges = [0] + lines + [h]
     floors = [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
     floor_conf = [round(float(1.0 - occupancy[y].mean()), 4) for y in lines]
@@ -189,7 +245,7 @@ def element_layout(elements: Sequence[Element], gray: np.ndarray, occupancy: np.
     period = float(np.median(inner)) if inner else 0.0
     return ElementLayout(floors=floors, tiles=tiles, regions=regions,
                          confidences={"floors": floor_conf, "tiles": tile_conf},
-                         floor_period_px=period)
+                         floor_period_px=period, fronts=_hang(fronts, floors, tiles, regions))
 
 
 def _leader_groups(sigs: list[np.ndarray], tol: float) -> list[int]:
@@ -208,10 +264,20 @@ def _leader_groups(sigs: list[np.ndarray], tol: float) -> list[int]:
     return out
 
 
+def _front_signature(fronts: Sequence[Region], x0: int, y0: int) -> tuple[tuple, list[int]]:
+    """Labels and boxes (relative to ``(x0, y0)``) of the protruding elements of one host."""
+    sig: list[int] = []
+    for r in fronts:
+        bx0, by0, bx1, by1 = r.box
+        sig += [bx0 - x0, by0 - y0, bx1 - bx0, by1 - by0]
+    return tuple(r.label for r in fronts), sig
+
+
 def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[tuple[int, int]]],
                     regions: Sequence[Sequence[Region | None]] | None,
                     floor_clusters: Sequence[int], tile_clusters: Sequence[Sequence[int]],
-                    tol: float) -> tuple[list[int], list[list[int]]]:
+                    tol: float, fronts: Sequence[Sequence[tuple[int | None, Region]]] = ()
+                    ) -> tuple[list[int], list[list[int]]]:
     """Appearance clusters (§2.3) split further by geometry, so that the rules extracted from
     the tree (§5: one rule per cluster, sizes averaged over its members) derive every member
     within about ``tol`` pixels of where it was found.
@@ -219,25 +285,30 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
     Tiles stay together when they share an appearance cluster and their element labels, and
     their sizes and element boxes (relative to the tile) agree within ``tol``; floors when they
     share an appearance cluster and their sequence of tile clusters, and their heights agree
-    within ``tol``.  The elements themselves are not moved: synchronising them instead (§3.2:
-    every window edge moved to the median of its 1-D cluster of edges) lowered window F1 on
-    CMP val from 0.683 to 0.676.
+    within ``tol``.  Protruding elements (``fronts``, :attr:`ElementLayout.fronts`) count as
+    elements of the tile or floor they hang on.  The elements themselves are not moved:
+    synchronising them instead (§3.2: every window edge moved to the median of its 1-D cluster
+    of edges) lowered window F1 on CMP val from 0.683 to 0.676.
 
     ``floors``, ``tiles`` and ``regions`` are an :class:`ElementLayout`'s (or stage 1's with
     the §3 refinements: element leaves are those with ``role == "element"``).  Returns new
     dense floor and tile cluster ids (0, 1, … in order of first appearance).
     """
+    def hung(i: int, j: int | None) -> list[Region]:
+        return [r for k, r in fronts[i] if k == j] if i < len(fronts) else []
+
     keys, sigs, where = [], [], []
     for i, row in enumerate(tiles):
         y0, y1 = floors[i]
         for j, (x0, x1) in enumerate(row):
             els = element_leaves(regions[i][j] if regions is not None else None)
-            keys.append((int(tile_clusters[i][j]), tuple(e.label for e in els)))
+            labels, front_sig = _front_signature(hung(i, j), x0, y0)
+            keys.append((int(tile_clusters[i][j]), tuple(e.label for e in els), labels))
             sig = [x1 - x0, y1 - y0]
             for e in els:
                 ex0, ey0, ex1, ey1 = e.box
                 sig += [ex0 - x0, ey0 - y0, ex1 - ex0, ey1 - ey0]
-            sigs.append(np.asarray(sig, np.float64))
+            sigs.append(np.asarray(sig + front_sig, np.float64))
             where.append((i, j))
     new_tiles = [[0] * len(row) for row in tiles]
     ids: dict[tuple, int] = {}
@@ -246,8 +317,11 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
         for k, g in zip(idx, _leader_groups([sigs[k] for k in idx], tol)):
             i, j = where[k]
             new_tiles[i][j] = ids.setdefault((key, g), len(ids))
-    fkeys = [(int(floor_clusters[i]), tuple(new_tiles[i])) for i in range(len(floors))]
-    heights = [np.array([b - a], np.float64) for a, b in floors]
+    fkeys, heights = [], []
+    for i, (a, b) in enumerate(floors):
+        labels, front_sig = _front_signature(hung(i, None), 0, a)
+        fkeys.append((int(floor_clusters[i]), tuple(new_tiles[i]), labels))
+        heights.append(np.array([b - a, *front_sig], np.float64))
     new_floors = [0] * len(floors)
     fids: dict[tuple, int] = {}
     for key in dict.fromkeys(fkeys):

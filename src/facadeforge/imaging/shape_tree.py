@@ -6,14 +6,31 @@ reads):
 
 - metres, facade frame: origin at the bottom-left corner, x right, y up, every scope flat
   (``size[2] == 0``); the root ``Facade`` spans ``W × H``;
-- every internal node is split along one axis; its children carry ``operator="split"`` and
-  ``params={"axis": "x"|"y", "index": i}`` (plus ``"split"``: the §3.1 split type, on tile
-  refinements) and are ordered by increasing coordinate — floors bottom first;
+- every internal node is split along one axis; its split children carry
+  ``operator="split"`` and ``params={"axis": "x"|"y", "index": i}`` (plus ``"split"``: the §3.1
+  split type, on tile refinements), are ordered by increasing coordinate — floors bottom
+  first — and tile the node exactly (the *partition*);
 - ``Facade → Floor (axis y) → Tile (axis x) → Region …`` with ``tags["cluster"]`` on every
   node below the root (same cluster = same appearance), ``tags["box_px"]`` the rectified pixel
   box ``[x0, y0, x1, y1]`` (rows down) and ``tags["confidence"]`` where known;
 - leaves carry a canonical ``label`` and, for elements, ``tags["element"]`` (library name),
-  ``tags["depth"]`` (metres, negative = recessed) and ``tags["asset"]`` (relative OBJ path).
+  ``tags["depth"]`` (metres, negative = recessed) and ``tags["asset"]`` (relative OBJ path);
+- **protruding elements** (balconies) are not part of the partition.  They are leaf children
+  with ``operator="insert"`` (:data:`facadeforge.model.shape.INSERT`) and
+  ``params={"index": k}`` (left to right) of the split shape they stand in front of — the tile
+  of the window whose foot they hide, or the floor when a balcony band runs in front of
+  several tiles — after its split children: ``Region`` leaves with ``tags["cluster"]``
+  ``"<host cluster>.p<k>"``, a positive depth and a library balcony.  Their scope may reach
+  beyond the host's (a balcony hanging below its floor line).  The partition behind them stays
+  whole: the window behind a railing is still a window, as CMP labels it (balcony pixels
+  painted over window and wall) and as it is in 3D (Müller 2007 §4–5: the balcony is a
+  library element inserted in front of the facade plane, not a wall region).
+  :meth:`Shape.painting_order` — hence :func:`facadeforge.exchange.raster.label_map` — puts
+  inserted shapes after the partition's leaves, and :mod:`facadeforge.grammar.extract` emits
+  them as ``[ t(…) s(…) Balcony_… ]`` branches before the host's split.  (The alternative, a
+  balcony band at the bottom of the tile's partition, would cut every window behind a railing
+  in two, and give the 3D model a strip of the facade plane labelled balcony instead of a
+  balcony standing in front of it.)
 """
 
 from __future__ import annotations
@@ -24,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..model.scope import Scope
-from ..model.shape import Shape
+from ..model.shape import INSERT, Shape
 
 __all__ = ["PixelFrame", "build_shape_tree"]
 
@@ -91,13 +108,27 @@ def _fill(node: Shape, frame: PixelFrame, region, cluster: str,
     node.tags.update({k: v for k, v in info.items() if v is not None})
 
 
+def _hang(host: Shape, frame: PixelFrame, fronts: Sequence[object],
+          leaf_info: Callable[[object, str], dict]) -> None:
+    """Append the protruding element leaves ``fronts`` (left to right) to ``host``."""
+    for k, region in enumerate(fronts):
+        node = Shape("Region", frame.scope(region.box), operator=INSERT, params={"index": k})
+        cluster = f"{host.tags['cluster']}.p{k}"
+        node.tags = {"cluster": cluster, "box_px": [int(v) for v in region.box],
+                     "confidence": round(float(getattr(region, "strength", 0.0)), 4)}
+        _fill(node, frame, region, cluster, leaf_info)
+        node.parent = host
+        host.children.append(node)
+
+
 def build_shape_tree(frame: PixelFrame, floors: Sequence[tuple[int, int]],
                      tiles: Sequence[Sequence[tuple[int, int]]], floor_clusters: Sequence[int],
                      tile_clusters: Sequence[Sequence[int]], *,
                      regions: Sequence[Sequence[object]] | None = None,
                      leaf_info: Callable[[object, str], dict] | None = None,
                      floor_confidence: Sequence[float] = (),
-                     tile_confidence: Sequence[Sequence[float]] = ()) -> Shape:
+                     tile_confidence: Sequence[Sequence[float]] = (),
+                     fronts: Sequence[Sequence[tuple[int | None, object]]] = ()) -> Shape:
     """Shape tree of an analysed facade.
 
     Parameters
@@ -119,6 +150,11 @@ def build_shape_tree(frame: PixelFrame, floors: Sequence[tuple[int, int]],
         Stored on the floor *above* each boundary line as ``tags["confidence"]``.
     tile_confidence : per floor, one per tile boundary
         Stored on the tile left of each boundary.
+    fronts : per floor, ``(tile index or None, leaf region)`` pairs, optional
+        Protruding elements hung on a tile or (``None``, or a tile that is a leaf) on the
+        floor, inserted outside the partition (module docstring;
+        :attr:`~.element_layout.ElementLayout.fronts`).  Their labels and tags come from
+        ``leaf_info`` too.
     """
     leaf_info = leaf_info or (lambda region, cluster: {"label": getattr(region, "role", "")
                                                        or "wall"})
@@ -141,6 +177,13 @@ def build_shape_tree(frame: PixelFrame, floors: Sequence[tuple[int, int]],
             _fill(tnode, frame, region, cluster, leaf_info)
             tnodes.append(tnode)
         _attach(fnode, tnodes)
+        hung = fronts[i] if i < len(fronts) else ()
+        for j, tnode in enumerate(tnodes):
+            if tnode.children:        # a leaf tile keeps its label: its fronts go to the floor
+                _hang(tnode, frame, [r for k, r in hung if k == j], leaf_info)
+        _hang(fnode, frame, [r for k, r in hung
+                             if k is None or not 0 <= k < len(tnodes) or not tnodes[k].children],
+              leaf_info)
         floor_nodes.append(fnode)
     _attach(root, floor_nodes)
     for node in root.walk():                              # drop unknown confidences

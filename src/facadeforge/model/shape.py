@@ -14,6 +14,11 @@ from .scope import Scope
 
 _ids = itertools.count(1)
 
+#: ``Shape.operator`` of a shape inserted in front of its parent outside the parent's split
+#: partition — a balcony before the tile or floor it stands on (see
+#: :mod:`facadeforge.imaging.shape_tree`).  Rasterised after the partition's leaves.
+INSERT: str = "insert"
+
 
 @dataclass(eq=False)
 class Shape:
@@ -65,6 +70,21 @@ class Shape:
 
     def leaves(self) -> Iterator[Shape]:
         return (s for s in self.walk() if not s.children)
+
+    def painting_order(self) -> list[Shape]:
+        """The leaves, those below an :data:`INSERT`-ed shape after all others (each group in
+        :meth:`walk` order): what stands in front of the partition is drawn over it."""
+        behind: list[Shape] = []
+        front: list[Shape] = []
+        stack: list[tuple[Shape, bool]] = [(self, False)]
+        while stack:
+            node, inserted = stack.pop()
+            inserted = inserted or node.operator == INSERT
+            if node.children:
+                stack.extend((c, inserted) for c in reversed(node.children))
+            else:
+                (front if inserted else behind).append(node)
+        return behind + front
 
     def dump(self, precision: int = 3) -> str:
         """Stable indented text form, for golden tests and debugging."""
