@@ -215,14 +215,20 @@ def _instances(layout: SplitLayout, width: float, height: float, attrs: Mapping[
 
 
 def _cells(layout: SplitLayout, width: float, height: float, attrs: Mapping[str, Any],
-           lay: Layout, ground_top_m: float, unit_m: float
-           ) -> list[tuple[tuple[int, int], np.ndarray, float]]:
+           lay: Layout, ground_top_m: float, unit_m: float, known: list | None = None
+           ) -> tuple[list[tuple[tuple[int, int], np.ndarray, float]], list]:
     """The upper-floor openings of ``lay`` as ``((floor, column), box, balcony share)``, indices
-    from 0, each told apart by the grammar (:func:`_instances` on ``windowCells``)."""
-    n_columns = _grid_size(layout)[1]
-    which = _instances(layout, width, height, attrs, lay, "windowCells", WINDOW_VALUES, unit_m)
-    return [(divmod(which[i], n_columns), b, g) for i, b, g in _openings(lay, ground_top_m)
-            if i in which]
+    from 0, each told apart by the grammar (:func:`_instances` on ``windowCells``), and the
+    instances of all of ``lay``'s openings in order (``None`` where unknown).  ``known``: those
+    of an earlier layout of the same grid (other bands or balconies, the same windows in the
+    same order), used instead of asking the grammar again when the counts agree."""
+    found = _openings(lay, ground_top_m)
+    if known is None or len(known) != len(found):
+        n_columns = _grid_size(layout)[1]
+        which = _instances(layout, width, height, attrs, lay, "windowCells", WINDOW_VALUES,
+                           unit_m)
+        known = [divmod(which[i], n_columns) if i in which else None for i, _, _ in found]
+    return [(fj, b, g) for fj, (_, b, g) in zip(known, found) if fj is not None], known
 
 
 def differentiate(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[str, Any],
@@ -270,10 +276,11 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     a balcony in front of each window instead (where a band is better than bare wall but the
     photo shows separate balconies); per floor the one with the lower energy over the floor's
     rows is kept."""
-    banded = _bands(energy, layout, base, width, height)
-    if banded is None:
+    found = _bands(energy, layout, base, width, height)
+    if found is None:
         return None
-    with_bands = _windows(energy, layout, banded, width, height, n_columns)
+    banded, known = found
+    with_bands = _windows(energy, layout, banded, width, height, n_columns, known)
     cells = banded["bandCells"]
     ground_top = float(base["groundTop"]) * height
     frac = float(base["balconyFrac"])
@@ -285,8 +292,8 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     bare_cells = cells.copy()
     bare_cells[[f * BAND_VALUES for f in floors]] = -1.0
     bare = {**banded, "bandCells": bare_cells}
-    spans = _floor_rows(energy, layout, bare, width, height, ground_top)
-    without = _windows(energy, layout, bare, width, height, n_columns)
+    spans = _floor_rows(energy, layout, bare, width, height, ground_top, known)
+    without = _windows(energy, layout, bare, width, height, n_columns, known)
     row_a = _row_energy(energy, layout.derive(width, height, with_bands), width, height)
     row_b = _row_energy(energy, layout.derive(width, height, without), width, height)
     best = {**with_bands, "windowCells": with_bands["windowCells"].copy(),
@@ -312,15 +319,16 @@ def _row_energy(energy: SegmentationEnergy, lay: Layout, width: float, height: f
 
 
 def _floor_rows(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[str, Any],
-                width: float, height: float, ground_top: float) -> dict[int, tuple[int, int]]:
+                width: float, height: float, ground_top: float, known: list | None = None
+                ) -> dict[int, tuple[int, int]]:
     """Pixel rows ``[r0, r1)`` of each upper floor without a band (its body is the floor),
-    from its openings."""
+    from its openings (``known``: as for :func:`_cells`)."""
     lay = layout.derive(width, height, attrs)
     frame = _Frame(energy, width, height)
     sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
     out = {}
     for (f, _), b, _ in _cells(layout, width, height, attrs, lay, ground_top,
-                               float(attrs["windowWidth"]) * width):
+                               float(attrs["windowWidth"]) * width, known)[0]:
         fb_h = (b[3] - b[1]) / max(wh, _EPS)
         bottom = b[1] - sill * fb_h
         r0, _, r1, _ = frame.box((0.0, bottom, width, bottom + fb_h))
@@ -329,9 +337,9 @@ def _floor_rows(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[
 
 
 def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
-           width: float, height: float) -> dict[str, Any] | None:
-    """Stage 1: each floor's running balcony band (``bandCells``), or ``None`` without
-    openings to place the floors by."""
+           width: float, height: float) -> tuple[dict[str, Any], list] | None:
+    """Stage 1: each floor's running balcony band (``bandCells``) and the instances of the
+    openings (as for :func:`_cells`), or ``None`` without openings to place the floors by."""
     attrs = base
     band_cells = base["bandCells"].copy()
     base = {**base, "bandCells": band_cells}
@@ -342,7 +350,7 @@ def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any]
 
     # 1. running balcony bands
     window_m = float(attrs["windowWidth"]) * width
-    openings = _cells(layout, width, height, base, lay, ground_top, window_m)
+    openings, known = _cells(layout, width, height, base, lay, ground_top, window_m)
     if not openings:
         return None
     body = {}   # floor index → (bottom, height) of its body in metres; the band is below
@@ -391,13 +399,14 @@ def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any]
         band_cells[k] = (new[2] - new[0]) / max(unit_px, _EPS) - (1.0 if f in bands else 0.0)
         band_cells[k + 1] = max(0.0, (new[1] - c0f) / max(c1f - c0f, _EPS))
         band_cells[k + 2] = max(0.0, (c1f - new[3]) / max(c1f - c0f, _EPS))
-    return base
+    return base, known
 
 
 def _windows(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
-             width: float, height: float, n_columns: int) -> dict[str, Any]:
+             width: float, height: float, n_columns: int, known: list | None = None
+             ) -> dict[str, Any]:
     """Stages 2–3: each window opening's edges, or no window, and the balcony in front of it
-    (``windowCells``)."""
+    (``windowCells``; ``known``: as for :func:`_cells`)."""
     attrs = base
     window_cells = base["windowCells"].copy()
     base = {**base, "windowCells": window_cells}
@@ -405,8 +414,8 @@ def _windows(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, An
     frame = _Frame(energy, width, height)
     cost = energy.cost
     ground_top = float(attrs["groundTop"]) * height
-    openings = _cells(layout, width, height, base, lay, ground_top,
-                      float(attrs["windowWidth"]) * width)
+    openings, _ = _cells(layout, width, height, base, lay, ground_top,
+                         float(attrs["windowWidth"]) * width, known)
     sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
     x_lo = float(attrs.get("leftMargin", 0.0)) * width
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
