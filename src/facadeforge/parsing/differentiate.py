@@ -336,14 +336,21 @@ def _floor_rows(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[
     return out
 
 
+def _working_copy(layout: SplitLayout, base: dict[str, Any], name: str, width: float,
+                  height: float) -> tuple[dict[str, Any], np.ndarray, Layout]:
+    """A stage's working attributes: ``base`` with its own copy of the array attribute
+    ``name`` (which the stage fills in), that copy, and the layout they derive."""
+    cells = np.array(base[name], dtype=float)
+    base = {**base, name: cells}
+    return base, cells, layout.derive(width, height, base)
+
+
 def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any],
            width: float, height: float) -> tuple[dict[str, Any], list] | None:
     """Stage 1: each floor's running balcony band (``bandCells``) and the instances of the
     openings (as for :func:`_cells`), or ``None`` without openings to place the floors by."""
     attrs = base
-    band_cells = base["bandCells"].copy()
-    base = {**base, "bandCells": band_cells}
-    lay = layout.derive(width, height, base)
+    base, band_cells, lay = _working_copy(layout, base, "bandCells", width, height)
     frame = _Frame(energy, width, height)
     cost = energy.cost
     ground_top = float(attrs["groundTop"]) * height
@@ -408,9 +415,7 @@ def _windows(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, An
     """Stages 2–3: each window opening's edges, or no window, and the balcony in front of it
     (``windowCells``; ``known``: as for :func:`_cells`)."""
     attrs = base
-    window_cells = base["windowCells"].copy()
-    base = {**base, "windowCells": window_cells}
-    lay = layout.derive(width, height, base)
+    base, window_cells, lay = _working_copy(layout, base, "windowCells", width, height)
     frame = _Frame(energy, width, height)
     cost = energy.cost
     ground_top = float(attrs["groundTop"]) * height
