@@ -173,3 +173,22 @@ def test_separate_balconies_replace_a_running_band(grid):
     after = (energy.rasterize(lay) == truth).mean()
     assert after > 0.995 and before < 0.98, (before, after)
     assert out["bandCells"][(2 - 1) * 3] == -1.0             # floor 2's band is gone
+
+
+def test_instances_are_told_apart_beside_a_sliver_of_wall(grid):
+    """The last column ends 1.5 mm short of the facade's edge: widening the windows to tell
+    them apart makes that sliver of wall vanish, so a smaller widening is tried, and a missing
+    window is still found."""
+    rules, layout, attrs = grid
+    attrs = {**attrs, "column5": 1 - attrs["windowWidth"] - 1e-4}
+    consistent = layout.derive(W, H, attrs)
+    energy0 = _uniform_energy()
+    truth = energy0.rasterize(consistent)
+    windows = [b for b, lab in zip(energy0.pixel_boxes(consistent), consistent.labels)
+               if lab == "window"]
+    r0, c0, r1, c1 = windows[2]
+    truth[r0:r1, c0:c1] = CMP6.index("wall")
+    energy = SegmentationEnergy(_prob(truth), CMP6)
+    out = differentiate(energy, layout, attrs, W, H, parameters_of(rules))
+    assert out is not None
+    assert (energy.rasterize(layout.derive(W, H, out)) == truth).mean() > 0.995

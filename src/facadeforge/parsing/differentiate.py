@@ -69,8 +69,9 @@ DOOR_BUDGET = 80
 SPAN = 0.7
 #: Coordinate-descent rounds over an instance's edges.
 ROUNDS = 3
-#: Width change (in units of the instance's width) that tells instances apart (:func:`_instances`).
-PROBE = 1e-4
+#: Width changes (in units of the instance's width) that tell instances apart, tried in turn
+#: (:func:`_instances`).
+PROBES = (1e-4, 1e-7)
 _EPS = 1e-6
 
 
@@ -190,22 +191,30 @@ def _instances(layout: SplitLayout, width: float, height: float, attrs: Mapping[
     instance index.
 
     The grammar itself is asked: every instance is widened by its own tiny amount
-    (:data:`PROBE` × (index + 1) units) and the layout derived once more; a leaf whose width grew
-    by such an amount belongs to that instance.  Placeholders that derive empty, columns that
-    overlap or run off the facade and floors of zero height are then no obstacle — which
-    matching leaves to instances by their rank among the positions could not handle (a fifth of
-    the CMP validation facades).  Leaves clipped by their split (the width change is not a
-    whole multiple) and layouts whose leaves change are left out."""
+    (``probe`` × (index + 1) units, ``probe`` from :data:`PROBES`) and the layout derived once
+    more; a leaf whose width grew by such an amount belongs to that instance.  Placeholders that
+    derive empty, columns that overlap or run off the facade and floors of zero height are then
+    no obstacle — which matching leaves to instances by their rank among the positions could
+    not handle (a fifth of the CMP validation facades).  Leaves clipped by their split (the
+    width change is not a whole multiple) are left out.  Widening can make a sliver of wall
+    beside the instances vanish (the split drops pieces of 1e-9 m and less), which changes the
+    leaves: the next, smaller amount is then tried, and ``{}`` returned when none keeps them.
+    The instance's width must grow by exactly value 1 × ``unit_m`` (a window without insets,
+    as before stage 2 writes them)."""
     cells = np.array(attrs[name], dtype=float)
     n = cells.size // stride
     if n == 0 or unit_m <= _EPS:
         return {}
-    cells[1::stride] += PROBE * (1.0 + np.arange(n))
-    probe = layout.derive(width, height, {**attrs, name: cells})
-    if list(probe.labels) != list(lay.labels):
+    for probe in PROBES:
+        widened = cells.copy()
+        widened[1::stride] += probe * (1.0 + np.arange(n))
+        grown = layout.derive(width, height, {**attrs, name: widened})
+        if list(grown.labels) == list(lay.labels):
+            break
+    else:
         return {}
-    grow = ((probe.boxes[:, 2] - probe.boxes[:, 0]) - (lay.boxes[:, 2] - lay.boxes[:, 0])) / (
-        PROBE * unit_m)
+    grow = ((grown.boxes[:, 2] - grown.boxes[:, 0]) - (lay.boxes[:, 2] - lay.boxes[:, 0])) / (
+        probe * unit_m)
     out = {}
     for i, d in enumerate(grow):
         k = int(round(d))
@@ -294,8 +303,8 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     bare = {**banded, "bandCells": bare_cells}
     spans = _floor_rows(energy, layout, bare, width, height, ground_top, known)
     without = _windows(energy, layout, bare, width, height, n_columns, known)
-    row_a = _row_energy(energy, layout.derive(width, height, with_bands), width, height)
-    row_b = _row_energy(energy, layout.derive(width, height, without), width, height)
+    row_a = _row_energy(energy, layout.derive(width, height, with_bands))
+    row_b = _row_energy(energy, layout.derive(width, height, without))
     best = {**with_bands, "windowCells": with_bands["windowCells"].copy(),
             "bandCells": with_bands["bandCells"].copy()}
     per_floor = n_columns * WINDOW_VALUES
@@ -311,8 +320,7 @@ def _upper_floors(energy: SegmentationEnergy, layout: SplitLayout, base: dict[st
     return best
 
 
-def _row_energy(energy: SegmentationEnergy, lay: Layout, width: float, height: float
-                ) -> np.ndarray:
+def _row_energy(energy: SegmentationEnergy, lay: Layout) -> np.ndarray:
     """The energy of ``lay`` summed over each pixel row."""
     raster = energy.rasterize(lay)
     return np.take_along_axis(energy.cost, raster[..., None].astype(np.intp), 2)[..., 0].sum(1)
