@@ -85,6 +85,17 @@ def test_later_shapes_paint_over_earlier():
     np.testing.assert_array_equal(out, [[2, 4, 4, 4]] * 3)
 
 
+def test_model_parts_in_front_of_the_facade_paint_last():
+    """A balcony the rules insert before the wall behind it (CGA branches come first) still
+    shows in a model's label map: parts standing in front of the facade plane paint last."""
+    root = Shape("Facade", FRAME.copy())
+    local = np.array([[1, 0, 0.9], [3, 0, 0.9], [3, 1, 0.9], [1, 1, 0.9]], float)   # 0.9 m out
+    balcony = Part(Mesh.from_polygons([FRAME.to_world(local)]), "balcony", symbol="Balcony")
+    wall = Part(_quad(0, 0, 4, 3), "wall", symbol="Wall")
+    out = label_map(Model(parts=[balcony, wall], root=root), px_per_m=1)
+    np.testing.assert_array_equal(out, [[1, 1, 1, 1], [1, 1, 1, 1], [1, 4, 4, 1]])
+
+
 def test_size_and_resolution():
     assert label_map(facade(), px_per_m=10).shape == (30, 40)
     small = label_map(facade(), size=(3, 4))

@@ -3,7 +3,8 @@
 A layout is projected into the x/y frame of its root scope (the facade plane: x to the right,
 y up), or into the world x/y plane when there is no root.  :func:`label_map` samples each pixel
 at its centre and paints leaf shapes in order (of a shape tree: :meth:`Shape.painting_order`,
-inserted shapes such as balconies over the partition), later shapes over earlier ones, with the
+inserted shapes such as balconies over the partition; of a model: its parts, those standing in
+front of the root scope's plane last), later shapes over earlier ones, with the
 index of their canonical label (:data:`LABEL_INDEX`, the order of
 :class:`~facadeforge.model.Labels`).  Unlabelled leaves get the label guessed from their symbol,
 else ``other``.  Row 0 of the array is the top of the facade.
@@ -94,8 +95,12 @@ def _layout(source: Source) -> _Layout:
         models = as_models(source)
         root = models[0].root
         frame = root.scope if root is not None else None
+        parts = [p for m in models for p in m.parts]
+        # what stands in front of the frame's plane (balconies on a facade) is painted over
+        # what lies in it, whatever the rules' order: a stable partition
+        parts.sort(key=lambda p: _protrudes(frame, p.mesh.vertices))
         items = [_Item(p.label, p.symbol, [_project(frame, poly) for poly in p.mesh.polygons()])
-                 for m in models for p in m.parts]
+                 for p in parts]
     return _Layout(items, _extent(frame, items))
 
 
@@ -112,6 +117,14 @@ def _shape_items(root: Shape) -> list[_Item]:
             continue
         items.append(_Item(leaf.label, leaf.symbol, [_project(root.scope, p) for p in polys]))
     return items
+
+
+def _protrudes(frame: Scope | None, vertices: np.ndarray) -> bool:
+    """Whether any of ``vertices`` lies in front of ``frame``'s x/y plane (local z > 1 mm)."""
+    v = np.asarray(vertices, float).reshape(-1, 3)
+    if frame is None or not len(v):
+        return False
+    return bool(frame.to_local(v)[:, 2].max() > 1e-3)
 
 
 def _project(frame: Scope | None, points: np.ndarray) -> np.ndarray:
