@@ -360,3 +360,24 @@ def test_facade_extent_crops_background_around_the_facade():
     small[90:110, 140:160, 0], small[90:110, 140:160, 1] = 0.0, 1.0
     assert _facade_extent(small, classes) is None         # a blob is not a facade to crop to
     assert _facade_extent(prob[:, :, 1:], classes[1:]) is None   # no background class
+
+
+def test_balconies_alone_are_no_openings():
+    """A facade whose only elements are balconies (railings in front of bare wall) is still
+    flagged for review: balconies are not windows or doors."""
+    from types import SimpleNamespace
+
+    from facadeforge.imaging.shape_tree import PixelFrame, build_shape_tree
+    from facadeforge.imaging.refine import Region
+    from facadeforge.reconstruction import review_flags
+
+    frame = PixelFrame(100, 100, (10.0, 10.0))
+    floors = [(0, 50), (50, 100)]
+    tiles = [[(0, 100)], [(0, 100)]]
+    rail = Region((10, 80, 90, 95))
+    rail.role = "balcony"
+    tree = build_shape_tree(frame, floors, tiles, [0, 0], [[0], [0]],
+                            fronts=[[], [(None, rail)]])
+    assert any(n.operator == INSERT and n.label == "balcony" for n in tree.walk())
+    flags = review_flags(SimpleNamespace(floor_period_px=50.0), tree, True, "", [])
+    assert "no windows or doors found" in flags

@@ -369,7 +369,8 @@ def review_flags(structure, tree: Shape, rect_ok: bool, rect_reason: str,
         upper = Counter(f.tags["cluster"] for f in floors[1:])
         if ground.tags["cluster"] not in upper:
             flags.append("irregular ground floor (unlike every upper floor)")
-    n_el = sum(1 for s in tree.leaves() if s.label != "wall")
+    # balconies (inserted in front) are not openings: a facade of railings alone is flagged
+    n_el = sum(1 for s in tree.leaves() if s.label not in ("wall", "balcony"))
     if n_el == 0:
         flags.append("no windows or doors found")
     return flags
