@@ -367,8 +367,8 @@ def test_balconies_alone_are_no_openings():
     flagged for review: balconies are not windows or doors."""
     from types import SimpleNamespace
 
-    from facadeforge.imaging.shape_tree import PixelFrame, build_shape_tree
     from facadeforge.imaging.refine import Region
+    from facadeforge.imaging.shape_tree import PixelFrame, build_shape_tree
     from facadeforge.reconstruction import review_flags
 
     frame = PixelFrame(100, 100, (10.0, 10.0))
