@@ -7,7 +7,7 @@ its final hill-climbing energy) is averaged over facades — the comparison of F
 ``simon2011``.  Writes ``benchmarks/results/parsing_curves.json`` and
 ``docs/images/energy_curves.png``.
 
-    .venv/bin/python benchmarks/parsing.py [--n 10] [--budget N (default: parse's, 1200)]
+    .venv/bin/python benchmarks/parsing.py [--n 10] [--budget N (default: parse's)]
 """
 
 from __future__ import annotations
