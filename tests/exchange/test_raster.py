@@ -96,6 +96,19 @@ def test_model_parts_in_front_of_the_facade_paint_last():
     np.testing.assert_array_equal(out, [[1, 1, 1, 1], [1, 1, 1, 1], [1, 4, 4, 1]])
 
 
+def test_a_leaf_with_a_balcony_inserted_in_front_keeps_its_label():
+    """A window whose only child is a balcony inserted in front of it (outside any split) is
+    still painted as a window, with the balcony over its lower part."""
+    from facadeforge.model.shape import INSERT
+
+    root = Shape("Facade", FRAME.copy())
+    root.add(Shape("Wall", _scope(0, 0, 4, 3), label="wall"))
+    window = root.add(Shape("Window", _scope(1, 0, 2, 3), label="window"))
+    window.add(Shape("Balcony", _scope(1, 0, 2, 1), label="balcony", operator=INSERT))
+    out = label_map(root, px_per_m=1)
+    np.testing.assert_array_equal(out, [[1, 2, 2, 1], [1, 2, 2, 1], [1, 4, 4, 1]])
+
+
 def test_size_and_resolution():
     assert label_map(facade(), px_per_m=10).shape == (30, 40)
     small = label_map(facade(), size=(3, 4))

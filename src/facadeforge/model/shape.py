@@ -73,17 +73,19 @@ class Shape:
 
     def painting_order(self) -> list[Shape]:
         """The leaves, those below an :data:`INSERT`-ed shape after all others (each group in
-        :meth:`walk` order): what stands in front of the partition is drawn over it."""
+        :meth:`walk` order): what stands in front of the partition is drawn over it.  A shape
+        whose only children are inserted ones is a leaf of the partition too (drawn behind
+        them)."""
         behind: list[Shape] = []
         front: list[Shape] = []
         stack: list[tuple[Shape, bool]] = [(self, False)]
         while stack:
             node, inserted = stack.pop()
             inserted = inserted or node.operator == INSERT
-            if node.children:
-                stack.extend((c, inserted) for c in reversed(node.children))
-            else:
+            kids = node.children
+            if not kids or all(c.operator == INSERT for c in kids):
                 (front if inserted else behind).append(node)
+            stack.extend((c, inserted) for c in reversed(kids))
         return behind + front
 
     def dump(self, precision: int = 3) -> str:
