@@ -264,13 +264,14 @@ def _leader_groups(sigs: list[np.ndarray], tol: float) -> list[int]:
     return out
 
 
-def _front_signature(fronts: Sequence[Region], x0: int, y0: int) -> tuple[tuple, list[int]]:
-    """Labels and boxes (relative to ``(x0, y0)``) of the protruding elements of one host."""
+def _signature(leaves: Sequence[Region], x0: int, y0: int) -> tuple[tuple, list[int]]:
+    """Labels and boxes (relative to ``(x0, y0)``) of element leaves, or of the protruding
+    elements of one host."""
     sig: list[int] = []
-    for r in fronts:
+    for r in leaves:
         bx0, by0, bx1, by1 = r.box
         sig += [bx0 - x0, by0 - y0, bx1 - bx0, by1 - by0]
-    return tuple(r.label for r in fronts), sig
+    return tuple(r.label for r in leaves), sig
 
 
 def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[tuple[int, int]]],
@@ -301,14 +302,11 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
     for i, row in enumerate(tiles):
         y0, y1 = floors[i]
         for j, (x0, x1) in enumerate(row):
-            els = element_leaves(regions[i][j] if regions is not None else None)
-            labels, front_sig = _front_signature(hung(i, j), x0, y0)
-            keys.append((int(tile_clusters[i][j]), tuple(e.label for e in els), labels))
-            sig = [x1 - x0, y1 - y0]
-            for e in els:
-                ex0, ey0, ex1, ey1 = e.box
-                sig += [ex0 - x0, ey0 - y0, ex1 - ex0, ey1 - ey0]
-            sigs.append(np.asarray(sig + front_sig, np.float64))
+            el_labels, el_sig = _signature(
+                element_leaves(regions[i][j] if regions is not None else None), x0, y0)
+            labels, front_sig = _signature(hung(i, j), x0, y0)
+            keys.append((int(tile_clusters[i][j]), el_labels, labels))
+            sigs.append(np.asarray([x1 - x0, y1 - y0, *el_sig, *front_sig], np.float64))
             where.append((i, j))
     new_tiles = [[0] * len(row) for row in tiles]
     ids: dict[tuple, int] = {}
@@ -319,7 +317,7 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
             new_tiles[i][j] = ids.setdefault((key, g), len(ids))
     fkeys, heights = [], []
     for i, (a, b) in enumerate(floors):
-        labels, front_sig = _front_signature(hung(i, None), 0, a)
+        labels, front_sig = _signature(hung(i, None), 0, a)
         fkeys.append((int(floor_clusters[i]), tuple(new_tiles[i]), labels))
         heights.append(np.array([b - a, *front_sig], np.float64))
     new_floors = [0] * len(floors)

@@ -333,14 +333,24 @@ def _floor_rows(energy: SegmentationEnergy, layout: SplitLayout, attrs: Mapping[
     from its openings (``known``: as for :func:`_cells`)."""
     lay = layout.derive(width, height, attrs)
     frame = _Frame(energy, width, height)
-    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
+    openings, _ = _cells(layout, width, height, attrs, lay, ground_top,
+                         float(attrs["windowWidth"]) * width, known)
     out = {}
-    for (f, _), b, _ in _cells(layout, width, height, attrs, lay, ground_top,
-                               float(attrs["windowWidth"]) * width, known)[0]:
-        fb_h = (b[3] - b[1]) / max(wh, _EPS)
-        bottom = b[1] - sill * fb_h
+    for f, (bottom, fb_h) in _bodies(attrs, openings).items():
         r0, _, r1, _ = frame.box((0.0, bottom, width, bottom + fb_h))
         out[f] = (max(0, round(r0)), min(frame.h, round(r1)))
+    return out
+
+
+def _bodies(attrs: Mapping[str, Any], openings) -> dict[int, tuple[float, float]]:
+    """Floor index → ``(bottom, height)`` in metres of the floor body holding its openings (as
+    :func:`_cells` gives them, before their own edges are fitted): an opening is
+    ``windowHeight`` of its body, ``sillHeight`` above its foot."""
+    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
+    out = {}
+    for (f, _), b, _ in openings:
+        fb_h = (b[3] - b[1]) / max(wh, _EPS)
+        out[f] = (b[1] - sill * fb_h, fb_h)
     return out
 
 
@@ -368,11 +378,7 @@ def _bands(energy: SegmentationEnergy, layout: SplitLayout, base: dict[str, Any]
     openings, known = _cells(layout, width, height, base, lay, ground_top, window_m)
     if not openings:
         return None
-    body = {}   # floor index → (bottom, height) of its body in metres; the band is below
-    sill, wh = float(attrs["sillHeight"]), float(attrs["windowHeight"])
-    for (f, _), b, _ in openings:
-        fb_h = (b[3] - b[1]) / max(wh, _EPS)
-        body[f] = (b[1] - sill * fb_h, fb_h)
+    body = _bodies(attrs, openings)   # the band, where there is one, is below the body
     raster = energy.rasterize(lay)
     x_lo = float(attrs.get("leftMargin", 0.0)) * width
     x_hi = (1.0 - float(attrs.get("rightMargin", 0.0))) * width
