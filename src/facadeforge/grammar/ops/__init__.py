@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from importlib import import_module
 
 from ..values import CGARuntimeError, Floating, Relative, to_float, to_str
 
@@ -115,6 +116,23 @@ class OpCall:
 
 def load_all() -> dict[str, OpSpec]:
     """Import every op module so that their decorators register them."""
-    from . import appearance, extra, geometry, meta, occlusion, roofs, subdivision, transform  # noqa: F401
+    from . import (  # noqa: F401
+        alonguv,
+        appearance,
+        cleanup,
+        extra,
+        geometry,
+        inlining,
+        meta,
+        occlusion,
+        perimeter,
+        roofs,
+        scoping,
+        subdivision,
+        transform,
+        trimming,
+    )
+    # last: it registers only the CityEngine operations no module above implements
+    import_module(f"{__package__}.unsupported")
 
     return OPERATIONS

@@ -233,11 +233,6 @@ def op_reverse_normals(call):
     call.state.geometry = call.state.geometry.reversed()
 
 
-for _name in ("cleanupGeometry", "reduceGeometry", "trim", "deleteHoles", "softenNormals",
-              "setNormals", "resetGeometry", "modify"):
-    operation(_name, 0, 8, selectors=tuple(range(8)))(lambda call: None)
-
-
 @operation("envelope", 3, 8, selectors=(0,))
 def op_envelope(call):
     """``envelope(direction, maxHeight, baseHeight, angle…)``: walls up to ``baseHeight``, then
@@ -667,20 +662,6 @@ def _convert(env, args):
     else:
         out = r2.T @ (r1 @ v)
     return float(out[comp])
-
-
-def _unsupported(name: str):
-    def fn(call):
-        raise CGARuntimeError(f"{name}() is not supported yet; the shape is left unchanged")
-    return fn
-
-
-# CityEngine operations this runtime does not implement yet: rules using them still load and
-# derive, with a warning where they are reached (see docs/cga-dialect.md)
-for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
-              "footprint", "taper", "union", "subtract", "intersect", "resetMaterial",
-              "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180"):
-    operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
 
 
 def _asset_file(env, name: str, what: str):

@@ -1,0 +1,31 @@
+"""CityEngine operations this runtime does not implement (yet).
+
+Loaded after every other op module: a name registered here only if no module implements it.
+Rules using these still load and derive; each use is a warning, or nothing for the few that only
+touch rendering hints (see docs/cga-dialect.md, "Not yet supported").
+"""
+
+from __future__ import annotations
+
+from ..values import CGARuntimeError
+from . import OPERATIONS, operation
+
+
+def _unsupported(name: str):
+    def fn(call):
+        raise CGARuntimeError(f"{name}() is not supported yet; the shape is left unchanged")
+    return fn
+
+
+for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
+              "footprint", "taper", "union", "subtract", "intersect", "resetMaterial",
+              "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180",
+              "copyUV", "splitAndSetbackPerimeter", "setTagsFromEdgeAttrs"):
+    if _name not in OPERATIONS:
+        operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
+
+# accepted and ignored until implemented
+for _name in ("cleanupGeometry", "reduceGeometry", "trim", "deleteHoles", "softenNormals",
+              "setNormals", "resetGeometry", "modify"):
+    if _name not in OPERATIONS:
+        operation(_name, 0, 8, selectors=tuple(range(8)))(lambda call: None)
