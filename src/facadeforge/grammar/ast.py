@@ -126,6 +126,25 @@ class BodyOp(Node):
 
 
 @dataclass(frozen=True)
+class Inline(Node):
+    """``inline(strategy) …``: derive ``ops`` now and merge the resulting shapes into the
+    current one (strategy ``append``, ``unify`` or ``recompose``)."""
+
+    strategy: str
+    ops: tuple
+
+
+@dataclass(frozen=True)
+class Boolean(Node):
+    """``union|subtract|intersect { opsA | opsB }``: a Boolean 3D operation on two inlined
+    operands."""
+
+    kind: str
+    a: tuple
+    b: tuple
+
+
+@dataclass(frozen=True)
 class Push(Node):
     ops: tuple
 

@@ -160,8 +160,11 @@ class _Checker:
                 for k, a in enumerate(op.args):
                     self.expr(a, scope, selector_ok=k in positions)
                 self.branches(op.name, op.branches, scope)
-            elif t is A.Push:
+            elif t is A.Push or t is A.Inline:
                 self.ops(op.ops, scope)
+            elif t is A.Boolean:
+                self.ops(op.a, scope)
+                self.ops(op.b, scope)
             elif t is A.CaseOps:
                 for c, b in op.branches:
                     self.expr(c, scope)

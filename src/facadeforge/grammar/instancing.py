@@ -139,8 +139,11 @@ class Purity:
                 for a in op.args:
                     self._expr(m, a, info)
                 self._branches(m, op.branches, info)
-            elif t is A.Push:
+            elif t is A.Push or t is A.Inline:
                 self._ops(m, op.ops, info)
+            elif t is A.Boolean:
+                self._ops(m, op.a, info)
+                self._ops(m, op.b, info)
             elif t is A.CaseOps:
                 for c, b in op.branches:
                     self._expr(m, c, info)

@@ -32,6 +32,7 @@ from .values import CGARuntimeError, to_bool, to_float, to_str
 load_all()
 
 MAX_CALL_DEPTH = 200
+MAX_INLINE_DEPTH = 64
 
 
 @dataclass
@@ -240,6 +241,8 @@ class Derivation:
         self._deadline = 0.0
         self.occluders: list = []  # (node id, ancestors, (2,3) bounds) for occlusion queries
         self._instances: dict = {}
+        self.sink: list | None = None  # collects leaf shapes while an ``inline`` derives
+        self.inline_depth = 0
         self._purity = None
         if instancing:
             purity = getattr(ruleset, "_purity", None)
@@ -402,6 +405,9 @@ class Derivation:
                 self.count_shape(node.symbol)
 
     def _output(self, node: Shape, state: ShapeState, symbol: str) -> None:
+        if self.sink is not None:  # an ``inline`` collects its leaf shapes
+            self.sink.append((state, symbol))
+            return
         node.scope = state.scope
         node.geometry = state.geometry
         node.tags.update(state.tags)
@@ -546,6 +552,8 @@ class _RunContext:
                     if own is not None:
                         state.context = {**state.context, "occluder_ancestors": own}
                     consumed = True
+                elif t is A.Inline or t is A.Boolean:
+                    self.inline(op, state, env)
                 elif t is A.Push:
                     sub_state = state.copy()
                     sub_state.draws = state.draws
@@ -579,6 +587,25 @@ class _RunContext:
                 self.d.warn(f"{getattr(op, 'name', type(op).__name__)} failed on this shape "
                             f"({type(e).__name__}: {e}); the shape is left as it was", op, self.rule)
         return consumed
+
+    def inline(self, op, state, env) -> None:
+        """``inline …`` and ``union|subtract|intersect { A | B }`` (ops/inlining.py)."""
+        from .ops.inlining import boolean_into, derive_now, merge_into
+
+        d = self.d
+        if d.inline_depth >= MAX_INLINE_DEPTH:
+            raise DerivationError(f"inline nested deeper than {MAX_INLINE_DEPTH} levels in rule "
+                                  f"'{self.rule}'; a rule probably inlines itself")
+        d.inline_depth += 1
+        try:
+            if type(op) is A.Inline:
+                merge_into(d, state, derive_now(self, op.ops, state, env), op.strategy)
+            else:
+                a = derive_now(self, op.a, state, env)
+                b = derive_now(self, op.b, state, env)
+                boolean_into(d, state, op.kind, a, b)
+        finally:
+            d.inline_depth -= 1
 
     def call_op(self, spec, op, state, env, branches):
         n = len(op.args)

@@ -49,6 +49,15 @@ def _percent(tok: str) -> float:
     return float(tok.rstrip().rstrip("%").strip())
 
 
+class _SourceError(ValueError):
+    """A construct that parses but is not valid CGA; becomes a ``RuleSyntaxError`` with its
+    position."""
+
+    def __init__(self, message: str, meta):
+        super().__init__(message)
+        self.line, self.column = _pos(meta)["line"], _pos(meta)["column"]
+
+
 @dataclass(frozen=True)
 class _Group:
     """``{ … }`` inside a split body without ``*``: inlined by :meth:`_ToAst.body`."""
@@ -194,6 +203,24 @@ class _ToAst(Transformer):
                                       (A.Branch(A.Name("all", **pos), ":", args[0], **pos),), **pos)
             name, args = "setback", (per_edge, *args[1:])
         return A.BodyOp(name, args, c[2], repeat, **_pos(meta))
+
+    def inline_op(self, meta, c):
+        args = c[1] if len(c) > 2 else ()
+        target = c[-1]
+        ops = target if isinstance(target, tuple) else (target,)
+        strategy = "append"
+        if args:
+            if len(args) != 1 or not isinstance(args[0], A.Name):
+                raise _SourceError("inline takes one merge strategy: inline(append), "
+                                   "inline(unify) or inline(recompose)", meta)
+            strategy = args[0].name
+        if strategy not in ("append", "unify", "recompose"):
+            raise _SourceError(f"unknown inline merge strategy '{strategy}'; use append, unify "
+                               "or recompose", meta)
+        return A.Inline(strategy, ops, **_pos(meta))
+
+    def bool_op(self, meta, c):
+        return A.Boolean(str(c[0]), c[1], c[2], **_pos(meta))
 
     def scatter_op(self, meta, c):
         # ``scatter(...){ ops }``: one implicit branch for every scattered point
@@ -354,7 +381,13 @@ def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:
         line, col = getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0
         src = lines[line - 1] if 0 < line <= len(lines) else ""
         raise RuleSyntaxError(_describe(e), path, line, col, src) from None
-    except (VisitError, LarkError, RecursionError, ValueError) as e:
+    except VisitError as e:
+        if isinstance(e.orig_exc, _SourceError):
+            x = e.orig_exc
+            src = lines[x.line - 1] if 0 < x.line <= len(lines) else ""
+            raise RuleSyntaxError(str(x), path, x.line, x.column, src) from None
+        raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
+    except (LarkError, RecursionError, ValueError) as e:
         raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
     version, imports = None, []
     sections: list[tuple[A.StyleDef | None, list, list, list]] = [(None, [], [], [])]

@@ -1,1 +1,401 @@
-"""(work in progress)"""
+"""Rule inlining and Boolean 3D operations.
+
+``inline(strategy) …`` derives a rule, a subdivision or an operation sequence *now* and merges the
+resulting shapes into the current one, which the rule then goes on with (CityEngine reference,
+"inline operation").  ``union | subtract | intersect { opsA | opsB }`` inlines both operand
+sequences with the ``unify`` strategy and combines them with a Boolean 3D operation (reference,
+"union / subtract / intersect (Boolean 3D operations)").
+
+Merging, as the reference describes it:
+
+* a single resulting shape is taken as is (scope, geometry, material, attributes);
+* several are combined by the strategy: ``append`` puts the faces in one mesh, ``recompose``
+  welds shared vertices and inserts vertices where a corner of one piece lies on another's edge
+  (see "Shape Recomposition"), ``unify`` computes their Boolean union;
+* conflicting materials are written to the geometry per face, so every face keeps its look; other
+  attributes (and the scope) take the results' value where they all agree and keep the current
+  shape's where they conflict;
+* the inlined subtree does not appear in the shape tree.
+
+Booleans use the Manifold library (``manifold3d``): exact, robust and fast on closed meshes.
+Operands that are not closed volumes cannot be combined as solids; coplanar polygons are then
+combined in their plane with shapely, and anything else is appended with a warning.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
+from ..values import CGARuntimeError
+
+#: Vertices closer than this are one vertex when ``recompose`` reconnects pieces (metres).
+WELD_TOLERANCE = 1e-6
+#: Above this many edge × vertex tests, ``recompose`` only welds (a warning says so).
+MAX_TJUNCTION_TESTS = 20_000_000
+
+
+# ---- deriving operands ------------------------------------------------------------------------
+
+def derive_now(run, ops: tuple, state, env) -> list:
+    """Derive ``ops`` on a copy of ``state`` to completion; the resulting leaf shapes as
+    ``(ShapeState, rule name)``, in derivation order.
+
+    ``run`` is the interpreter's running rule context.  Leaf shapes are collected instead of
+    output, and instancing is off meanwhile (it would record parts, not shapes).  The random
+    stream of the current shape goes on through the inlined derivation.
+    """
+    d = run.d
+    sink: list = []
+    saved = d.sink, d._purity
+    d.sink, d._purity = sink, None
+    work = state.copy()
+    work.draws = state.draws
+    try:
+        from ...model.shape import Shape
+
+        root = Shape(run.rule, state.scope, operator="inline")
+        queue: deque = deque()
+        ctx = type(run)(d, queue, root, run.depth, run.rule)
+        consumed = ctx.run(ops, work, env.with_state(work), None)
+        if not consumed:
+            sink.append((work, run.rule))
+        while queue:
+            d._apply(queue, *queue.popleft())
+    finally:
+        d.sink, d._purity = saved
+    state.draws = work.draws
+    return sink
+
+
+# ---- merging results into the current shape --------------------------------------------------
+
+def merge_into(d, state, results: list, strategy: str) -> None:
+    """Replace ``state``'s geometry and attributes by the merged ``results`` (``inline``)."""
+    if not results:
+        state.geometry = Mesh()
+        state.context.pop("face_materials", None)
+        return
+    if len(results) == 1:
+        _take(state, results[0][0])
+        return
+    states = [s for s, _ in results]
+    _agree(state, states)
+    meshes, per_piece, shared = _pieces(d, states)
+    if strategy == "unify":
+        mesh, origin = boolean(meshes, [], "union", d)
+    elif strategy == "recompose":
+        mesh, origin = recompose(meshes, d)
+    else:
+        mesh, origin = Mesh.merge(meshes), _appended(meshes)
+    _set_geometry(state, mesh, origin, per_piece, shared)
+
+
+def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
+    """``kind { A | B }``: operand A gives the shape's attributes; both operands are unified,
+    then combined (reference, "union / subtract / intersect")."""
+    a_states, b_states = [s for s, _ in a_results], [s for s, _ in b_results]
+    if len(a_states) == 1:
+        _take(state, a_states[0])
+    elif a_states:
+        _agree(state, a_states)
+    meshes, per_piece, shared = _pieces(d, a_states + b_states)
+    n_a = sum(1 for s in a_states if s.geometry.n_faces)
+    mesh, origin = boolean(meshes[:n_a], meshes[n_a:], kind, d)
+    _set_geometry(state, mesh, origin, per_piece, shared)
+
+
+def _appended(meshes: list) -> np.ndarray:
+    """Origin of each face of the meshes appended in order: (piece, face in piece)."""
+    return np.array([(k, f) for k, m in enumerate(meshes) for f in range(m.n_faces)],
+                    np.int64).reshape(-1, 2)
+
+
+def _set_geometry(state, mesh: Mesh, origin: np.ndarray, per_piece, shared) -> None:
+    """The merged mesh, with the pieces' shared material or each face its own: the material of
+    the piece face it came from (``origin``: (piece, face) per face)."""
+    state.geometry = mesh
+    state.context.pop("face_materials", None)
+    if shared is not None:
+        state.material = shared
+        return
+    if not mesh.n_faces:
+        return
+    offsets = np.cumsum([0] + [len(ms) for _, ms in per_piece[:-1]])
+    table = [m for _, ms in per_piece for m in ms]
+    face_material = np.array([offsets[p] + per_piece[p][0][f] for p, f in origin], np.int64)
+    state.material = {}
+    state.context["face_materials"] = (face_material, table, mesh.n_faces)
+
+
+def _take(state, result) -> None:
+    """A single result is taken as is."""
+    state.scope = result.scope
+    state.geometry = result.geometry
+    state.material = dict(result.material)
+    state.attrs = dict(result.attrs)
+    state.projections = dict(result.projections)
+    state.label = result.label
+    state.tags = dict(result.tags)
+    state.context.pop("face_materials", None)
+    if "face_materials" in result.context:
+        state.context["face_materials"] = result.context["face_materials"]
+
+
+def _pieces(d, states):
+    """Meshes of the results that have faces; then either ``per_piece`` (for each, face →
+    material index and its [Material]) or, when they all share one material dict, ``shared``."""
+    keep = [s for s in states if s.geometry.n_faces]
+    meshes = [s.geometry for s in keep]
+    if all(s.material == keep[0].material and "face_materials" not in s.context for s in keep):
+        return meshes, None, dict(keep[0].material) if keep else {}
+    per_piece = []
+    for s in keep:
+        fm = s.context.get("face_materials")
+        if fm is not None and fm[2] == s.geometry.n_faces:
+            per_piece.append((np.asarray(fm[0]), [d.material(s, am) for am in fm[1]]))
+        else:
+            per_piece.append((np.zeros(s.geometry.n_faces, np.int64), [d.material(s)]))
+    return meshes, per_piece, None
+
+
+def _agree(state, states) -> None:
+    """Attributes the results all agree on replace the current shape's."""
+    first = states[0]
+    for key, value in first.attrs.items():
+        try:
+            if all(key in s.attrs and s.attrs[key] == value for s in states[1:]):
+                state.attrs[key] = value
+        except ValueError:  # arrays compare element-wise: treat as conflicting
+            continue
+    if all(s.label == first.label for s in states):
+        state.label = first.label
+
+
+# ---- recompose --------------------------------------------------------------------------------
+
+def recompose(meshes: list, d=None) -> tuple[Mesh, np.ndarray]:
+    """Append ``meshes``, weld vertices closer than :data:`WELD_TOLERANCE` and insert a vertex
+    wherever a vertex lies on another face's edge, so that pieces of a subdivided shape share
+    edges again (reference, "Shape Recomposition: Essential Knowledge").  Returns the mesh and,
+    per face, the index of the mesh it came from."""
+    merged = Mesh.merge(meshes)
+    origin = _appended(meshes)
+    if not merged.n_faces:
+        return merged, origin
+    v = merged.vertices
+    key = np.round(v / WELD_TOLERANCE).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    verts = v[first]
+    corners = inverse[merged.corners]
+    faces = np.split(corners, merged.starts[1:-1])
+    uvs = merged.uvs
+    n_tests = len(corners) * len(verts)
+    if n_tests > MAX_TJUNCTION_TESTS:
+        if d is not None:
+            d.warn(f"inline(recompose): {len(verts)} vertices are too many to look for vertices "
+                   "on edges; vertices were only welded")
+    else:
+        faces, uvs = _split_edges(verts, faces, uvs)
+    out = Mesh(verts, faces, uvs if merged.corner_uvs is not None else None)
+    return out, origin
+
+
+def _split_edges(verts, faces, uvs):
+    """Insert into each face edge the vertices lying on it (T-junctions), in order along it."""
+    out_f, out_uv = [], []
+    for f, uv in zip(faces, uvs):
+        a = verts[f]
+        b = verts[np.roll(f, -1)]
+        ab = b - a
+        length2 = np.einsum("ij,ij->i", ab, ab)
+        rel = verts[None, :, :] - a[:, None, :]                      # (k, V, 3)
+        t = np.einsum("kvj,kj->kv", rel, ab) / np.maximum(length2, EPS)[:, None]
+        off = rel - t[:, :, None] * ab[:, None, :]
+        near = (np.einsum("kvj,kvj->kv", off, off) < WELD_TOLERANCE ** 2) & (t > 1e-9) \
+            & (t < 1 - 1e-9)
+        if not near.any():
+            out_f.append(f)
+            out_uv.append(uv)
+            continue
+        nf, nuv = [], []
+        for k in range(len(f)):
+            nf.append(f[k])
+            if uv is not None:
+                nuv.append(uv[k])
+            idx = np.flatnonzero(near[k])
+            idx = idx[~np.isin(idx, f)]
+            for j in idx[np.argsort(t[k, idx])]:
+                nf.append(j)
+                if uv is not None:
+                    nuv.append(uv[k] + t[k, j] * (uv[(k + 1) % len(f)] - uv[k]))
+        out_f.append(np.array(nf))
+        out_uv.append(None if uv is None else np.array(nuv))
+    return out_f, out_uv
+
+
+# ---- Boolean 3D -------------------------------------------------------------------------------
+
+def boolean(a_meshes: list, b_meshes: list, kind: str, d) -> tuple[Mesh, np.ndarray]:
+    """``union``/``subtract``/``intersect`` of the union of ``a_meshes`` with the union of
+    ``b_meshes`` (for ``union`` of one list, ``b_meshes`` may be empty).  Returns the result
+    and, per face, its origin: (input mesh, A's first then B's; polygon of that mesh)."""
+    meshes = [*a_meshes, *b_meshes]
+    if all(m.n_faces == 0 or m.is_closed() for m in meshes):
+        return _solid_boolean(a_meshes, b_meshes, kind)
+    planar = _common_plane(meshes)
+    if planar is not None:
+        return _planar_boolean(a_meshes, b_meshes, kind, planar)
+    if d is not None:
+        d.warn(f"{kind}: the operands are neither closed volumes nor polygons in one plane; "
+               "their faces are appended")
+    if kind == "intersect":
+        return Mesh(), np.zeros((0, 2), np.int64)
+    keep = a_meshes if kind == "subtract" else meshes
+    return Mesh.merge(keep), _appended(keep)
+
+
+def _solid_boolean(a_meshes, b_meshes, kind):
+    import manifold3d as mf
+
+    inputs = [*a_meshes, *b_meshes]
+    first_face = np.cumsum([0] + [m.n_faces for m in inputs])
+    solids = [_to_manifold(m, int(f0)) if m.n_faces else mf.Manifold()
+              for m, f0 in zip(inputs, first_face)]
+    a = mf.Manifold.batch_boolean(solids[:len(a_meshes)], mf.OpType.Add) if a_meshes \
+        else mf.Manifold()
+    if kind == "union" and not b_meshes:
+        result = a
+    else:
+        b = mf.Manifold.batch_boolean(solids[len(a_meshes):], mf.OpType.Add) if b_meshes \
+            else mf.Manifold()
+        op = {"union": mf.OpType.Add, "subtract": mf.OpType.Subtract,
+              "intersect": mf.OpType.Intersect}[kind]
+        result = mf.Manifold.batch_boolean([a, b], op)
+    return _from_manifold(result, inputs, first_face)
+
+
+def _to_manifold(mesh: Mesh, first_face: int):
+    """A closed Mesh as a Manifold: corners unshared (properties x, y, z, u, v per corner),
+    merged by position; each triangle's face id is its polygon's number among all inputs."""
+    import manifold3d as mf
+
+    pos, uv, _, face_of = mesh.triangulate()
+    props = np.column_stack([pos, uv]).astype(np.float64)
+    tris = np.arange(len(pos), dtype=np.uint32).reshape(-1, 3)
+    face_id = (face_of + first_face).astype(np.uint32)
+    m = mf.Mesh64(vert_properties=props, tri_verts=tris, face_id=face_id)
+    m.merge()
+    solid = mf.Manifold(m)
+    if solid.status() != mf.Error.NoError:
+        raise CGARuntimeError(f"Boolean operation: an operand is not a valid closed volume "
+                              f"({solid.status().name})")
+    return solid
+
+
+def _from_manifold(result, inputs: list, first_face: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """Our Mesh from a Manifold result: the triangles of each input polygon are joined back into
+    one polygon where they form a simple one, so a cut box still has quads where it was not cut."""
+    out = result.to_mesh64()
+    props = np.asarray(out.vert_properties, float)
+    tris = np.asarray(out.tri_verts, np.int64).reshape(-1, 3)
+    if len(tris) == 0:
+        return Mesh(), np.zeros((0, 2), np.int64)
+    fid = np.asarray(out.face_id, np.int64)
+    polys, uvs, origin = [], [], []
+    for key in np.unique(fid):
+        group = tris[fid == key]
+        for loop in _join_triangles(props, group):
+            polys.append(props[loop, :3])
+            uvs.append(props[loop, 3:5])
+            piece = int(np.searchsorted(first_face, key, side="right") - 1)
+            origin.append((piece, key - first_face[piece]))
+    has_uv = any(m.corner_uvs is not None for m in inputs)
+    mesh = Mesh.from_polygons(polys, uvs if has_uv else None)
+    return mesh, np.asarray(origin, np.int64).reshape(-1, 2)
+
+
+def _join_triangles(props: np.ndarray, tris: np.ndarray) -> list:
+    """Outer loops of the triangles of one coplanar group, as vertex-index lists; the triangles
+    themselves where they do not form simple polygons without holes."""
+    if len(tris) == 1:
+        return [list(tris[0])]
+    edges = {}
+    for t in tris:
+        for i in range(3):
+            a, b = int(t[i]), int(t[(i + 1) % 3])
+            edges[(a, b)] = edges.get((a, b), 0) + 1
+    boundary = {a: b for (a, b) in edges if (b, a) not in edges}
+    # vertices may be duplicated with equal positions (different properties): compare positions
+    starts = set(boundary)
+    if len(starts) != len(boundary.values()) or set(boundary.values()) != starts:
+        return [list(t) for t in tris]
+    loops, seen = [], set()
+    for s in boundary:
+        if s in seen:
+            continue
+        loop, cur = [], s
+        while cur not in seen and len(loop) <= len(boundary):
+            seen.add(cur)
+            loop.append(cur)
+            cur = boundary.get(cur, s)
+        loops.append(loop)
+    if len(loops) != 1:  # holes or disjoint parts: keep triangles
+        return [list(t) for t in tris]
+    # collinear corners stay: a neighbouring face may end there, and the mesh stays watertight
+    return [loops[0]] if len(loops[0]) >= 3 else [list(t) for t in tris]
+
+
+def _common_plane(meshes):
+    """(origin, basis) of the plane all faces lie in, or None."""
+    ms = [m for m in meshes if m.n_faces]
+    if not ms:
+        return None
+    pts = np.concatenate([m.vertices[m.corners] for m in ms])
+    n = polygon_normal(ms[0].vertices[ms[0].face(0)])
+    if not n.any():
+        return None
+    n = n / np.linalg.norm(n)
+    if np.abs((pts - pts[0]) @ n).max() > 1e-6:
+        return None
+    return pts[0], plane_basis(n)
+
+
+def _planar_boolean(a_meshes, b_meshes, kind, plane):
+    """Booleans of polygons lying in one plane (shapely in the plane's 2D frame)."""
+    from shapely import Polygon, make_valid, union_all
+    from shapely.geometry.polygon import orient
+
+    origin, basis = plane
+    to2d = basis[:, :2]
+
+    def region(ms):
+        polys = [Polygon((p - origin) @ to2d) for m in ms for p in m.polygons() if len(p) >= 3]
+        return union_all([make_valid(p) for p in polys]) if polys else Polygon()
+
+    a = region(a_meshes)
+    if kind == "union":
+        res = a.union(region(b_meshes)) if b_meshes else a
+    elif kind == "subtract":
+        res = a.difference(region(b_meshes))
+    else:
+        res = a.intersection(region(b_meshes))
+    polys = []
+    for g in getattr(res, "geoms", [res]):
+        if g.geom_type != "Polygon" or g.is_empty:
+            continue
+        g = orient(g, 1.0)
+        if g.interiors:  # a polygon with holes: triangulate it (our faces have no holes)
+            from shapely import constrained_delaunay_triangles
+
+            polys.extend(orient(t, 1.0) for t in constrained_delaunay_triangles(g).geoms)
+        else:
+            polys.append(g)
+    out = [origin + np.asarray(p.exterior.coords)[:-1] @ to2d.T for p in polys]
+    mesh = Mesh.from_polygons(out)
+    # faces of a planar Boolean result no longer map to single input faces: each takes the
+    # first input's first material
+    return mesh, np.zeros((mesh.n_faces, 2), np.int64)
