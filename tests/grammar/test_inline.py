@@ -151,6 +151,19 @@ def test_bad_inline_strategies(src, message):
     assert ":1:9" in str(e.value)
 
 
+@pytest.mark.parametrize("op, volume", [
+    ("subtract Hole", 320 - 64),               # CityEngine before 2025.0: current shape is A
+    ("subtract { A. | Hole }", 320 - 64),
+    ("subtract(swap) Hole", 2 * 16),           # current shape is B: the cube's parts outside
+    ("intersect Hole", 64),
+])
+def test_deprecated_boolean_syntax(op, volume):
+    m = run(f"Lot --> extrude(4) {op} X.\nHole --> t(2,-1,2) s(4,6,4) primitiveCube")
+    assert not m.warnings
+    (x,) = m.parts
+    assert x.mesh.volume() == pytest.approx(volume)
+
+
 def test_union_as_a_name_still_works_elsewhere():
     m = run("""attr union = 2
 Lot --> extrude(union) intersect(1)

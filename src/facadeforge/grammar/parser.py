@@ -222,6 +222,18 @@ class _ToAst(Transformer):
     def bool_op(self, meta, c):
         return A.Boolean(str(c[0]), c[1], c[2], **_pos(meta))
 
+    def bool_rule_op(self, meta, c):
+        # CityEngine before 2025.0: ``subtract Rule`` (the current shape is operand A) and
+        # ``subtract(swap) Rule`` (it is operand B); the same as the braced form with a leaf
+        args = c[1] if len(c) == 3 else ()
+        swap = len(args) == 1 and isinstance(args[0], A.Name) and args[0].name == "swap"
+        if args and not swap:
+            raise _SourceError(f"{c[0]}(…) Rule takes only 'swap'", meta)
+        current = (A.Leaf("Operand", **_pos(meta)),)
+        rule = (c[-1],)
+        a, b = (rule, current) if swap else (current, rule)
+        return A.Boolean(str(c[0]), a, b, **_pos(meta))
+
     def scatter_op(self, meta, c):
         # ``scatter(...){ ops }``: one implicit branch for every scattered point
         branch = A.Branch(A.Name("all", **_pos(meta)), ":", c[1], **_pos(meta))
