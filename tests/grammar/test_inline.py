@@ -169,3 +169,4 @@ def test_union_as_a_name_still_works_elsewhere():
 Lot --> extrude(union) intersect(1)
 intersect(h) --> s('1, h, '1) X.""")
     assert m.stats()["bbox"][1][1] == pytest.approx(1)
+

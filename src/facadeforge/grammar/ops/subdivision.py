@@ -349,6 +349,8 @@ def component_count(st, kind: str) -> int:
         return len(mesh.used_vertices())
     if kind == "fe":
         return len(mesh.corners)
+    if kind in ("m", "g", "h"):
+        return len(_part_faces(st, kind))
     key = np.round(mesh.vertices / 1e-6).astype(np.int64)
     if not len(key):
         return 0
@@ -373,14 +375,76 @@ def _add_street_selectors(table: dict) -> None:
 @operation("comp", 1, 2, selectors=(0, 1), body=True)
 def op_comp(call):
     kind = call.sel(0)
+    align = call.sel(1, "zUp")
+    if align not in ("zUp", "noAlign"):
+        raise CGARuntimeError(f"comp: unknown scope alignment '{align}'; use zUp or noAlign")
     st = call.state
     if kind == "f":
-        return _comp_faces(call, st)
-    if kind in ("e", "fe"):
-        return _comp_edges(call, st)
-    if kind in ("v", "fv"):
-        return _comp_vertices(call, st)
-    raise CGARuntimeError(f"comp({kind}) is not supported; use f, e or v")
+        pieces = _comp_faces(call, st)
+    elif kind in ("e", "fe"):
+        pieces = _comp_edges(call, st)
+    elif kind in ("v", "fv"):
+        pieces = _comp_vertices(call, st)
+    elif kind in ("m", "g", "h"):
+        pieces = _comp_parts(call, st, kind)
+    else:
+        raise CGARuntimeError(f"comp({kind}) is not a component type; use f, e, v, fe, fv, m, "
+                              "g or h")
+    if align == "noAlign":
+        # CityEngine: pivot and scope keep their orientation; size and position fit the piece
+        for ps, _, _ in pieces:
+            ps.scope = st.scope
+            ps.fit_scope()
+    return pieces
+
+
+def _part_faces(st, kind: str) -> list:
+    """Face index arrays of the components of ``comp(m|g|h)``.
+
+    ``m``: one component per material, in order of first use (an inserted asset's own materials
+    count; a shape without per-face materials is one component).  ``g``: one per asset group;
+    inserted assets keep no group structure here, so the geometry is one group, as an asset
+    without groups is in CityEngine.  ``h``: the faces' holes; faces here never have holes
+    (Boolean results with holes are triangulated), so there are none."""
+    n = st.geometry.n_faces
+    if n == 0 or kind == "h":
+        return []
+    fm = st.context.get("face_materials")
+    if kind == "m" and fm is not None and fm[2] == n:
+        ids = np.asarray(fm[0])
+        _, first = np.unique(ids, return_index=True)
+        return [np.flatnonzero(ids == ids[i]) for i in np.sort(first)]
+    return [np.arange(n)]
+
+
+def _comp_parts(call, st, kind: str):
+    """``comp(m|g|h)``: components made of several faces keep the shape's scope orientation,
+    fitted to the component."""
+    parts = _part_faces(st, kind)
+    fm = st.context.get("face_materials")
+    out, taken = [], np.zeros(len(parts), bool)
+    for branch in call.branches:
+        if isinstance(branch, A.RepeatGroup):
+            raise CGARuntimeError("comp bodies cannot contain repeat groups")
+        key = _selector_key(call, branch)
+        m = _match(key, {"all": np.ones(len(parts), bool)}, len(parts)) & ~taken
+        taken |= m
+        idx = np.flatnonzero(m)
+        sel_name = key if isinstance(key, str) else str(key)
+        groups = [np.concatenate([parts[i] for i in idx])] if branch.mode == "=" and len(idx) \
+            else [parts[i] for i in idx]
+        for j, faces in enumerate(groups):
+            ps = st.child(len(out))
+            ps.geometry = st.geometry.subset(faces)
+            ps.fit_scope()
+            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(groups),
+                          "comp.sel": sel_name}
+            ps.context.pop("face_materials", None)
+            if fm is not None and fm[2] == st.geometry.n_faces:
+                ps.context["face_materials"] = (np.asarray(fm[0])[faces], fm[1], len(faces))
+            out.append((ps, branch.ops, {"sel": sel_name, "index": j,
+                                         "components": faces.tolist()}))
+    return out
 
 
 def _match(key, sel_table, n, extra=None) -> np.ndarray:

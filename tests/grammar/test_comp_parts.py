@@ -1,0 +1,50 @@
+"""comp(m|g|h) and comp's noAlign scope alignment."""
+
+import numpy as np
+import pytest
+
+from facadeforge import derive, load_rules
+
+
+def run(src, lot="10x8"):
+    return derive(load_rules(src), None, lot_size=lot)[0]
+
+
+def by_symbol(model):
+    out = {}
+    for p in model.parts:
+        out.setdefault(p.symbol, []).append(p)
+    return out
+
+
+def test_comp_materials_of_a_shape_with_per_face_materials():
+    # a Boolean result keeps both operands' materials: comp(m) gives one shape per material
+    m = run("""Lot --> subtract { extrude(4) color(1,0,0) | t(2,-1,2) s(4,6,4) primitiveCube
+                                  color(0,0,1) } comp(m) { 0 : A. | 1 : B. }""")
+    parts = by_symbol(m)
+    assert sum(p.mesh.area() for p in parts["A"]) == pytest.approx(2 * 64 + 2 * 72)
+    assert sum(p.mesh.area() for p in parts["B"]) == pytest.approx(64)
+    assert parts["B"][0].material.color == pytest.approx((0, 0, 1))
+
+
+def test_comp_materials_groups_and_holes_of_a_plain_shape():
+    m = run("Lot --> extrude(3) comp(m) { all : M. } X. "
+            "comp(g) { all : G. } comp(h) { all : H. }")
+    parts = by_symbol(m)
+    assert len(parts["M"]) == 1 and parts["M"][0].mesh.n_faces == 6
+    assert len(parts["G"]) == 1 and "H" not in parts
+
+
+def test_comp_no_align_keeps_the_scope_orientation():
+    m = derive(load_rules("Lot --> extrude(3) comp(f, noAlign) { right : F. }"), None,
+               lot_size="10x8", keep_tree=True)[0]
+
+    def find(node):
+        if node.symbol == "F":
+            return node
+        for c in node.children:
+            hit = find(c)
+            if hit is not None:
+                return hit
+    f = find(m.root)
+    assert f.scope.rotation == pytest.approx(np.eye(3))
