@@ -170,3 +170,10 @@ Lot --> extrude(union) intersect(1)
 intersect(h) --> s('1, h, '1) X.""")
     assert m.stats()["bbox"][1][1] == pytest.approx(1)
 
+
+
+def test_unify_merges_overlaps_within_one_shape():
+    # one shape whose geometry is two overlapping boxes: unify makes it one solid
+    m = run("Lot --> inline(unify) { inline { [ extrude(2) A. ] [ t(1,0,1) s(10,0,8) extrude(3) B. ] } } U.")
+    (u,) = m.parts
+    assert u.mesh.is_closed() and u.mesh.volume() == pytest.approx(274)

@@ -80,9 +80,12 @@ def merge_into(d, state, results: list, strategy: str) -> None:
         return
     if len(results) == 1:
         _take(state, results[0][0])
-        return
-    states = [s for s, _ in results]
-    _agree(state, states)
+        if strategy != "unify" or not state.geometry.n_faces:
+            return
+        states = [results[0][0]]  # unify cleans up even one shape (CityEngine 2025.0)
+    else:
+        states = [s for s, _ in results]
+        _agree(state, states)
     meshes, per_piece, shared = _pieces(d, states)
     if strategy == "unify":
         mesh, origin = boolean(meshes, [], "union", d)
@@ -265,13 +268,17 @@ def _solid_boolean(a_meshes, b_meshes, kind):
     first_face = np.cumsum([0] + [m.n_faces for m in inputs])
     solids = [_to_manifold(m, int(f0)) if m.n_faces else mf.Manifold()
               for m, f0 in zip(inputs, first_face)]
-    a = mf.Manifold.batch_boolean(solids[:len(a_meshes)], mf.OpType.Add) if a_meshes \
-        else mf.Manifold()
+
+    def unite(parts):
+        # an input may hold several overlapping shells: unite its connected pieces too
+        pieces = [p for s in parts for p in s.decompose()]
+        return mf.Manifold.batch_boolean(pieces, mf.OpType.Add) if pieces else mf.Manifold()
+
+    a = unite(solids[:len(a_meshes)])
     if kind == "union" and not b_meshes:
         result = a
     else:
-        b = mf.Manifold.batch_boolean(solids[len(a_meshes):], mf.OpType.Add) if b_meshes \
-            else mf.Manifold()
+        b = unite(solids[len(a_meshes):])
         op = {"union": mf.OpType.Add, "subtract": mf.OpType.Subtract,
               "intersect": mf.OpType.Intersect}[kind]
         result = mf.Manifold.batch_boolean([a, b], op)
