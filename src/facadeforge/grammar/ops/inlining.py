@@ -49,7 +49,7 @@ def derive_now(run, ops: tuple, state, env) -> list:
     """
     d = run.d
     sink: list = []
-    saved = d.sink, d._purity
+    saved = d.sink, d._purity, d.current_path
     d.sink, d._purity = sink, None
     work = state.copy()
     work.draws = state.draws
@@ -65,7 +65,7 @@ def derive_now(run, ops: tuple, state, env) -> list:
         while queue:
             d._apply(queue, *queue.popleft())
     finally:
-        d.sink, d._purity = saved
+        d.sink, d._purity, d.current_path = saved
     state.draws = work.draws
     return sink
 
