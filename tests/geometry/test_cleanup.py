@@ -39,6 +39,12 @@ def test_weld_tolerance_is_a_distance_in_metres():
     assert k.weld(v, 0.6).tolist() == [0, 0, 2]
 
 
+def test_weld_does_not_chain():
+    # 0.5 m steps with a 0.6 m tolerance: the third vertex is 1 m from the first, so it stays
+    v = np.array([[0, 0, 0], [0.5, 0, 0], [1.0, 0, 0], [1.5, 0, 0]], float)
+    assert k.weld(v, 0.6).tolist() == [0, 0, 2, 2]
+
+
 # -- cleanup -----------------------------------------------------------------------------------
 
 def test_cleanup_all_turns_a_grid_into_one_quad():

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import EPS, Mesh, polygon_area, polygon_normal
+from .mesh import EPS, Mesh, polygon_normal
 
 WELD_EPS = 1e-6  # metres: "identical" vertices (the weld of Mesh.is_closed)
 ANGLE_EPS = 1e-6  # radians: "collinear" / "coplanar" at tolerance 0
@@ -39,22 +39,24 @@ class Poly:
 # -- building blocks -----------------------------------------------------------------------------
 
 def weld(vertices: np.ndarray, distance: float) -> np.ndarray:
-    """Per vertex, the id of the vertex it merges into: vertices closer than ``distance`` (at least
-    :data:`WELD_EPS`), chained, merge into the lowest id of their cluster, which keeps its
-    position."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    """Per vertex, the id of the vertex it merges into.  In id order, each vertex not merged yet
+    keeps its position and takes in the unmerged vertices within ``distance`` of it (at least
+    :data:`WELD_EPS`): no chains, so a merged vertex never moves further than ``distance``."""
     from scipy.spatial import cKDTree
 
     n = len(vertices)
+    target = np.arange(n)
     if n == 0:
-        return np.zeros(0, np.int64)
-    pairs = cKDTree(vertices).query_pairs(max(distance, WELD_EPS), output_type="ndarray")
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    first = np.full(label.max() + 1, n, np.int64)
-    np.minimum.at(first, label, np.arange(n))
-    return first[label]
+        return target
+    near = cKDTree(vertices).query_ball_point(vertices, max(distance, WELD_EPS))
+    done = np.zeros(n, bool)
+    for i in range(n):
+        if done[i] or len(near[i]) == 1:
+            continue
+        group = [j for j in near[i] if not done[j]]
+        target[group] = i
+        done[group] = True
+    return target
 
 
 def to_polys(mesh: Mesh, remap: np.ndarray | None = None) -> list[Poly]:
@@ -83,14 +85,16 @@ def to_mesh(vertices: np.ndarray, polys: list[Poly], has_uvs: bool) -> tuple[Mes
     return mesh, np.array([p.src for p in polys], np.int64)
 
 
-def _area(vertices, poly: Poly) -> float:
-    return polygon_area(vertices[poly.verts]) if len(poly.verts) >= 3 else 0.0
+def _faces(vertices, polys: list[Poly]) -> Mesh:
+    """The polygons as a mesh on ``vertices``, for vectorised normals and areas."""
+    return Mesh(vertices, [p.verts for p in polys])
 
 
 def drop_degenerate(vertices, polys: list[Poly], max_area: float) -> list[Poly]:
     """Faces with fewer than three corners or an area not above ``max_area`` (at least EPS) go."""
     limit = max(max_area, EPS)
-    return [p for p in polys if len(p.verts) >= 3 and _area(vertices, p) > limit]
+    areas = _faces(vertices, polys).face_areas()
+    return [p for p, a in zip(polys, areas) if len(p.verts) >= 3 and a > limit]
 
 
 def _rotation_key(p: Poly, group) -> tuple:
@@ -210,7 +214,7 @@ def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> lis
     their texture coordinates are one affine map, and the merged outline is one simple loop (no
     holes, no vertex twice).  The merged face starts at its first face's first vertex."""
     limit = max(max_angle, ANGLE_EPS)
-    normals = [polygon_normal(vertices[p.verts]) for p in polys]
+    normals = _faces(vertices, polys).face_normals()
     edges = _edge_faces(polys)
     taken = [False] * len(polys)
     out = []
@@ -330,7 +334,7 @@ def _loops(out: dict) -> list[list]:
 
 def _regions(vertices, polys: list[Poly], groups) -> list[list[int]]:
     """Connected sets of exactly coplanar faces of one group (through manifold edges)."""
-    normals = [polygon_normal(vertices[p.verts]) for p in polys]
+    normals = _faces(vertices, polys).face_normals()
     edges = _edge_faces(polys)
     region = [-1] * len(polys)
     out = []
@@ -361,9 +365,7 @@ def _outer_loop(vertices, polys: list[Poly], members: list[int]):
     if len(loops) < 2:
         return None
     normal = polygon_normal(vertices[polys[members[0]].verts])
-    signed = [float(np.cross(vertices[lp], vertices[np.roll(lp, -1)]).sum(axis=0) @ normal)
-              for lp in loops]
-    outer = [lp for lp, s in zip(loops, signed) if s > 0]
+    outer = [lp for lp in loops if len(lp) >= 3 and polygon_normal(vertices[lp]) @ normal > 0]
     if len(outer) != 1:
         return None
     verts = outer[0]
