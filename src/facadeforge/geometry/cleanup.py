@@ -228,7 +228,7 @@ def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> lis
             out.append(p)
             continue
         outline, queue, merged = _outline(polys, [seed]), _neighbours(polys, edges, seed), False
-        while queue:  # each face enters the region at most once: bounded by the face count
+        while queue:  # only an accepted face (once each) pushes its neighbours: bounded
             q = queue.pop()
             cand = polys[q]
             if taken[q] or groups[cand.src] != groups[p.src] or not normals[q].any() \
