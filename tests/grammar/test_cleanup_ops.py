@@ -168,6 +168,13 @@ def test_reduce_geometry_halves_the_vertices_of_a_sphere():
     assert mesh.area() == pytest.approx(before.area(), rel=0.05)
 
 
+def test_reduce_geometry_never_empties_a_surface():
+    # the lot's 4 corners, half to go: one corner folds onto a neighbour (one triangle left,
+    # half the lot); the next collapse would leave nothing, so it is refused
+    mesh = part(run("Lot --> reduceGeometry(0.5) X.")).mesh
+    assert mesh.n_faces == 1 and used(mesh) == 3 and mesh.area() == pytest.approx(40)
+
+
 def test_reduce_geometry_zero_changes_nothing():
     mesh = part(run("Lot --> extrude(4) reduceGeometry(0) X.")).mesh
     assert mesh.n_faces == 6 and used(mesh) == 24

@@ -518,9 +518,11 @@ class _Reducer:
                                        int(self.version[b]), a, b))
 
     def _valid(self, a: int, b: int) -> bool:
-        """Link condition (no pinched surface) and no triangle turned over or squashed."""
+        """Link condition (no pinched surface), ``a`` in some triangle that stays (the surface
+        never just loses its triangles at ``a``), and no triangle turned over or squashed."""
         shared = self.faces_of[a] & self.faces_of[b]
-        if len(self._neighbours(a) & self._neighbours(b)) != len(shared):
+        if len(self._neighbours(a) & self._neighbours(b)) != len(shared) \
+                or not self.faces_of[a] - shared:
             return False
         for t in self.faces_of[a] - shared:
             p = self.v[self.tris[t]]
