@@ -63,9 +63,10 @@ def op_cleanup_geometry(call):
     Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-cleanup-geometry.htm.
     ``tolerance`` in [0, 1] scales the reference's limits (1 m vertex distance, 10° between
     collinear edges and coplanar normals, 1 m² face area); 0 cleans only exact matches (within
-    1e-6 m / 1e-6 rad numerically).  Where the reference is silent: a vertex merges into the first
-    vertex (lower id) within the tolerance, no chains; a merged face starts at its first face's first vertex (the
-    2024.1 change "preserves the first edge"); faces never merge into a polygon with a hole;
+    1e-6 m / 1e-6 rad numerically).  Where the reference is silent: a vertex merges into the
+    first vertex (lower id) within the tolerance, without chains; a merged face starts at its
+    first face's first vertex (the 2024.1 change "preserves the first edge"); faces never merge
+    into a polygon with a hole;
     a vertex is dropped as collinear only where it is straight in every face using it, so no
     crack opens; faces of different materials or ``comp`` kinds (inside / border of ``offset``)
     never merge; back-to-back faces are not duplicates.  Texture coordinates must be continuous
