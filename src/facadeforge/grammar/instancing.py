@@ -32,7 +32,8 @@ IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "sco
 IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
                 "contextCompare", "contextCount"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
-IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
+IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
+              "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
 UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}

@@ -1,1 +1,191 @@
-"""(work in progress)"""
+"""Geometry clean-up operations: ``cleanupGeometry``, ``resetGeometry``, ``deleteHoles``,
+``reduceGeometry``, ``setNormals`` and ``softenNormals``.
+
+The mesh algorithms live in :mod:`facadeforge.geometry.cleanup`; this module reads the arguments,
+keeps per-face data (materials of inserted assets, ``comp`` face kinds) in step with the faces,
+and leaves the scope as it is (these operations do not move the shape).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...geometry import cleanup as kernel
+from ..values import CGARuntimeError
+from . import operation
+
+#: context entries that describe the current geometry (or how it is trimmed): invalid once the
+#: geometry is replaced by the initial shape's
+_GEOMETRY_CONTEXT = ("face_kinds", "face_materials", "trim_planes")
+
+
+def _unit_tolerance(call, i: int, what: str) -> float:
+    t = call.num(i)
+    if not 0.0 <= t <= 1.0 or math.isnan(t):
+        raise CGARuntimeError(f"{call.name}: {what} must be between 0 and 1, not {t:g}; "
+                              f"e.g. {call.name}({'all, ' if call.name == 'cleanupGeometry' else ''}0.1)")
+    return t
+
+
+def _face_groups(st) -> list | None:
+    """Per face, what must stay apart when faces merge: material and ``comp`` face kind."""
+    n = st.geometry.n_faces
+    fm = st.context.get("face_materials")
+    kinds = st.context.get("face_kinds")
+    materials = fm[0] if fm is not None and fm[2] == n else None
+    kinds = kinds if kinds is not None and len(kinds) == n else None
+    if materials is None and kinds is None:
+        return None
+    return [(None if materials is None else int(materials[f]), None if kinds is None else kinds[f])
+            for f in range(n)]
+
+
+def _replace_geometry(st, mesh, source: np.ndarray) -> None:
+    """New faces, each from input face ``source[i]``: per-face context follows them."""
+    n_old = st.geometry.n_faces
+    fm = st.context.get("face_materials")
+    if fm is not None and fm[2] == n_old:
+        st.context["face_materials"] = (np.asarray(fm[0])[source], fm[1], mesh.n_faces)
+    kinds = st.context.get("face_kinds")
+    if kinds is not None and len(kinds) == n_old:
+        st.context["face_kinds"] = [kinds[s] for s in source]
+    st.geometry = mesh
+
+
+@operation("cleanupGeometry", 2, 2, selectors=(0,))
+def op_cleanup_geometry(call):
+    """``cleanupGeometry(components, tolerance)``: merge vertices, then per ``components`` drop
+    collinear corners (``vertices``), merge coplanar neighbour faces (``edges``), drop duplicate
+    and degenerate faces (``faces``), or all of these (``all``).
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-cleanup-geometry.htm.
+    ``tolerance`` in [0, 1] scales the reference's limits (1 m vertex distance, 10° between
+    collinear edges and coplanar normals, 1 m² face area); 0 cleans only exact matches (within
+    1e-6 m / 1e-6 rad numerically).  Where the reference is silent: a vertex merges into the
+    first vertex (lower id) within the tolerance, without chains; a merged face starts at its
+    first face's first vertex (the 2024.1 change "preserves the first edge"); faces never merge
+    into a polygon with a hole;
+    a vertex is dropped as collinear only where it is straight in every face using it, so no
+    crack opens; faces of different materials or ``comp`` kinds (inside / border of ``offset``)
+    never merge; back-to-back faces are not duplicates.  Texture coordinates must be continuous
+    (one affine map) for faces or corners to be merged away, as the reference says.
+    """
+    comp = call.sel(0)
+    if comp not in kernel.COMPONENTS:
+        raise CGARuntimeError(f"cleanupGeometry: components must be one of "
+                              f"{', '.join(kernel.COMPONENTS)}, not '{comp}'")
+    tol = _unit_tolerance(call, 1, "the tolerance")
+    st = call.state
+    if not st.geometry.n_faces:
+        return
+    mesh, source = kernel.cleanup(st.geometry, comp, tol, _face_groups(st))
+    _replace_geometry(st, mesh, source)
+
+
+@operation("resetGeometry", 0)
+def op_reset_geometry(call):
+    """``resetGeometry()``: the initial shape's geometry, scope and pivot come back.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-reset-geometry-operation.htm.
+    As documented, trim planes are removed and shape attributes (material, colour), rule
+    attributes set with ``set`` and projections (``setupProjection``) stay.  Per-face data of the
+    old geometry (asset materials, ``comp`` face kinds) goes with it.
+    """
+    st = call.state
+    initial = call.derivation.initial
+    st.geometry = initial.geometry
+    st.scope = initial.scope
+    st.pivot = initial.pivot
+    for key in _GEOMETRY_CONTEXT:
+        st.context.pop(key, None)
+
+
+@operation("deleteHoles", 0)
+def op_delete_holes(call):
+    """``deleteHoles()``: faces with holes lose them.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-delete-holes.htm.  Our meshes
+    hold simple polygons only: a face with holes (``offset(d, border)``, a courtyard lot, a
+    ``setback`` remainder) is stored as coplanar pieces around the hole.  Each connected set of
+    such pieces whose outline has inner loops becomes one polygon, its outer outline, as in
+    CityEngine where the holed face becomes one face; other faces stay as they are.
+    """
+    st = call.state
+    if not st.geometry.n_faces:
+        return
+    mesh, source = kernel.fill_holes(st.geometry, _face_groups(st))
+    _replace_geometry(st, mesh, source)
+
+
+@operation("reduceGeometry", 1)
+def op_reduce_geometry(call):
+    """``reduceGeometry(tolerance)``: remove ``tolerance`` × the vertex count by edge collapses.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-reduce-geometry.htm.  The
+    collapses of least quadric error go first (the reference: "the least possible delta to the
+    appearance"); outlines are kept stiff.  Where the reference is silent: the result is triangles
+    (its terrain example has more faces than vertices after reduction); vertex counts are of
+    merged (coincident) vertices; fewer vertices go when more collapses would turn a triangle
+    over or pinch the surface.
+    """
+    frac = _unit_tolerance(call, 0, "the tolerance")
+    st = call.state
+    if not st.geometry.n_faces or frac == 0:
+        return
+    mesh, source = kernel.reduce(st.geometry, frac)
+    _replace_geometry(st, mesh, source)
+
+
+NORMAL_MODES = ("hard", "conform", "soft", "auto")
+
+
+@operation("setNormals", 1, 1, selectors=(0,))
+def op_set_normals(call):
+    """``setNormals(hard|conform|soft|auto)``.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-set-normals.htm.  ``conform``
+    turns faces so that neighbours agree, each connected part facing outwards when closed, else
+    favouring the world's up direction: face orientation is what every exporter writes (OBJ and
+    glTF winding), so this is carried.  ``hard``, ``soft`` and ``auto`` only set shading (vertex)
+    normals, which no exporter of ours writes (OBJ has no ``vn``, glTF no ``NORMAL``: clients shade
+    flat, which is ``hard``); they are checked and otherwise leave the shape as it is.
+    """
+    mode = call.sel(0)
+    if mode not in NORMAL_MODES:
+        raise CGARuntimeError(f"setNormals: mode must be one of {', '.join(NORMAL_MODES)}, "
+                              f"not '{mode}'")
+    st = call.state
+    if mode == "conform" and st.geometry.n_faces:
+        mesh, source = kernel.conform(st.geometry)
+        _replace_geometry(st, mesh, source)
+
+
+@operation("softenNormals", 1)
+def op_soften_normals(call):
+    """``softenNormals(angle)``: shading normals averaged across edges flatter than ``angle``.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-soften-normals.htm.  Shading
+    normals are not carried by our exports (see ``setNormals``), so after checking the angle
+    (0 to 180 degrees) the shape is left as it is.
+    """
+    angle = call.num(0)
+    if not 0.0 <= angle <= 180.0:
+        raise CGARuntimeError(f"softenNormals: the angle must be between 0 and 180 degrees, "
+                              f"not {angle:g}; e.g. softenNormals(30)")
+
+
+@operation("modify", 1, 2, selectors=(0, 1), body=True)
+def op_modify(call):
+    """``modify(component[, scopeAlignment]) { selector operator operations | … }``: not done
+    yet.  Registered with its ``{ … }`` body so that rules using it load and derive (the shape
+    goes on unchanged, with a warning) instead of failing to load.
+
+    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-modify-operation.htm.  What it
+    needs: branch operations run on each component's shape with no successor, then the edited
+    components recomposed with the untouched geometry (``inline(recompose) comp(f)``), and, for
+    ``modify(e|v)``, edge and vertex shapes whose moves reach every face sharing them (welded
+    topology, as ``geometry.cleanup.weld`` builds).
+    """
+    raise CGARuntimeError("modify() is not supported yet; the shape is left unchanged")
