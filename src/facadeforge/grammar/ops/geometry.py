@@ -307,14 +307,25 @@ def op_insert(call):
         raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
     _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
     st.context.pop("face_kinds", None)
+    st.context.pop("asset_material", None)
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces
         st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
         return
-    if asset.material.texture and "colormap" not in st.material:
-        st.material["colormap"] = asset.material.texture
-    if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):
-        st.material["color"] = tuple(asset.material.color)
+    own = {}
+    if asset.material.texture:
+        own["colormap"] = asset.material.texture
+    if asset.material.color != (1.0, 1.0, 1.0):
+        own["color"] = tuple(asset.material.color)
+    st.material.update({k: v for k, v in own.items() if k not in st.material})
+    st.context["asset_material"] = (own, st.geometry.n_faces)  # for resetMaterial
+
+
+def asset_material_keys(st) -> dict:
+    """The material attributes an inserted single-material asset brings (its texture and
+    colour), while the shape still holds that asset's faces; else ``{}``."""
+    rec = st.context.get("asset_material")
+    return rec[0] if rec is not None and rec[1] == st.geometry.n_faces else {}
 
 
 #: Per primitive: (resolution arguments, dimension arguments) of CityEngine's signatures, e.g.
