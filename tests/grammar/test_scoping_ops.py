@@ -98,10 +98,10 @@ def test_align_bbox_rejects_bad_axes(arg):
 def test_set_pivot_xyz_corner_1_turns_the_scope():
     # corner 1 is (sx, 0, 0): x and z must point inwards, so x runs along old z, z along -old x
     m = run("Lot --> setPivot(xyz, 1) "
-            + show("scope.sx", "scope.sz", "scope.tx", "pivot.px", "pivot.pz", "pivot.oy")
+            + show("scope.sx", "scope.sz", "pivot.px", "pivot.pz", "pivot.oy")
             + " split(x) { 3 : A | ~1 : B }")
     assert not m.warnings
-    assert prints(m) == pytest.approx([8, 10, 10, 10, 0, -90])
+    assert prints(m) == pytest.approx([8, 10, 10, 0, -90])
     lo, hi = bounds(m, "A")  # the first 3 m along old z, the whole 10 m along old x
     assert lo == pytest.approx([0, 0, 0]) and hi == pytest.approx([10, 0, 3])
     assert area(m) == pytest.approx(80)
@@ -163,6 +163,20 @@ def test_mirror_scope_single_flip_leaves_geometry():
             + " A.")
     assert prints(m) == pytest.approx([10, 10])
     assert m.parts[0].mesh.volume() == pytest.approx(240)
+
+
+def test_mirror_scope_mirrors_inserted_assets_with_outward_faces(tmp_path):
+    # a corner tetrahedron, its right angle at the asset's origin
+    (tmp_path / "tet.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n"
+                                      "f 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n")
+    src = 'Lot --> s(4, 2, 2) {} i("tet.obj") A.'
+    plain = run(src.format(""), assets=tmp_path).parts[0].mesh
+    mirrored = run(src.format("mirrorScope(true, false, false)"), assets=tmp_path).parts[0].mesh
+    assert plain.volume() == pytest.approx(16 / 6)
+    assert mirrored.volume() == pytest.approx(16 / 6)  # mirrored, not inside out
+    top = mirrored.vertices[np.argmax(mirrored.vertices[:, 1])]
+    assert top == pytest.approx([4, 2, 0])  # the apex above the right angle, now at x = 4
+    assert plain.vertices[np.argmax(plain.vertices[:, 1])] == pytest.approx([0, 2, 0])
 
 
 # ---- footprint ---------------------------------------------------------------------------------

@@ -279,6 +279,8 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     local = (mesh.vertices - lo) * factors
     st.own_scope().size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
+    if np.linalg.det(st.scope.rotation) < 0:  # a mirrored scope (mirrorScope): faces stay outward
+        st.geometry = st.geometry.reversed()
 
 
 @operation("i", 1, 3, selectors=(1, 2))
