@@ -306,3 +306,59 @@ def test_copy_uv_bad_sets_warn(args):
     m = run(f"Lot --> setupProjection(0, scope.xz, 2, 4) projectUV(0) copyUV({args}) A.")
     assert any("copyUV" in w for w in m.warnings)
     assert m.parts[0].mesh.corner_uvs.max(axis=0) == pytest.approx([5, 2])
+
+
+# ---- rectify -----------------------------------------------------------------------------------
+
+# a trapezoid: its right side leans 0.4 m over 8 m, atan(0.05) = 2.86 degrees off the z axis
+TRAPEZOID = np.array([[0, 0, 0], [10, 0, 0], [10.4, 0, 8], [0, 0, 8]], float)
+
+
+def test_rectify_straightens_a_leaning_side():
+    m = run("Lot --> rectify(5) " + show("scope.sx", "scope.sz", "geometry.area") + " A.",
+            poly=TRAPEZOID)
+    assert not m.warnings
+    assert prints(m) == pytest.approx([10.2, 8, 81.6])
+    corners = m.parts[0].mesh.vertices[m.parts[0].mesh.corners]
+    assert sorted(map(tuple, np.round(corners, 9))) == [(0, 0, 0), (0, 0, 8), (10.2, 0, 0),
+                                                        (10.2, 0, 8)]
+
+
+def test_rectify_leaves_edges_beyond_the_angle():
+    m = run("Lot --> rectify(2) " + show("scope.sx") + " A.", poly=TRAPEZOID)
+    assert prints(m) == pytest.approx([10.4])
+    assert sorted(np.round(m.parts[0].mesh.vertices[:, 0], 9)) == [0, 0, 10, 10.4]
+
+
+def test_rectify_moves_neighbouring_faces_together():
+    # offset leaves one mesh: the inner face and the border quads around it share corners; they
+    # must move together, so the faces still tile the straightened 10.2 x 8 outline
+    m = run("Lot --> offset(-1) rectify(5) " + show("geometry.nFaces", "scope.sx") + " A.",
+            poly=TRAPEZOID)
+    assert prints(m) == pytest.approx([5, 10.2])
+    assert m.parts[0].mesh.area() == pytest.approx(81.6)
+    # separate shapes straighten on their own: each half of a split leans 0.2 m
+    halves = run("Lot --> split(z) { 4 : A | ~1 : A }\nA --> rectify(5) X.", poly=TRAPEZOID)
+    assert sorted(round(p.mesh.area(), 9) for p in halves.parts) == [40.4, 41.2]
+
+
+@pytest.mark.parametrize("arg", ["-1", "46", "90"])
+def test_rectify_rejects_angles_outside_0_45(arg):
+    m = run(f"Lot --> rectify({arg}) A.", poly=TRAPEZOID)
+    assert any("rectify" in w and "[0, 45]" in w for w in m.warnings)
+    assert m.parts[0].mesh.area() == pytest.approx(81.6)
+
+
+def test_rectify_refuses_a_volume():
+    m = run("Lot --> extrude(3) rectify(10) A.", poly=TRAPEZOID)
+    assert any("rectify" in w and "volume" in w for w in m.warnings)
+    assert m.parts[0].mesh.volume() == pytest.approx(81.6 * 3)
+
+
+# ---- convert in the pivot frame ----------------------------------------------------------------
+
+def test_convert_uses_the_pivot():
+    m = run("Lot --> setPivot(xyz, 1) print(convert(x, world, pivot, pos, 10, 0, 3)) "
+            "print(convert(z, world, pivot, pos, 7, 0, 0)) A.")
+    # the pivot sits at (10, 0, 0) with x along world z and z along world -x
+    assert prints(m) == pytest.approx([3, 3])

@@ -656,8 +656,10 @@ def _gauss(rnd) -> float:
 
 @shape_function("convert")
 def _convert(env, args):
-    """``convert(x|y|z, fromSys, toSys, pos|dir, x, y, z)`` between scope, object and world
-    coordinates (pivot is the object frame here)."""
+    """``convert(x|y|z, fromSys, toSys, pos|dir, x, y, z)`` between scope, pivot, object and
+    world coordinates."""
+    from .scoping import pivot_frame
+
     comp = "xyz".find(to_str(args[0]))
     src, dst, kind = to_str(args[1]), to_str(args[2]), to_str(args[3])
     v = np.array([to_float(a) for a in args[4:7]])
@@ -665,7 +667,7 @@ def _convert(env, args):
     frames = {"scope": (st.scope.origin, st.scope.rotation),
               "world": (np.zeros(3), np.eye(3)),
               "object": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation),
-              "pivot": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation)}
+              "pivot": pivot_frame(st, env.derivation)}
     if comp < 0 or src not in frames or dst not in frames:
         raise CGARuntimeError("convert(x|y|z, scope|pivot|object|world, …, pos|dir, x, y, z)")
     (o1, r1), (o2, r2) = frames[src], frames[dst]
