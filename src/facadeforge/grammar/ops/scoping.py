@@ -86,12 +86,12 @@ def min_area_rectangle(pts: np.ndarray, prefer: np.ndarray) -> tuple[np.ndarray,
 
     hull = shapely.MultiPoint(pts).convex_hull
     if hull.geom_type == "Polygon":
-        ring = np.asarray(hull.exterior.coords)
-        edges = np.diff(ring, axis=0)
+        pts = np.asarray(hull.exterior.coords)
     elif hull.geom_type == "LineString":
-        edges = np.diff(np.asarray(hull.coords), axis=0)
+        pts = np.asarray(hull.coords)
     else:  # a single point
-        edges = np.zeros((0, 2))
+        pts = pts[:1]
+    edges = np.diff(pts, axis=0)
     lengths = np.linalg.norm(edges, axis=1)
     edges = edges[lengths > EPS] / lengths[lengths > EPS, None]
     if not len(edges):
@@ -157,8 +157,8 @@ def op_align_scope_to_geometry_bbox(call):
 #: axisMap -> which old scope axis each new axis (x, y, z) follows at corner 0
 _AXIS_MAPS = {"xyz": (0, 1, 2), "yzx": (2, 0, 1), "zxy": (1, 2, 0)}
 
-#: cornerIndex -> corner of the scope box in units of its size: the bottom (y = 0) corners
-#: 0-3 counter-clockwise from the origin seen from above (+y), then the top corners 4-7 above them
+#: cornerIndex -> corner of the scope box in units of its size: the bottom (y = 0) corners 0-3
+#: from the origin along x first, then the top corners 4-7 above them in the same order
 SCOPE_CORNERS = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1],
                           [0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]], float)
 
@@ -187,9 +187,9 @@ def op_set_pivot(call):
     to it) and the geometry stays where it is
     (https://doc.arcgis.com/en/cityengine/latest/cga/cga-set-pivot.htm).
 
-    The reference numbers the corners in a picture; here 0-3 are the bottom corners (scope y = 0)
-    counter-clockwise from the origin seen from +y ((0,0,0), (sx,0,0), (sx,0,sz), (0,0,sz)) and
-    4-7 the top corners above them.  Other axis maps (``xzy``…) would make a left-handed pivot and
+    The reference numbers the corners only in a picture; here 0-3 are the bottom corners
+    (0,0,0), (sx,0,0), (sx,0,sz), (0,0,sz) in scope coordinates and 4-7 the top corners above
+    them in the same order.  Other axis maps (``xzy``…) would make a left-handed pivot and
     are refused, as the reference lists only the three rotations.
     """
     st = call.state
@@ -391,19 +391,13 @@ def op_copy_uv(call):
 # ---- rectify -----------------------------------------------------------------------------------
 
 
-def _groups(n: int, pairs: list[tuple[int, int]]) -> np.ndarray:
-    """Connected components (union-find) of ``n`` items joined by ``pairs``: a label per item."""
-    parent = list(range(n))
+def _groups(n: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """Connected components of ``n`` items joined by the pairs ``(i[k], j[k])``: a label each."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
 
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
-    for i, j in pairs:
-        parent[root(i)] = root(j)
-    return np.array([root(i) for i in range(n)])
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
 
 
 def _group_mean(values: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -437,8 +431,8 @@ def rectified_mesh(mesh: Mesh, scope: Scope, max_angle: float) -> Mesh:
     along_a = moving & (angle < max_angle)
     along_b = moving & (90 - angle < max_angle)
     out = pts.copy()
-    out[:, b] = _group_mean(pts[:, b], _groups(len(pts), list(zip(i[along_a], j[along_a]))))
-    out[:, a] = _group_mean(pts[:, a], _groups(len(pts), list(zip(i[along_b], j[along_b]))))
+    out[:, b] = _group_mean(pts[:, b], _groups(len(pts), i[along_a], j[along_a]))
+    out[:, a] = _group_mean(pts[:, a], _groups(len(pts), i[along_b], j[along_b]))
     moved = local + out[weld] - pts[weld]
     return mesh.with_vertices(scope.to_world(_back_onto_planes(mesh, local, moved, c)))
 
