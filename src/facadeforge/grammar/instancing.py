@@ -36,7 +36,7 @@ IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
-UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}
+UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV"}
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 

@@ -26,6 +26,7 @@ from .instancing import Purity, Recording, instance_key
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
+from .ops.scoping import pivot_value
 from .state import ShapeState
 from .values import CGARuntimeError, to_bool, to_float, to_str
 
@@ -190,8 +191,9 @@ _SHAPE_VALUES = {
     "seedian": lambda e: float(e.derivation.seed),
     "pi": lambda e: math.pi,
     "PI": lambda e: math.pi,
-    "pivot.px": lambda e: 0.0, "pivot.py": lambda e: 0.0, "pivot.pz": lambda e: 0.0,
-    "pivot.ox": lambda e: 0.0, "pivot.oy": lambda e: 0.0, "pivot.oz": lambda e: 0.0,
+    "pivot.px": lambda e: pivot_value(e, "px"), "pivot.py": lambda e: pivot_value(e, "py"),
+    "pivot.pz": lambda e: pivot_value(e, "pz"), "pivot.ox": lambda e: pivot_value(e, "ox"),
+    "pivot.oy": lambda e: pivot_value(e, "oy"), "pivot.oz": lambda e: pivot_value(e, "oz"),
 }
 
 class Derivation:

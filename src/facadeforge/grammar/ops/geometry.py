@@ -279,6 +279,8 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     local = (mesh.vertices - lo) * factors
     st.own_scope().size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
+    if np.linalg.det(st.scope.rotation) < 0:  # a mirrored scope (mirrorScope): faces stay outward
+        st.geometry = st.geometry.reversed()
 
 
 @operation("i", 1, 3, selectors=(1, 2))
@@ -307,14 +309,25 @@ def op_insert(call):
         raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
     _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
     st.context.pop("face_kinds", None)
+    st.context.pop("asset_material", None)
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces
         st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
         return
-    if asset.material.texture and "colormap" not in st.material:
-        st.material["colormap"] = asset.material.texture
-    if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):
-        st.material["color"] = tuple(asset.material.color)
+    own = {}
+    if asset.material.texture:
+        own["colormap"] = asset.material.texture
+    if asset.material.color != (1.0, 1.0, 1.0):
+        own["color"] = tuple(asset.material.color)
+    st.material.update({k: v for k, v in own.items() if k not in st.material})
+    st.context["asset_material"] = (own, st.geometry.n_faces)  # for resetMaterial
+
+
+def asset_material_keys(st) -> dict:
+    """The material attributes an inserted single-material asset brings (its texture and
+    colour), while the shape still holds that asset's faces; else ``{}``."""
+    rec = st.context.get("asset_material")
+    return rec[0] if rec is not None and rec[1] == st.geometry.n_faces else {}
 
 
 #: Per primitive: (resolution arguments, dimension arguments) of CityEngine's signatures, e.g.
@@ -643,8 +656,10 @@ def _gauss(rnd) -> float:
 
 @shape_function("convert")
 def _convert(env, args):
-    """``convert(x|y|z, fromSys, toSys, pos|dir, x, y, z)`` between scope, object and world
-    coordinates (pivot is the object frame here)."""
+    """``convert(x|y|z, fromSys, toSys, pos|dir, x, y, z)`` between scope, pivot, object and
+    world coordinates."""
+    from .scoping import pivot_frame
+
     comp = "xyz".find(to_str(args[0]))
     src, dst, kind = to_str(args[1]), to_str(args[2]), to_str(args[3])
     v = np.array([to_float(a) for a in args[4:7]])
@@ -652,7 +667,7 @@ def _convert(env, args):
     frames = {"scope": (st.scope.origin, st.scope.rotation),
               "world": (np.zeros(3), np.eye(3)),
               "object": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation),
-              "pivot": (env.derivation.object_scope.origin, env.derivation.object_scope.rotation)}
+              "pivot": pivot_frame(st, env.derivation)}
     if comp < 0 or src not in frames or dst not in frames:
         raise CGARuntimeError("convert(x|y|z, scope|pivot|object|world, …, pos|dir, x, y, z)")
     (o1, r1), (o2, r2) = frames[src], frames[dst]
