@@ -59,10 +59,12 @@ def test_align_bbox_finds_the_minimum_rectangle_of_a_parallelogram():
 
 def test_align_bbox_first_axis_takes_the_longer_side():
     # a 4 (x) by 10 (z) lot: xz turns x onto the 10 m side, zx keeps z there
-    m = run("Lot --> alignScopeToGeometryBBox(xz) " + show("scope.sx", "scope.sz", "scope.ry")
-            + " A.", lot="4x10")
+    # (the pivot turns with the scope, so the turn shows in pivot.oy, and scope.ry, which is
+    # relative to the pivot, stays 0)
+    m = run("Lot --> alignScopeToGeometryBBox(xz) " + show("scope.sx", "scope.sz", "pivot.oy",
+                                                            "scope.ry") + " A.", lot="4x10")
     assert prints(m)[:2] == pytest.approx([10, 4])
-    assert abs(prints(m)[2]) == pytest.approx(90)
+    assert abs(prints(m)[2]) == pytest.approx(90) and prints(m)[3] == pytest.approx(0, abs=1e-9)
     m = run("Lot --> alignScopeToGeometryBBox(zx) " + show("scope.sx", "scope.sz", "scope.ry")
             + " A.", lot="4x10")
     assert prints(m) == pytest.approx([4, 10, 0], abs=1e-6)
@@ -380,3 +382,23 @@ def test_convert_uses_the_pivot():
             "print(convert(z, world, pivot, pos, 7, 0, 0)) A.")
     # the pivot sits at (10, 0, 0) with x along world z and z along world -x
     assert prints(m) == pytest.approx([3, 3])
+
+
+# a 10 x 8 lot far from the world origin, 5 m up: CityEngine's scope.t is relative to the
+# pivot (the initial shape's frame), scope.elevation is the world height
+FAR = np.array([[100, 5, -50], [100, 5, -58], [110, 5, -58], [110, 5, -50]], float)
+
+
+def test_scope_translation_is_relative_to_the_pivot():
+    m = run("Lot --> " + show("scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry",
+                              "scope.rz", "scope.elevation")
+            + " t(2, 0, 1) " + show("scope.tx", "scope.tz") + " A.", poly=FAR)
+    assert prints(m) == pytest.approx([0, 0, 0, 0, 0, 0, 5, 2, 1], abs=1e-9)
+
+
+def test_set_scope_translation_moves_along_the_pivot_axes():
+    m = run("Lot --> set(scope.tx, 3) " + show("scope.tx") + " A.", poly=FAR)
+    assert prints(m) == pytest.approx([3])
+    (lo, hi) = bounds(m)
+    # the lot moved 3 m along its first edge, which points to -z
+    assert lo == pytest.approx([100, 5, -61]) and hi == pytest.approx([110, 5, -53])

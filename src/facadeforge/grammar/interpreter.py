@@ -26,7 +26,7 @@ from .instancing import Purity, Recording, instance_key
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
-from .ops.scoping import pivot_value
+from .ops.scoping import euler_xyz_deg, pivot_frame, pivot_value
 from .state import ShapeState
 from .values import CGARuntimeError, to_bool, to_float, to_str
 
@@ -154,27 +154,28 @@ def _material_value(state: ShapeState, name: str):
     return v
 
 
-def _scope_rotation_deg(state: ShapeState) -> np.ndarray:
-    r = state.scope.rotation
-    # XYZ Euler angles (degrees) of the scope rotation, as scope.rx/ry/rz report them
-    sy = -r[2, 0]
-    ry = math.degrees(math.asin(max(-1.0, min(1.0, sy))))
-    rx = math.degrees(math.atan2(r[2, 1], r[2, 2]))
-    rz = math.degrees(math.atan2(r[1, 0], r[0, 0]))
-    return np.array([rx, ry, rz])
+def _scope_in_pivot(env) -> tuple[np.ndarray, np.ndarray]:
+    """The scope's translation (3,) and rotation angles (3,) relative to the shape's pivot, as
+    CityEngine's ``scope.t`` and ``scope.r`` are (reference, "scope attribute")."""
+    origin, rotation = pivot_frame(env.state, env.derivation)
+    sc = env.state.scope
+    t = (sc.origin - origin) @ rotation
+    r = euler_xyz_deg(rotation.T @ sc.rotation)
+    return t, r
 
 
 _SHAPE_VALUES = {
     "scope.sx": lambda e: float(e.state.scope.size[0]),
     "scope.sy": lambda e: float(e.state.scope.size[1]),
     "scope.sz": lambda e: float(e.state.scope.size[2]),
-    "scope.tx": lambda e: float(e.state.scope.origin[0]),
-    "scope.ty": lambda e: float(e.state.scope.origin[1]),
-    "scope.tz": lambda e: float(e.state.scope.origin[2]),
-    "scope.rx": lambda e: float(_scope_rotation_deg(e.state)[0]),
-    "scope.ry": lambda e: float(_scope_rotation_deg(e.state)[1]),
-    "scope.rz": lambda e: float(_scope_rotation_deg(e.state)[2]),
-    "scope.elevation": lambda e: float(e.state.scope.origin[1] - e.derivation.initial_origin[1]),
+    "scope.tx": lambda e: float(_scope_in_pivot(e)[0][0]),
+    "scope.ty": lambda e: float(_scope_in_pivot(e)[0][1]),
+    "scope.tz": lambda e: float(_scope_in_pivot(e)[0][2]),
+    "scope.rx": lambda e: float(_scope_in_pivot(e)[1][0]) + 0.0,
+    "scope.ry": lambda e: float(_scope_in_pivot(e)[1][1]) + 0.0,
+    "scope.rz": lambda e: float(_scope_in_pivot(e)[1][2]) + 0.0,
+    # above sea level: the world y of the scope's origin (reference, "scope attribute")
+    "scope.elevation": lambda e: float(e.state.scope.origin[1]),
     "split.index": lambda e: float(e.state.context.get("split.index", 0)),
     "split.total": lambda e: float(e.state.context.get("split.total", 0)),
     "comp.index": lambda e: float(e.state.context.get("comp.index", 0)),

@@ -21,7 +21,7 @@ def op_set(call):
     if name.startswith("trim.") or name.startswith("pivot."):
         return  # trim planes and pivots are not modelled (docs/cga-dialect.md)
     if name.startswith("scope."):
-        _set_scope(st, name[len("scope."):], to_float(value))
+        _set_scope(call, st, name[len("scope."):], to_float(value))
         return
     if name.startswith("comp.") or name.startswith("split."):
         raise CGARuntimeError(f"'{name}' cannot be set")
@@ -89,20 +89,22 @@ def op_differentiate(call):
     st.draws = 0
 
 
-def _set_scope(st, key: str, value: float) -> None:
-    """``set(scope.tx|ty|tz|sx|sy|sz, v)``: translation in the scope's own axes relative to its
-    current origin is not what CityEngine means; it sets the component of the scope's position
-    along that scope axis (measured from the pivot, here the world origin projected on the axis),
-    or the size along it, scaling the geometry as ``s()`` does."""
+def _set_scope(call, st, key: str, value: float) -> None:
+    """``set(scope.tx|ty|tz|sx|sy|sz, v)``: the translation is the scope origin's position in
+    the pivot's frame (reference, "scope attribute"), so the scope (and its geometry) moves
+    along that pivot axis; the size scales the geometry as ``s()`` does."""
     import numpy as np
+
+    from .scoping import pivot_frame
 
     axis = "xyz".find(key[-1:])
     if axis < 0 or key[:1] not in ("t", "s"):
         raise CGARuntimeError(f"scope.{key} cannot be set (use scope.tx…tz or scope.sx…sz)")
     sc = st.own_scope()
     if key[0] == "t":
-        d = value - float(sc.origin @ sc.rotation[:, axis])
-        shift = sc.rotation[:, axis] * d
+        origin, rotation = pivot_frame(st, call.derivation)
+        d = value - float((sc.origin - origin) @ rotation[:, axis])
+        shift = rotation[:, axis] * d
         sc.origin = sc.origin + shift
         if st.geometry.n_faces:
             st.geometry = st.geometry.with_vertices(st.geometry.vertices + shift)
