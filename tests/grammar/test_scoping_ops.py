@@ -402,3 +402,14 @@ def test_set_scope_translation_moves_along_the_pivot_axes():
     (lo, hi) = bounds(m)
     # the lot moved 3 m along its first edge, which points to -z
     assert lo == pytest.approx([100, 5, -61]) and hi == pytest.approx([110, 5, -53])
+
+
+def test_comp_aligns_the_pivot_with_each_component_scope():
+    # zUp (default): pivot and scope are aligned, so the component's scope.t and scope.r are 0
+    # relative to it; noAlign keeps the pivot, so the right face's scope sits 10 m along x
+    m = run("Lot --> extrude(3) comp(f) { right : " + show("scope.tx", "scope.ry", "pivot.px")
+            + " R. }")
+    assert prints(m) == pytest.approx([0, 0, 10], abs=1e-9)
+    m = run("Lot --> extrude(3) comp(f, noAlign) { right : " + show("scope.tx", "pivot.px")
+            + " R. }")
+    assert prints(m) == pytest.approx([10, 0], abs=1e-9)

@@ -395,6 +395,12 @@ def op_comp(call):
         for ps, _, _ in pieces:
             ps.scope = st.scope
             ps.fit_scope()
+    else:
+        # zUp (default): "pivot and scope are aligned" – each piece's pivot is its scope frame
+        from .scoping import set_pivot_frame
+
+        for ps, _, _ in pieces:
+            set_pivot_frame(ps, ps.scope.origin, ps.scope.rotation)
     return pieces
 
 

@@ -178,6 +178,10 @@ def op_align_scope_to_geometry(call):
     st.own_scope().rotation = rot
     st.own_scope().origin = poly[e].copy()
     st.fit_scope()
+    # the pivot takes the new axes, its origin at the new scope's (reference)
+    from .scoping import set_pivot_frame
+
+    set_pivot_frame(st, st.scope.origin, st.scope.rotation)
 
 
 @operation("mirror", 3)
