@@ -125,6 +125,10 @@ Lot --> print(a) print(isNull(0)) print(sortRowIndices([3,1,2])) print(findFirst
     assert out == ["(0,5,0)", "false", "(1,2,0)", "1", "p;q;"]
 
 
+def test_print_function_prints_and_returns_its_value():
+    assert prints('Lot --> extrude(print(2) + 1) print(scope.sy)') == ["2", "3"]
+
+
 # ---- geometry queries -----------------------------------------------------------------------
 
 def test_boundary_length_of_a_lot_a_box_and_a_face():

@@ -141,6 +141,16 @@ def _bool(env, a):
     return to_bool(a[0])
 
 
+@builtin("print", 1)
+def _print(env, a):
+    """``print(value)`` inside an expression: prints the value and returns it (func_print.html;
+    the ``print`` operation is the statement form)."""
+    derivation = getattr(env, "derivation", None)
+    if derivation is not None:
+        derivation.prints.append(to_str(a[0]))
+    return a[0]
+
+
 @builtin("rand", 0, 2)
 def _rand(env, a):
     r = env.random_float()
