@@ -28,9 +28,9 @@ from .module import Module, RuleSet
 
 IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
                 "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
-                "pivot.oz"}
+                "pivot.oz", "geometry.isInstanced", "geometry.groups"}
 IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
-                "contextCompare", "contextCount"}
+                "contextCompare", "contextCount", "geometry.isInstanced", "geometry.groups"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
