@@ -30,7 +30,8 @@ IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "sco
                 "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
                 "pivot.oz", "geometry.isInstanced", "geometry.groups"}
 IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
-                "contextCompare", "contextCount", "geometry.isInstanced", "geometry.groups"}
+                "contextCompare", "contextCount", "geometry.isInstanced", "geometry.groups",
+                "assetApproxRatio", "assetApproxSize", "assetFitSize", "imageApproxRatio"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
