@@ -222,6 +222,14 @@ Lot --> print(assetBestSize("box_*.obj", "xz")) print(assetBestSize("box_*.obj",
     assert picks == {"box_b2.obj", "box_c4.obj"}
 
 
+def test_sort_functions_take_string_arrays(boxes):
+    out = prints('Lot --> s(2, 1, 1) print(assetsSortSize(filesSearch("box_*.obj"), "x", 0)) '
+                 'print(assetsSortSize("box_a1.obj;box_b2.obj;box_c4.obj;", "x", 0.6))',
+                 assets=boxes)
+    # scaling needed for x = 2: b2 0 %, c4 50 %, a1 100 %, d9 78 %
+    assert out == ["box_b2.obj;box_c4.obj;box_d9.obj;box_a1.obj;", "box_b2.obj;box_c4.obj;"]
+
+
 def test_asset_fit_size(boxes):
     # scope 4 x 0 x 2: within 10 % only c4 (4 x 2) fits; 0 allows every asset
     out = prints('Lot --> s(4, 0, 2) print(assetFitSize("box_*.obj", "xz", 0.1))', assets=boxes)

@@ -729,6 +729,9 @@ def _sort_by_ratio(env, items: list[str], axes: str, dims) -> str:
 
 
 def _list(text) -> list[str]:
+    """File names from a string list or (CGA 2021.0 on) a string array."""
+    if isinstance(text, np.ndarray):
+        return [to_str(x) for x in text.reshape(-1).tolist() if to_str(x)]
     return [x for x in to_str(text).split(";") if x]
 
 
