@@ -79,14 +79,43 @@ def _max(env, a):
     return max(to_float(x) for x in a)
 
 
+def _float_test(a, test):
+    """``isnan``/``isinf`` on a float, or element-wise on a float array (CGA 2021.0 on): strings
+    and bools are never NaN or infinite."""
+    v = a[0]
+    if isinstance(v, np.ndarray):
+        if v.dtype.kind != "f":
+            return np.zeros(v.shape, bool)
+        return test(v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(test(v))
+
+
 @builtin("isnan", 1)
 def _isnan(env, a):
-    return isinstance(a[0], (int, float)) and math.isnan(a[0])
+    return _float_test(a, np.isnan)
 
 
 @builtin("isinf", 1)
 def _isinf(env, a):
-    return isinstance(a[0], (int, float)) and math.isinf(a[0])
+    return _float_test(a, np.isinf)
+
+
+#: CityEngine's NULL string (a missing layer attribute); NULL floats are NaN.
+NULL_STRING = "\ue000"
+
+
+@builtin("isNull", 1)
+def _is_null(env, a):
+    """``isNull(value)``: whether a float is NULL (NaN) or a string is NULL ("\\ue000"),
+    element-wise on arrays (reference: func_isnull.html, "isNull")."""
+    v = a[0]
+    if isinstance(v, np.ndarray):
+        if v.dtype.kind == "f":
+            return np.isnan(v)
+        return np.array([x == NULL_STRING for x in v.reshape(-1)], bool).reshape(v.shape)
+    if isinstance(v, str):
+        return v == NULL_STRING
+    return isinstance(v, float) and math.isnan(v)
 
 
 @builtin("float", 1)
@@ -110,6 +139,16 @@ def _sel(env, a):
 @builtin("bool", 1)
 def _bool(env, a):
     return to_bool(a[0])
+
+
+@builtin("print", 1)
+def _print(env, a):
+    """``print(value)`` inside an expression: prints the value and returns it (func_print.html;
+    the ``print`` operation is the statement form)."""
+    derivation = getattr(env, "derivation", None)
+    if derivation is not None:
+        derivation.prints.append(to_str(a[0]))
+    return a[0]
 
 
 @builtin("rand", 0, 2)
@@ -144,9 +183,23 @@ def _find(env, a):
     return float(pos)
 
 
-@builtin("findFirst", 2)
+@builtin("findFirst", 2, 3)
 def _find_first(env, a):
-    return float(to_str(a[0]).find(to_str(a[1])))
+    """``findFirst(string, sub)`` (utility library) or ``findFirst(array, value[, epsilon])``
+    (built-in, func_findFirst.html): index of the first match, -1 when there is none.  Arrays are
+    searched in row-major order; float values match within ``epsilon`` (0 when left out)."""
+    if not isinstance(a[0], np.ndarray):
+        if len(a) > 2:
+            raise CGARuntimeError("findFirst(string, sub) takes 2 arguments; the third "
+                                  "(epsilon) is only for arrays")
+        return float(to_str(a[0]).find(to_str(a[1])))
+    flat = a[0].reshape(-1)
+    if flat.dtype.kind == "f":
+        eps = to_float(a[2], "findFirst epsilon") if len(a) > 2 else 0.0
+        hits = np.flatnonzero(np.abs(flat - to_float(a[1], "findFirst value")) <= eps)
+    else:
+        hits = [i for i, x in enumerate(flat) if from_numpy(x) == a[1]]
+    return float(hits[0]) if len(hits) else -1.0
 
 
 @builtin("findLast", 2)
@@ -249,6 +302,20 @@ def _list_random(env, a):
     return items[min(int(env.random_float() * len(items)), len(items) - 1)]
 
 
+@builtin("listToArray", 1)
+def _list_to_array(env, a):
+    """``listToArray(stringList)``: the items of a ``;``-terminated string list as a string
+    array (celib/listToArray.html)."""
+    return np.array(_list_items(to_str(a[0])), dtype=object)
+
+
+@builtin("listFromArray", 1)
+def _list_from_array(env, a):
+    """``listFromArray(array)``: a ``;``-terminated string list of the array's elements, in
+    row-major order (celib/listFromArray.html)."""
+    return "".join(to_str(from_numpy(x)) + ";" for x in _arr(a[0], "listFromArray argument").reshape(-1))
+
+
 @builtin("listClean", 1)
 def _list_clean(env, a):
     return "".join(x + ";" for x in _list_items(to_str(a[0])) if x)
@@ -327,6 +394,96 @@ def _reverse(env, a):
 @builtin("transpose", 1)
 def _transpose(env, a):
     return _arr(a[0]).T.copy()
+
+
+@builtin("sortRowIndices", 1)
+def _sort_row_indices(env, a):
+    """Indices of the rows of ``array`` in lexicographic order; equal rows keep their order
+    (func_sortRowIndices.html).  A 1D array's elements are its rows."""
+    arr = _arr(a[0], "sortRowIndices argument")
+    rows = arr.reshape(len(arr), -1) if arr.ndim else arr.reshape(0, 1)
+    keys = [tuple(from_numpy(x) for x in r) for r in rows]
+    return np.array(sorted(range(len(keys)), key=keys.__getitem__), float)
+
+
+#: The largest array ``setElems`` builds (CityEngine's default procedural-runtime limit).
+MAX_ARRAY_SIZE = 100_000
+
+
+def _selected(index, length: int, what: str) -> list[int]:
+    """Positions an index argument selects: one index, an index array or a logical array.
+    Negative indices are dropped, as ``setElems`` ignores them."""
+    if isinstance(index, np.ndarray):
+        flat = index.reshape(-1)
+        if flat.dtype.kind == "b":
+            if len(flat) > length:
+                raise CGARuntimeError(f"setElems: the logical {what} array has {len(flat)} "
+                                      f"elements, more than the {length} it selects from")
+            picked = np.flatnonzero(flat)
+        elif flat.dtype.kind == "f":
+            picked = flat
+        else:
+            raise CGARuntimeError(f"setElems: {what} must be numbers or bools, got {type_name(index)}")
+    else:
+        picked = [to_float(index, f"setElems {what}")]
+    return [int(i) for i in picked if i >= 0]
+
+
+def _element_of(arr: np.ndarray, value):
+    """``value`` as an element of ``arr``'s type; a mismatch is an error as in CGA."""
+    kind = {"f": "float", "b": "bool"}.get(arr.dtype.kind, "string")
+    if type_name(value) != kind:
+        raise CGARuntimeError(f"setElems: cannot put a {type_name(value)} into a {kind} array")
+    return value
+
+
+def _values_for(arr: np.ndarray, values, count: int) -> list:
+    if isinstance(values, np.ndarray):
+        flat = [from_numpy(x) for x in values.reshape(-1)]
+        if len(flat) != count:
+            raise CGARuntimeError(f"setElems: {len(flat)} values for {count} selected elements; "
+                                  "give one value or exactly one per selected element")
+        return [_element_of(arr, v) for v in flat]
+    return [_element_of(arr, values)] * count
+
+
+def _grown(arr: np.ndarray, shape: tuple) -> np.ndarray:
+    if int(np.prod(shape)) > MAX_ARRAY_SIZE:
+        raise CGARuntimeError(f"setElems: the array would grow to {int(np.prod(shape))} elements, "
+                              f"more than {MAX_ARRAY_SIZE}")
+    out = np.full(shape, "" if arr.dtype == object else 0, dtype=arr.dtype)
+    out[tuple(slice(0, n) for n in arr.shape)] = arr
+    return out
+
+
+@builtin("setElems", 3, 4)
+def _set_elems(env, a):
+    """``setElems(array, indices, values)`` / ``setElems(array, rows, cols, values)``: a copy of
+    ``array`` with the selected elements set (func_setElems.html).  Indices are numbers, index
+    arrays or logical arrays; negative ones are ignored, larger ones grow the array with default
+    values (0, "", false); repeated indices take the last value.  A 1D array is one row for 2D
+    indexing; 1D indexing of a 2D array counts in row-major order within its size."""
+    arr = _arr(a[0], "setElems array")
+    if len(a) == 3:
+        flat = arr.reshape(-1)
+        idx = _selected(a[1], len(flat), "indices")
+        vals = _values_for(arr, a[2], len(idx))
+        if arr.ndim == 2 and any(i >= flat.size for i in idx):
+            raise CGARuntimeError("setElems: an index past the end of a 2D array; use "
+                                  "setElems(array, rows, cols, values) to grow it")
+        out = _grown(flat, (max([flat.size] + [i + 1 for i in idx]),))
+        for i, v in zip(idx, vals):
+            out[i] = v
+        return out.reshape(arr.shape) if arr.ndim == 2 else out
+    grid = arr.reshape(1, -1) if arr.ndim == 1 else arr
+    rows = _selected(a[1], grid.shape[0], "row indices")
+    cols = _selected(a[2], grid.shape[1], "column indices")
+    vals = _values_for(arr, a[3], len(rows) * len(cols))
+    shape = (max([grid.shape[0]] + [r + 1 for r in rows]), max([grid.shape[1]] + [c + 1 for c in cols]))
+    out = _grown(grid, shape)
+    for k, (r, c) in enumerate((r, c) for r in rows for c in cols):
+        out[r, c] = vals[k]
+    return out
 
 
 @builtin("splitString", 2)

@@ -28,9 +28,10 @@ from .module import Module, RuleSet
 
 IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
                 "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
-                "pivot.oz"}
+                "pivot.oz", "geometry.isInstanced", "geometry.groups"}
 IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
-                "contextCompare", "contextCount"}
+                "contextCompare", "contextCount", "geometry.isInstanced", "geometry.groups",
+                "assetApproxRatio", "assetApproxSize", "assetFitSize", "imageApproxRatio"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is

@@ -126,6 +126,7 @@ def load_all() -> dict[str, OpSpec]:
         meta,
         occlusion,
         perimeter,
+        queries,
         roofs,
         scoping,
         subdivision,

@@ -297,6 +297,7 @@ def op_insert(call):
         mesh = make()
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
+        st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
         return
     resolver = call.derivation.assets
     if resolver is None:
@@ -310,6 +311,7 @@ def op_insert(call):
     _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
     st.context.pop("face_kinds", None)
     st.context.pop("asset_material", None)
+    st.context["inserted"] = (name, st.geometry)
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces
         st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
@@ -550,11 +552,6 @@ def _asset_info(env, args):
     return float(table.get(key, 0.0))
 
 
-@shape_function("assetApproxRatio")
-def _asset_ratio(env, args):
-    return 1.0
-
-
 __all__ = ["Scope", "convex_parts", "extrude_mesh", "face_scope", "to_bool"]
 
 
@@ -747,6 +744,9 @@ def _sort_by_ratio(env, items: list[str], axes: str, dims) -> str:
 
 
 def _list(text) -> list[str]:
+    """File names from a string list or (CGA 2021.0 on) a string array."""
+    if isinstance(text, np.ndarray):
+        return [to_str(x) for x in text.reshape(-1).tolist() if to_str(x)]
     return [x for x in to_str(text).split(";") if x]
 
 
@@ -768,14 +768,31 @@ def _assets_sort_ratio(env, args):
     return _sort_by_ratio(env, _list(args[0]), axes, dims)
 
 
+def size_error(env, name: str, axes: str) -> float:
+    """Largest relative scaling |scope / asset - 1| an asset needs to fit the scope on ``axes``."""
+    size = env.state.scope.size
+    worst = 0.0
+    for a in axes:
+        s = _asset_info(env, [name, "s" + a])
+        target = float(size["xyz".index(a)])
+        worst = max(worst, abs(target / s - 1.0) if s > EPS else float("inf"))
+    return worst
+
+
+def sort_by_size(env, files: list[str], axes: str, max_scale_error: float = 0.0) -> list[str]:
+    """``files`` ordered by the scaling they need (best first); with ``max_scale_error`` > 0
+    only those within it (0.1 = ±10 %)."""
+    if any(a not in "xyz" for a in axes) or not axes:
+        raise CGARuntimeError(f"axis selector '{axes}' is not one of x, y, z, xy, xz, yz, xyz")
+    errors = [size_error(env, f, axes) for f in files]
+    order = sorted(range(len(files)), key=errors.__getitem__)
+    return [files[k] for k in order if max_scale_error <= 0 or errors[k] <= max_scale_error + 1e-9]
+
+
 @shape_function("assetsSortSize")
 def _assets_sort_size(env, args):
-    """Assets sorted by how close their size is to the scope's on the given axes."""
+    """``assetsSortSize(fileList, axes, maxScaleError)``: assets sorted by how little scaling
+    they need to fit the scope on the given axes (func_assetsSortSize.html)."""
     axes = to_str(args[1]) if len(args) > 1 else "xyz"
-    idx = {"x": 0, "y": 1, "z": 2}
-    size = env.state.scope.size
-    scored = []
-    for k, name in enumerate(_list(args[0])):
-        err = sum(abs(_asset_info(env, [name, "s" + a]) - size[idx[a]]) for a in axes if a in idx)
-        scored.append((err, k, name))
-    return "".join(name + ";" for _, _, name in sorted(scored))
+    limit = to_float(args[2]) if len(args) > 2 else 0.0
+    return "".join(name + ";" for name in sort_by_size(env, _list(args[0]), axes, limit))

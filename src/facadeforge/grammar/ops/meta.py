@@ -52,6 +52,9 @@ def op_print(call):
 def op_label(call):
     """Semantic label of the shape and its descendants (also CityEngine's occlusion label)."""
     call.state.context["label"] = call.text(0)
+    labeled = getattr(call.derivation, "labeled_shapes", None)
+    if labeled is not None:  # first pass of the context queries (ops/queries.py)
+        labeled.append((call.text(0), call.state.scope.copy(), call.state.geometry))
 
 
 @operation("consistent", 1)
