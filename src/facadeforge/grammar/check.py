@@ -178,6 +178,8 @@ class _Checker:
                 self.branches(opname, b.branches, scope)
                 continue
             self.expr(b.selector, scope, selector_ok=opname != "split")
+            if b.depth is not None:
+                self.expr(b.depth, scope)
             self.ops(b.ops, scope)
 
 

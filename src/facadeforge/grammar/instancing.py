@@ -155,6 +155,8 @@ class Purity:
                 self._branches(m, b.branches, info)
             else:
                 self._expr(m, b.selector, info)
+                if b.depth is not None:
+                    self._expr(m, b.depth, info)
                 self._ops(m, b.ops, info)
 
     def _expr(self, m, node, info):
