@@ -200,3 +200,17 @@ def test_asset_uvs_and_builtin_assets(assets):
                     assets))
     assert g.volume() == pytest.approx(80)
     assert g.corner_uvs is not None  # the builtin cube's own texture coordinates
+
+
+def test_instancing_does_not_share_assets_laid_on_different_uvs(assets):
+    # two halves of the lot with equal geometry but u in [0, 0.5] and [0.5, 1]: the left one gets
+    # the box's left end cap (x = 0), the right one its right end cap (x = 10)
+    src = (f"Lot --> {PROJECT.format(w=10)} split(x) {{ ~5 : Half }}*\n"
+           "Half --> insertAlongUV(0, \"box.obj\", 2) B.")
+    for keep_tree in (True, False):
+        m = derive(load_rules(src, assets=assets), lot_size="10x8", keep_tree=keep_tree)[0]
+        g = mesh_of(m)
+        assert g.area() == pytest.approx(2 * (10 * 8 + 10 * 2 + 8 * 2))
+        caps = np.abs(g.face_normals()[:, 0]) > 0.99
+        x = sorted(g.vertices[g.face(f)][0, 0] for f in np.flatnonzero(caps))
+        assert x == pytest.approx([0, 10])

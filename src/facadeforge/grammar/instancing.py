@@ -35,7 +35,7 @@ OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
-UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}
+UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "insertAlongUV"}
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
