@@ -10,7 +10,7 @@ import pytest
 from facadeforge import derive, load_rules
 from facadeforge.geometry.footprints import Footprint
 from facadeforge.geometry.mesh import Mesh
-from facadeforge.grammar.ops.alonguv import _vertex_normals
+from facadeforge.grammar.ops.alonguv import _inverse_bilinear, _Patch, _vertex_normals
 
 BOX = """# 2 x 1 x 0.5 box: x in [0, 2], y in [0, 1], z in [-0.25, 0.25]
 v 0 0 -0.25
@@ -214,3 +214,23 @@ def test_instancing_does_not_share_assets_laid_on_different_uvs(assets):
         caps = np.abs(g.face_normals()[:, 0]) > 0.99
         x = sorted(g.vertices[g.face(f)][0, 0] for f in np.flatnonzero(caps))
         assert x == pytest.approx([0, 10])
+
+
+def test_inverse_bilinear_recovers_quad_parameters():
+    q = np.array([[0, 0], [4, 0.5], [3.5, 3], [-0.5, 2]], float)
+    rng = np.random.default_rng(1)
+    st = rng.random((50, 2))
+    s, t = st[:, 0:1], st[:, 1:2]
+    p = (1 - s) * (1 - t) * q[0] + s * (1 - t) * q[1] + s * t * q[2] + (1 - s) * t * q[3]
+    s2, t2 = _inverse_bilinear(q, p - q[0])
+    assert np.allclose(s2, st[:, 0]) and np.allclose(t2, st[:, 1])
+
+
+def test_quad_patch_bends_bilinearly():
+    # a street-like quad: rectangular uvs on a trapezoid, so the map is bilinear, not affine
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    pos = np.array([[0, 0, 0], [10, 0, 0], [8, 0, 4], [2, 0, 4]], float)
+    patch = _Patch(uv, pos, np.tile([0.0, 1.0, 0.0], (4, 1)))
+    w = patch.weights(np.array([[0.5, 0.5], [0.25, 1.0], [1.0, 0.5]]))
+    assert np.allclose(w @ pos, [[5, 0, 2], [3.5, 0, 4], [9, 0, 2]])
+    assert patch.orientation() == -1.0  # uv counter-clockwise seen from below: mirrored

@@ -139,3 +139,9 @@ def test_depth_expression_is_evaluated_per_section():
     # A: e0 whole (20 less its first corner's triangle 2), e1 below it (6 m, less 2 at its end)
     assert area(m, "A") == pytest.approx(10 * 2 - 2 + 6 * 2 - 2)
     assert area(m, "B") == pytest.approx(10 * 1 - 0.5 + 7 * 1 - 0.5)
+
+
+def test_section_lengths_are_expressions_not_selectors():
+    assert load_rules("attr w = 5\nLot --> splitAndSetbackPerimeter(0) { w : 1 : A }")
+    with pytest.raises(RuleError, match="lenght"):
+        load_rules("Lot --> splitAndSetbackPerimeter(0) { lenght : 1 : A } { remainder : C }")
