@@ -234,3 +234,13 @@ def test_quad_patch_bends_bilinearly():
     w = patch.weights(np.array([[0.5, 0.5], [0.25, 1.0], [1.0, 0.5]]))
     assert np.allclose(w @ pos, [[5, 0, 2], [3.5, 0, 4], [9, 0, 2]])
     assert patch.orientation() == -1.0  # uv counter-clockwise seen from below: mirrored
+
+
+def test_zero_height_and_flat_assets_lie_on_the_faces(assets):
+    (assets / "decal.obj").write_text("v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nf 1 2 3 4\n")
+    g = mesh_of(run(f"Lot --> {PROJECT.format(w=5)} insertAlongUV(0, \"decal.obj\", 3) B.", assets))
+    assert g.n_faces == 2 and g.area() == pytest.approx(80)
+    assert np.allclose(g.bounds()[:, 1], 0)
+    # the box flattened: its top and bottom on the lot, its sides (now without area) dropped
+    g = mesh_of(run(f"Lot --> {PROJECT.format(w=10)} insertAlongUV(0, \"box.obj\", 0) B.", assets))
+    assert g.n_faces == 2 and g.area() == pytest.approx(160)

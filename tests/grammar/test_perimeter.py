@@ -145,3 +145,10 @@ def test_section_lengths_are_expressions_not_selectors():
     assert load_rules("attr w = 5\nLot --> splitAndSetbackPerimeter(0) { w : 1 : A }")
     with pytest.raises(RuleError, match="lenght"):
         load_rules("Lot --> splitAndSetbackPerimeter(0) { lenght : 1 : A } { remainder : C }")
+
+
+def test_no_selected_edge_leaves_all_to_the_remainder():
+    m = run("Lot --> splitAndSetbackPerimeter(0, 0, [false, false, false, false]) { 5 : 1 : A } "
+            "{ remainder : C }")
+    assert not parts(m, "A")
+    assert area(m, "C") == pytest.approx(80)

@@ -18,6 +18,8 @@ from .subdivision import _clip_generic
 _NAME = "insertAlongUV"
 #: The most asset copies (u tiles summed over the faces) one call may lay.
 MAX_TILES = 100_000
+#: The most faces one call may make.
+MAX_FACES = 2_000_000
 _DIRECTIONS = ("scope.y", "vertex.normal")
 _ALIGNMENTS = ("alignPosition", "keepPosition")
 
@@ -97,10 +99,11 @@ class _AssetInUV:
                                   "laid along u; turn it (its x runs along u)")
         u = (p[:, 0] - lo[0]) / ext[0]
         v = (hi[2] - p[:, 2]) / ext[2] if ext[2] > EPS else np.full(len(p), 0.5)
-        scale = height / ext[1] if ext[1] > EPS else 1.0
-        h = p[:, 1] * scale if keep_position else (p[:, 1] - lo[1]) * scale
-        if ext[1] <= EPS and not keep_position:
-            h = np.zeros(len(p))
+        base = 0.0 if keep_position else lo[1]
+        if ext[1] > EPS:
+            h = (p[:, 1] - base) * (height / ext[1])
+        else:                                  # a flat asset: on the faces, or at its own y
+            h = p[:, 1] - base
         self.uvh = np.column_stack([u, v, h])
         self.tex = mesh.corner_uvs
         self.starts = mesh.starts
@@ -228,8 +231,9 @@ def _lay(source: _AssetInUV, patches):
         raise CGARuntimeError(f"{_NAME}: the shape's u range holds {len(tiles)} asset copies "
                               f"(more than {MAX_TILES}); scale the uvs down (scaleUV, normalizeUV)")
     polys, uvs, faces = [], [], []
+    flips = {id(p): p.orientation() * (-1.0 if source.flips else 1.0) < 0 for p in patches}
     for patch, k in tiles:
-        flip = patch.orientation() * (-1.0 if source.flips else 1.0) < 0
+        flip = flips[id(patch)]
         tol = 1e-9 * patch.size
         near = np.flatnonzero((source.box_lo[:, 0] + k <= patch.hi[0] + tol)
                               & (source.box_hi[:, 0] + k >= patch.lo[0] - tol)
@@ -243,6 +247,11 @@ def _lay(source: _AssetInUV, patches):
                 continue
             w = patch.weights(piece[:, :2])
             pts = w @ patch.pos + piece[:, 2:3] * _unit_rows(w @ patch.dirs)
+            if polygon_area(pts) <= 1e-12:     # flattened (height 0) or squeezed to nothing
+                continue
+            if len(polys) >= MAX_FACES:
+                raise CGARuntimeError(f"{_NAME}: more than {MAX_FACES} faces; use a simpler "
+                                      "asset or fewer copies")
             tex = piece[:, 3:5] if piece.shape[1] >= 5 else None
             if flip:
                 pts, tex = pts[::-1], None if tex is None else tex[::-1]
