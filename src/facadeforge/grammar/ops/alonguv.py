@@ -44,8 +44,35 @@ def op_insert_along_uv(call):
     Only uv set 0 is stored by this runtime, so another set is an error.
     """
     st = call.state
+    height, keep_position, along_normals = _options(call)
+    mesh, asset = load_asset(call, call.text(1))
+    shape = st.geometry
+    if not shape.n_faces:
+        return
+    if shape.corner_uvs is None:
+        raise CGARuntimeError(f"{_NAME}: the shape has no texture coordinates; set them up first "
+                              "(setupProjection(0, …) projectUV(0))")
+    source = _AssetInUV(mesh, height, keep_position)
+    normals = _vertex_normals(shape) if along_normals else None
+    patches, skipped = _patches(shape, normals, st.scope.rotation[:, 1])
+    if skipped:
+        call.derivation.warn(f"{_NAME}: {skipped} face(s) with more than 4 corners get no asset "
+                             "(it is mapped onto triangles and quads only)")
+    polys, uvs, faces = _lay(source, patches)
+    st.geometry = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
+    st.context.pop("face_kinds", None)
+    st.context.pop("face_materials", None)
+    if st.geometry.n_faces:
+        st.fit_scope()
+    if asset is not None:
+        fm = asset.face_material
+        apply_asset_material(st, asset, None if fm is None else fm[np.asarray(faces, int)])
+
+
+def _options(call) -> tuple[float, bool, bool]:
+    """The checked arguments: height, keepPosition?, along vertex normals?"""
     uv_set = call.num(0)
-    if uv_set != int(uv_set) or not 0 <= uv_set <= 9:
+    if not math.isfinite(uv_set) or uv_set != int(uv_set) or not 0 <= uv_set <= 9:
         raise CGARuntimeError(f"{_NAME}: uvSet must be an integer in [0, 9], got {uv_set:g}")
     if uv_set != 0:
         raise CGARuntimeError(f"{_NAME}: only uv set 0 is kept by this runtime; set up uv set 0 "
@@ -60,28 +87,7 @@ def op_insert_along_uv(call):
     height = call.num(2)
     if not math.isfinite(height):
         raise CGARuntimeError(f"{_NAME}: height must be a finite number")
-    mesh, asset = load_asset(call, call.text(1))
-    shape = st.geometry
-    if not shape.n_faces:
-        return
-    if shape.corner_uvs is None:
-        raise CGARuntimeError(f"{_NAME}: the shape has no texture coordinates; set them up first "
-                              "(setupProjection(0, …) projectUV(0))")
-    source = _AssetInUV(mesh, height, alignment == "keepPosition")
-    normals = _vertex_normals(shape) if direction == "vertex.normal" else None
-    patches, skipped = _patches(shape, normals, st.scope.rotation[:, 1])
-    if skipped:
-        call.derivation.warn(f"{_NAME}: {skipped} face(s) with more than 4 corners get no asset "
-                             "(it is mapped onto triangles and quads only)")
-    polys, uvs, faces = _lay(source, patches)
-    st.geometry = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
-    st.context.pop("face_kinds", None)
-    st.context.pop("face_materials", None)
-    if st.geometry.n_faces:
-        st.fit_scope()
-    if asset is not None:
-        fm = asset.face_material
-        apply_asset_material(st, asset, None if fm is None else fm[np.asarray(faces, int)])
+    return height, alignment == "keepPosition", direction == "vertex.normal"
 
 
 class _AssetInUV:
