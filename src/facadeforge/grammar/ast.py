@@ -108,6 +108,7 @@ class Branch(Node):
     selector: Node
     mode: str  # ":" one shape per part, "=" all matching parts as one shape
     ops: tuple
+    depth: Node | None = None  # ``length : depth : ops`` of splitAndSetbackPerimeter
 
 
 @dataclass(frozen=True)

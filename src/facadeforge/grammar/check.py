@@ -180,7 +180,10 @@ class _Checker:
             if isinstance(b, A.RepeatGroup):
                 self.branches(opname, b.branches, scope)
                 continue
-            self.expr(b.selector, scope, selector_ok=opname != "split")
+            # a split size or a perimeter section's length is an expression, not a selector
+            self.expr(b.selector, scope, selector_ok=opname != "split" and b.depth is None)
+            if b.depth is not None:
+                self.expr(b.depth, scope)
             self.ops(b.ops, scope)
 
 

@@ -37,7 +37,8 @@ IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
-UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV"}
+UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV",
+          "insertAlongUV"}
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
@@ -160,6 +161,8 @@ class Purity:
                 self._branches(m, b.branches, info)
             else:
                 self._expr(m, b.selector, info)
+                if b.depth is not None:
+                    self._expr(m, b.depth, info)
                 self._ops(m, b.ops, info)
 
     def _expr(self, m, node, info):

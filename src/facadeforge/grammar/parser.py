@@ -254,6 +254,19 @@ class _ToAst(Transformer):
     def branch_all(self, meta, c):
         return A.Branch(c[0], "=", c[1], **_pos(meta))
 
+    def perimeter_op(self, meta, c):
+        # ``splitAndSetbackPerimeter(…){ length : depth : ops | … }[*] { remainder : ops }``:
+        # one branch list, the remainder body last
+        branches = tuple(c[1]) + tuple(c[3] or ())
+        return A.BodyOp("splitAndSetbackPerimeter", tuple(c[0] or ()), branches, c[2] is not None,
+                        **_pos(meta))
+
+    def perimeter_body(self, meta, c):
+        return tuple(c)
+
+    def perimeter_branch(self, meta, c):
+        return A.Branch(c[0], ":", c[2], depth=c[1], **_pos(meta))
+
     def nested_repeat(self, meta, c):
         return A.RepeatGroup(c[0], **_pos(meta))
 

@@ -288,17 +288,25 @@ def op_insert(call):
     """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope."""
     st = call.state
     name = call.text(0)
+    mesh, asset = load_asset(call, name)
+    _fit_unit_mesh(st, mesh, mesh.bounds())
+    st.context.pop("face_kinds", None)
+    st.context.pop("asset_material", None)
+    st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
+    if asset is not None:
+        apply_asset_material(st, asset, asset.face_material)
+
+
+def load_asset(call, name: str):
+    """``(mesh, asset)`` of an asset argument: a ``builtin:…`` primitive (``asset`` None) or a
+    file under the asset roots (``i``, ``insertAlongUV``)."""
     if name.startswith("builtin:"):
         kind = name.split(":")[1]
         make = PRIMITIVES.get(kind)
         if make is None:
             raise CGARuntimeError(f"unknown builtin asset '{name}'; use one of "
                                   + ", ".join("builtin:" + k for k in sorted(PRIMITIVES)))
-        mesh = make()
-        _fit_unit_mesh(st, mesh, mesh.bounds())
-        st.context.pop("face_kinds", None)
-        st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
-        return
+        return make(), None
     resolver = call.derivation.assets
     if resolver is None:
         raise CGARuntimeError(f"asset '{name}' cannot be inserted: no asset folder was given (--assets DIR)")
@@ -308,13 +316,15 @@ def op_insert(call):
         raise CGARuntimeError(str(e)) from None
     if asset is None:
         raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
-    _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
-    st.context.pop("face_kinds", None)
-    st.context.pop("asset_material", None)
-    st.context["inserted"] = (name, st.geometry)
-    if asset.face_material is not None:
-        # several materials: kept per face until an operation changes the faces
-        st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
+    return asset.mesh, asset
+
+
+def apply_asset_material(st, asset, face_material) -> None:
+    """An inserted asset's material on the shape: ``face_material`` (one material index per face
+    of ``st.geometry``, or None) keeps several materials per face until an operation changes
+    the faces; a single material gives its texture and colour where the shape has none."""
+    if face_material is not None:
+        st.context["face_materials"] = (face_material, asset.materials, st.geometry.n_faces)
         return
     own = {}
     if asset.material.texture:
