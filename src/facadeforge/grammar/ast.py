@@ -210,7 +210,7 @@ class RuleDef(Node):
 class Import(Node):
     alias: str | None
     path: str
-    overrides: tuple = ()  # ((attr name, expression or None), ...)
+    overrides: tuple = ()  # ((attr name, expression or None) | RuleDef, ...)
     annotations: tuple = ()
 
 

@@ -66,6 +66,11 @@ class Purity:
                 for rdef in overloads.values():
                     self._ops(m, rdef.body, info)
                 self.info[(id(m), name)] = info
+            for name, redefined in m.rule_overrides.items():  # an importer's version wins
+                info = RuleInfo()
+                for owner, rdef in redefined.values():
+                    self._ops(owner, rdef.body, info)
+                self.info[(id(m), name)] = info
             for name, overloads in m.functions.items():
                 info = RuleInfo()
                 for fdef in overloads.values():

@@ -330,9 +330,9 @@ class Derivation:
         if hint is not None:
             state.label = hint.value
         if self._purity is not None:
-            info = self._purity.rule(mod, rdef.name)
+            info = self._purity.rule(module, name)  # as called: an override counts
             if info is not None and info.pure:
-                key, uv_map = instance_key(mod, rdef.name, args, state, info)
+                key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
                 if key is not None:
                     self._instanced(key, uv_map, node, state, name, args, module, depth)
                     return

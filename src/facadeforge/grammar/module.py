@@ -61,12 +61,21 @@ class Module:
                 self.functions.setdefault(f.name, {})[len(f.params)] = f
             for r in rules:
                 self.rules.setdefault(r.name, {})[len(r.params)] = r
+        # ``st.Facade --> …`` defines rule Facade of the import st (CityEngine's help, "Rule
+        # file import"): kept apart, attached to that module by ``link``
+        self.qualified_rules = {k: v for k, v in self.rules.items() if "." in k}
+        for k in self.qualified_rules:
+            del self.rules[k]
+        # rules of this module redefined by an importer (qualified rules, extension overrides
+        # in the import statement): name -> arity -> (importer, rule); they win over own rules
+        self.rule_overrides: dict[str, dict[int, tuple[Module, A.RuleDef]]] = {}
         # this file's own declarations in its style (anonymous imports add theirs to the
         # namespace below; they are checked in their own file)
         self.own_declarations: tuple[list, list, list] = (
             list(self.attrs.values()),
             [f for by_arity in self.functions.values() for f in by_arity.values()],
-            [r for by_arity in self.rules.values() for r in by_arity.values()])
+            [r for by_arity in (*self.rules.values(), *self.qualified_rules.values())
+             for r in by_arity.values()])
         # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
         self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
         # @StartRule of the chosen style first, then of the styles it extends, then Default's
@@ -90,6 +99,9 @@ class Module:
         if found is None:
             return None
         mod, short = found
+        redefined = mod.rule_overrides.get(short)
+        if redefined is not None and arity in redefined:
+            return redefined[arity]
         overloads = mod.rules.get(short)
         if overloads is None or arity not in overloads:
             return None
@@ -97,7 +109,8 @@ class Module:
 
     def has_rule_name(self, name: str) -> bool:
         found = self.resolve(name) if "." in name else (self, name)
-        return found is not None and found[1] in found[0].rules
+        return found is not None and (found[1] in found[0].rules
+                                      or found[1] in found[0].rule_overrides)
 
     def function(self, name: str, arity: int) -> tuple[Module, A.FuncDef] | None:
         found = self.resolve(name) if "." in name else (self, name)
@@ -228,9 +241,12 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
                 pending.append((child, depth + 1))
             if imp.alias:
                 mod.imports[imp.alias] = child
-                for name, expr in imp.overrides:
-                    if expr is not None:
-                        child.import_overrides[name] = (mod, expr)
+                for item in imp.overrides:
+                    if isinstance(item, A.RuleDef):  # ( Roof(angle) --> roofGable(angle) )
+                        child.rule_overrides.setdefault(item.name, {})[len(item.params)] = \
+                            (mod, item)
+                    elif item[1] is not None:
+                        child.import_overrides[item[0]] = (mod, item[1])
             else:  # anonymous import: its definitions join the importer's namespace
                 for k, v in child.attrs.items():
                     mod.attrs.setdefault(k, v)
@@ -238,4 +254,22 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
                     mod.functions.setdefault(k, v)
                 for k, v in child.rules.items():
                     mod.rules.setdefault(k, v)
+    _attach_qualified_rules(main)
     return main
+
+
+def _attach_qualified_rules(main: Module) -> None:
+    """``st.Facade --> …`` in a file redefines rule ``Facade`` of its import ``st``: calls of
+    ``Facade`` inside st (and ``st.Facade`` outside) then run the importer's rule."""
+    for m in main.all_modules():
+        for qualified, overloads in m.qualified_rules.items():
+            found = m.resolve(qualified)
+            first = next(iter(overloads.values()))
+            if found is None:
+                raise RuleError(f"rule '{qualified}' names an unknown import "
+                                f"'{qualified.rsplit('.', 1)[0]}'"
+                                f"{_did_you_mean(qualified.split('.')[0], m.imports)}",
+                                m.path, first.line, first.column)
+            target, short = found
+            for arity, rdef in overloads.items():
+                target.rule_overrides.setdefault(short, {})[arity] = (m, rdef)

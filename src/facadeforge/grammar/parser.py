@@ -315,6 +315,7 @@ class _ToAst(Transformer):
         return A.FuncDef(str(c[0]), params or (), c[-1], **_pos(meta))
 
     def rule_def(self, meta, c):
+        c = [x for x in c if not (isinstance(x, Token) and x.type == "EXTENSION")]
         params = c[1] if len(c) == 3 else ()
         return A.RuleDef(str(c[0]), params or (), c[-1], **_pos(meta))
 
@@ -336,6 +337,12 @@ class _ToAst(Transformer):
 
     def import_override(self, meta, c):
         return (str(c[0]), c[1] if len(c) > 1 else None)
+
+    def import_rule_override(self, meta, c):
+        # ``import F : "f.cga" ( Roof(angle) --> roofGable(angle) )``: an extension rule of the
+        # imported file redefined by the importer
+        params = c[1] if len(c) == 3 else ()
+        return A.RuleDef(str(c[0]), params or (), c[-1], **_pos(meta))
 
     def import_anon(self, meta, c):
         return A.Import(None, _unquote(str(c[0])), (), **_pos(meta))

@@ -39,7 +39,7 @@ def op_split_and_setback_perimeter(call):
     a negative one is an error.  Sections get ``split.index`` and ``split.total``.
     """
     st = call.state
-    pe = _PlanarEdges(st, _NAME)
+    pe = _PlanarEdges(st, _NAME, call.derivation.object_scope.rotation)
     chain = _chain(call, pe)
     pattern = [b for b in call.branches if getattr(b, "depth", None) is not None]
     others = [b for b in call.branches if getattr(b, "depth", None) is None]

@@ -301,10 +301,9 @@ def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.nd
     for name, i in _WORLD.items():
         sel[name] = wd == i
     sel["world.side"] = (wd < 2) | (wd >= 4)
-    # street.* need street-edge data from the initial shape; the object frame stands in for it
-    sel["street.front"] = sel["object.front"]
-    sel["street.back"] = sel["object.back"]
-    sel["street.side"] = sel["object.left"] | sel["object.right"]
+    # street.* need street widths on the initial shape; without them CityEngine falls back to
+    # the object frame (reference, "comp operation")
+    _add_street_fallback(sel)
     sel["all"] = np.ones(len(normals), bool)
     return sel
 
@@ -363,13 +362,34 @@ def component_count(st, kind: str) -> int:
     return len(np.unique(e, axis=0))
 
 
-def _add_street_selectors(table: dict) -> None:
-    """``street.*`` and ``object.*`` edge selectors: without street-edge data on the initial
-    shape, CityEngine falls back to the shape's own directions; so do we."""
+def _add_street_selectors(table: dict, outward=None, object_rot=None) -> None:
+    """Edge selectors beyond the scope quadrants: ``object.*`` and ``world.*`` (the edges'
+    outward directions, world vectors ``outward``, classified in the initial shape's frame and
+    the world's), ``street.*`` and the older ``streetSide``/``noStreetSide``.  Without street
+    widths on the initial shape (we have none) CityEngine falls back to ``object.*`` for
+    ``street.*`` (reference, "setback operation"); ``streetSide`` is then the street front."""
+    if outward is not None and object_rot is not None:
+        obj = _direction_index(outward @ object_rot)
+        wd = _direction_index(outward)
+        for i, name in enumerate(_DIRS):
+            table["object." + name] = obj == i
+        table["object.side"] = (obj < 2) | (obj >= 4)
+        for name, i in _WORLD.items():
+            table[name] = wd == i
+        table["world.side"] = (wd < 2) | (wd >= 4)
+    else:
+        for name in _DIRS:
+            table["object." + name] = table[name]
+        table["object.side"] = table["side"]
+    _add_street_fallback(table)
+
+
+def _add_street_fallback(table: dict) -> None:
     for name in _DIRS:
-        table["street." + name] = table[name]
-        table["object." + name] = table[name]
-    table["street.side"] = table["side"] & ~table["front"] & ~table["back"]
+        table["street." + name] = table["object." + name]
+    table["street.side"] = table["object.left"] | table["object.right"]
+    table["streetSide"] = table["street.front"]
+    table["noStreetSide"] = ~table["street.front"]
 
 
 @operation("comp", 1, 2, selectors=(0, 1), body=True)
@@ -525,7 +545,7 @@ def _comp_edges(call, st):
     key = np.round(mesh.vertices / 1e-6).astype(np.int64)
     _, weld = np.unique(key, axis=0, return_inverse=True)
     weld = weld.reshape(-1)
-    edges, seen = [], {}
+    edges, seen, edge_faces = [], {}, []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         face = mesh.face(f)
@@ -535,9 +555,11 @@ def _comp_edges(call, st):
                 continue
             if k in seen:
                 edges[seen[k]][3] += 1
+                edge_faces[seen[k]].append(f)
                 continue
             seen[k] = len(edges)
             edges.append([mesh.vertices[a], mesh.vertices[b], normals[f], 1])
+            edge_faces.append([f])
     n = len(edges)
     dirs = np.array([e[1] - e[0] for e in edges])
     lengths = np.linalg.norm(dirs, axis=1)
@@ -548,13 +570,14 @@ def _comp_edges(call, st):
              "border": np.array([e[3] == 1 for e in edges]),
              "inside": np.array([e[3] > 1 for e in edges])}
     table["aslant"] = ~table["vertical"] & ~table["horizontal"]
+    table.update(_roof_edges(mesh, normals, edges, edge_faces, unit))
     # the side an edge faces: its face normal crossed with the edge, in the scope frame
     outward = np.array([cross3(u, e[2]) for u, e in zip(unit, edges)])
     d = _direction_index(outward @ st.scope.rotation) if n else np.zeros(0, int)
     for i, name in enumerate(_DIRS):
         table[name] = d == i
     table["side"] = (d < 2) | (d >= 4)
-    _add_street_selectors(table)
+    _add_street_selectors(table, outward, call.derivation.object_scope.rotation)
     taken = np.zeros(n, bool)
     out = []
     for branch in call.branches:
@@ -573,6 +596,36 @@ def _comp_edges(call, st):
             ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(e)}))
+    return out
+
+
+def _roof_edges(mesh, normals, edges, edge_faces, unit) -> dict:
+    """CityEngine's roof edge selectors ``eave ridge hip valley`` (used by its tutorials'
+    roof rules; the current reference no longer lists them): among faces that look up (roof
+    planes), a *ridge* is a horizontal edge where two of them meet convexly, a *hip* a sloping
+    convex one, a *valley* a concave one, and an *eave* a horizontal edge of a single roof face
+    at its lower border.  Horizontal means within 11.25° of the world's xz plane."""
+    n = len(edges)
+    out = {k: np.zeros(n, bool) for k in ("eave", "ridge", "hip", "valley")}
+    if not n:
+        return out
+    roof = normals[:, 1] > 0.05
+    centroid = np.array([mesh.vertices[mesh.face(f)].mean(axis=0) for f in range(mesh.n_faces)])
+    level = np.abs(unit[:, 1]) < math.sin(math.radians(11.25))
+    for i, fs in enumerate(edge_faces):
+        up = [f for f in fs if roof[f]]
+        a = edges[i][0]
+        if len(up) == 2:
+            f1, f2 = up
+            convex = (centroid[f2] - a) @ normals[f1] < -1e-9
+            if not convex:
+                out["valley"][i] = True
+            elif level[i]:
+                out["ridge"][i] = True
+            else:
+                out["hip"][i] = True
+        elif len(up) == 1 and level[i] and centroid[up[0]][1] > max(a[1], edges[i][1][1]) + 1e-9:
+            out["eave"][i] = True
     return out
 
 
@@ -603,7 +656,7 @@ class _PlanarEdges:
     """The single planar face of a shape, in its own 2D frame, with edge directions classified
     like ``comp(e)`` selectors (front/back/left/right/side/all) relative to the shape's scope."""
 
-    def __init__(self, st, opname: str):
+    def __init__(self, st, opname: str, object_rot=None):
         import shapely
 
         mesh = st.geometry
@@ -621,7 +674,7 @@ class _PlanarEdges:
         t = {name: d_idx == i for i, name in enumerate(_DIRS)}
         t["side"] = (d_idx < 2) | (d_idx >= 4)
         t["all"] = np.ones(k, bool)
-        _add_street_selectors(t)
+        _add_street_selectors(t, outward3, object_rot)
         self.table = t
 
     def band(self, edges, width):
@@ -670,7 +723,7 @@ def op_setback(call):
     ``d`` may be an array with one width per edge (``setback(comp(fe){ front : 4 | all : 1 })``).
     """
     st = call.state
-    pe = _PlanarEdges(st, "setback")
+    pe = _PlanarEdges(st, "setback", call.derivation.object_scope.rotation)
     return pe.shapes(st, _setback_pieces(call, pe, _edge_widths(call, pe.k)))
 
 
@@ -713,7 +766,7 @@ def op_setback_to_area(call):
     by bisection; the remainder's area falls as the offset grows).  An unreachable area gives
     the closest setback (none, or the largest)."""
     st = call.state
-    pe = _PlanarEdges(st, "setbackToArea")
+    pe = _PlanarEdges(st, "setbackToArea", call.derivation.object_scope.rotation)
     target = call.num(0)
 
     def per_edge(k: int, default: float) -> np.ndarray:
@@ -774,7 +827,7 @@ def _shape_letter(sides: tuple[str, ...]):
     def op(call):
         """``shapeL/U/O(widths…){ shape : A | remainder : B }``: bands along the named sides."""
         st = call.state
-        pe = _PlanarEdges(st, call.name)
+        pe = _PlanarEdges(st, call.name, call.derivation.object_scope.rotation)
         import shapely
 
         shape = shapely.Polygon()
