@@ -126,5 +126,9 @@ def test_semantic_errors_name_file_line_and_suggest():
         load_rules("Lot --> X\n", start="Lto")
     with pytest.raises(RuleError, match="extrude\\(\\) takes 1 to 2 arguments, got 3"):
         load_rules("Lot --> extrude(1, 2, 3)\n")
-    with pytest.raises(RuleError, match="no version with 2 parameters"):
-        load_rules("Lot --> F(1, 2)\nF(a) --> X\n")
+    # a call no version of a rule takes is a leaf, with a warning when derived (CityEngine's
+    # own rules contain such calls on rarely taken branches)
+    from facadeforge import derive
+
+    m = derive(load_rules("Lot --> F(1, 2)\nF(a) --> X\n"), None, lot_size="4x4")[0]
+    assert any("no overload with 2 parameters" in w for w in m.warnings)

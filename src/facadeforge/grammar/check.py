@@ -143,9 +143,9 @@ class _Checker:
                     mod, short = self.m.resolve(op.name)
                     self.fail(f"unknown rule '{op.name}'", op, [f"{op.name.rsplit('.', 1)[0]}.{r}"
                                                                 for r in mod.rules])
-                if self.m.has_rule_name(op.name) and self.m.rule(op.name, len(op.args)) is None:
-                    raise RuleError(f"rule '{op.name}' has no version with {len(op.args)} "
-                                    "parameters", self.m.path, op.line, op.column)
+                # a rule called with a number of arguments none of its versions takes is, as an
+                # undefined rule, a leaf: the derivation warns when it gets there (CityEngine's
+                # own tutorials and libraries contain such calls on branches rarely taken)
                 if op.has_parens and not self.m.has_rule_name(op.name) and op.name[:1].islower() \
                         and op.name not in OPERATIONS:
                     self.fail(f"unknown operation '{op.name}'", op, list(OPERATIONS))
