@@ -76,3 +76,19 @@ E --> report("eave", scope.sx)""", poly=L)
     rise = 1 * math.tan(math.radians(30))
     assert reports(m, "valley") == pytest.approx([math.sqrt(2 + rise ** 2)], abs=1e-3)
     assert sum(reports(m, "eave")) == pytest.approx(28)  # the whole outline
+
+
+def test_a_selector_may_be_an_attribute_holding_a_face_index():
+    m = run("""attr first = 2
+Lot --> extrude(3) comp(f) { first = A. | first + 1 = B. | all = R. }""")
+    assert not m.warnings
+    assert {p.symbol for p in m.parts} == {"A", "B", "R"}
+    assert sum(p.mesh.n_faces for p in m.parts if p.symbol == "R") == 4
+
+
+def test_primitive_with_a_negative_height_reaches_down():
+    m = run("Lot --> primitiveCube(2, -3, 2) X.")
+    assert not m.warnings
+    lo, hi = m.parts[0].mesh.bounds()
+    assert lo[1] == pytest.approx(-3) and hi[1] == pytest.approx(0)
+    assert hi[0] - lo[0] == pytest.approx(2)

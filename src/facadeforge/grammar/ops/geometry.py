@@ -395,8 +395,10 @@ def _primitive_op(kind):
         values = [call.num(k) for k in range(n)]
         res = [max(3, int(round(v))) for v in values[:min(n, n_res)]]
         dims = values[n_res:] if n > n_res else []
-        if any(d < 0 for d in dims):
-            raise CGARuntimeError(f"primitive{kind.title()}(): sizes must not be negative")
+        # a negative size reaches the other way, as a negative s() does: the primitive is
+        # centred in x and z anyway, and a negative height puts it below y = 0
+        down = kind not in ("quad", "disk") and len(dims) >= 2 and dims[1] < 0
+        dims = [abs(d) for d in dims]
         if kind in ("quad", "disk"):
             mesh = _flat_in_scope_plane(_SQUARE if kind == "quad" else unit_ring(*res),
                                         st.scope.size)
@@ -414,7 +416,7 @@ def _primitive_op(kind):
                 shift = (old - size) / 2 * (size > 0)
             else:
                 size = _primitive_size(kind, dims)
-                shift = np.where(np.arange(3) == 1, 0.0, (old - size) / 2)
+                shift = np.where(np.arange(3) == 1, -size[1] if down else 0.0, (old - size) / 2)
             sc.origin = sc.to_world(shift[None])[0]
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())

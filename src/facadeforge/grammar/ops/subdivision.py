@@ -329,9 +329,11 @@ def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
 
 def _selector_key(call, branch) -> object:
     s = branch.selector
-    if isinstance(s, A.Name):
-        return s.name
-    v = call.env.evaluator(s)
+    env = call.env
+    if isinstance(s, A.Name) and not (s.name in env.locals or env.module.attr(s.name) is not None
+                                      or env.module.function(s.name, 0) is not None):
+        return s.name   # a selector keyword; a parameter or attribute is its value (an index)
+    v = env.evaluator(s)
     if isinstance(v, bool):
         return v
     if isinstance(v, (int, float)):
