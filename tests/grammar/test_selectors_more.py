@@ -92,3 +92,11 @@ def test_primitive_with_a_negative_height_reaches_down():
     lo, hi = m.parts[0].mesh.bounds()
     assert lo[1] == pytest.approx(-3) and hi[1] == pytest.approx(0)
     assert hi[0] - lo[0] == pytest.approx(2)
+
+
+def test_selector_keywords_win_over_attributes_of_the_same_name():
+    # Esri's massmodeling tutorial has attr shape = "auto" and shapeL(…) { shape : … }
+    m = run("""attr shape = "auto"
+attr side = 3
+Lot --> shapeL(2, 2) { shape : L. }""")
+    assert not m.warnings and {p.symbol for p in m.parts} == {"L"}

@@ -327,11 +327,20 @@ def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
     return sc
 
 
+#: Selector keywords of comp, setback and their kin: a name among these is the selector even
+#: where a rule has an attribute of that name (``attr shape = "auto"`` beside ``{ shape : … }``)
+SELECTOR_WORDS = frozenset({
+    "front", "back", "left", "right", "top", "bottom", "side", "vertical", "horizontal",
+    "aslant", "nutant", "all", "inside", "border", "remainder", "shape", "streetSide",
+    "noStreetSide", "eave", "ridge", "hip", "valley"})
+
+
 def _selector_key(call, branch) -> object:
     s = branch.selector
     env = call.env
-    if isinstance(s, A.Name) and not (s.name in env.locals or env.module.attr(s.name) is not None
-                                      or env.module.function(s.name, 0) is not None):
+    if isinstance(s, A.Name) and (s.name in SELECTOR_WORDS or not (
+            s.name in env.locals or env.module.attr(s.name) is not None
+            or env.module.function(s.name, 0) is not None)):
         return s.name   # a selector keyword; a parameter or attribute is its value (an index)
     v = env.evaluator(s)
     if isinstance(v, bool):
