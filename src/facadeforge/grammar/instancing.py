@@ -25,6 +25,7 @@ import numpy as np
 
 from . import ast as A
 from .module import Module, RuleSet
+from .ops.trimming import trim_key
 
 IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
                 "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
@@ -115,8 +116,8 @@ class Purity:
                     if name == "projectUV":
                         info.projects = True
                     if name == "set" and args and isinstance(args[0], A.Name) \
-                            and args[0].name.startswith("scope.t"):
-                        info.pure = False  # sets an absolute position
+                            and args[0].name.startswith(("scope.t", "trim.")):
+                        info.pure = False  # sets an absolute position, or which planes trim
                     if name == "center":
                         info.centers = True
                     if name in UV_OPS:
@@ -256,7 +257,7 @@ def instance_key(mod, name, args, state, info: RuleInfo):
            np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
-           state.label, proj_key, pivot_key)
+           state.label, proj_key, pivot_key, trim_key(state))
     return key, uv_map
 
 

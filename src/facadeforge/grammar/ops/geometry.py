@@ -12,6 +12,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
+from .trimming import apply_trim
 
 # ---- extrude ----------------------------------------------------------------------------------
 
@@ -283,7 +284,9 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
 
 @operation("i", 1, 3, selectors=(1, 2))
 def op_insert(call):
-    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope."""
+    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope, then cut at the
+    shape's trim planes (CityEngine "insert operation", note on trim planes:
+    https://doc.arcgis.com/en/cityengine/latest/cga/cga-i.htm)."""
     st = call.state
     name = call.text(0)
     if name.startswith("builtin:"):
@@ -295,6 +298,7 @@ def op_insert(call):
         mesh = make()
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
+        apply_trim(st)
         return
     resolver = call.derivation.assets
     if resolver is None:
@@ -310,11 +314,13 @@ def op_insert(call):
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces
         st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
+        apply_trim(st)
         return
     if asset.material.texture and "colormap" not in st.material:
         st.material["colormap"] = asset.material.texture
     if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):
         st.material["color"] = tuple(asset.material.color)
+    apply_trim(st)
 
 
 #: Per primitive: (resolution arguments, dimension arguments) of CityEngine's signatures, e.g.
@@ -394,6 +400,7 @@ def _primitive_op(kind):
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
+        apply_trim(st)
     return fn
 
 
