@@ -37,6 +37,9 @@ IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
 UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}
+# operations that cut their geometry at the shape's trim planes (ops/trimming.py)
+TRIM_OPS = {"i", "trim", "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone",
+            "primitiveDisk", "primitiveSphere"}
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
@@ -48,6 +51,7 @@ class RuleInfo:
     projects: bool = False  # calls projectUV (depends on inherited projections)
     centers: bool = False  # calls center (depends on the pivot scope)
     uses_uv: bool = False  # reads or rewrites texture coordinates (tileUV, split(u|v), …)
+    trims: bool = False  # inserts or trims (depends on the trim planes it inherits)
     calls: set = field(default_factory=set)  # (module id, rule or function name)
 
 
@@ -77,14 +81,16 @@ class Purity:
                     other = self.info.get(callee)
                     if other is None:
                         continue
-                    before = (info.pure, len(info.reads), info.projects, info.centers, info.uses_uv)
+                    before = (info.pure, len(info.reads), info.projects, info.centers,
+                              info.uses_uv, info.trims)
                     info.pure &= other.pure
                     info.reads |= other.reads
                     info.projects |= other.projects
                     info.centers |= other.centers
                     info.uses_uv |= other.uses_uv
+                    info.trims |= other.trims
                     if (info.pure, len(info.reads), info.projects, info.centers,
-                            info.uses_uv) != before:
+                            info.uses_uv, info.trims) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -122,6 +128,8 @@ class Purity:
                         info.centers = True
                     if name in UV_OPS:
                         info.uses_uv = True
+                    if name in TRIM_OPS:
+                        info.trims = True
                     for a in args:
                         self._expr(m, a, info)
                     continue
@@ -257,7 +265,7 @@ def instance_key(mod, name, args, state, info: RuleInfo):
            np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
-           state.label, proj_key, pivot_key, trim_key(state))
+           state.label, proj_key, pivot_key, trim_key(state) if info.trims else ())
     return key, uv_map
 
 

@@ -139,8 +139,8 @@ class TrimState:
         if self.planes is None or not (self.horizontal or self.vertical):
             return None
         origins, normals, vertical = self.planes.planes()
-        on = vertical if not self.horizontal else ~vertical if not self.vertical else None
-        if on is not None:
+        if not (self.horizontal and self.vertical):
+            on = vertical if self.vertical else ~vertical
             origins, normals = origins[on], normals[on]
         return (origins, normals) if len(origins) else None
 
