@@ -206,7 +206,7 @@ def test_trim_mesh_interpolates_uvs_and_reports_sources():
     keep = Mesh(np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1.0]]), [[0, 1, 2]])
     mesh = Mesh.merge([keep, quad])
     # keep x <= 1: the triangle (x <= 1) stays whole, the quad loses its far half
-    out, source = trim_mesh(mesh, np.array([[1.0, 0, 0]]), np.array([[-1.0, 0, 0]]))
+    out, source = trim_mesh(mesh, np.array([[-1.0, 0, 0]]), np.array([-1.0]))
     assert source.tolist() == [0, 1] and out.n_faces == 2
     assert out.subset([0]).area() == pytest.approx(0.5)
     cut_quad = out.subset([1])
@@ -217,9 +217,9 @@ def test_trim_mesh_interpolates_uvs_and_reports_sources():
 
 def test_trim_mesh_leaves_uncut_meshes_alone():
     mesh = _prism([(0, 0), (0, 1), (1, 1), (1, 0)])
-    out, source = trim_mesh(mesh, np.array([[5.0, 0, 0]]), np.array([[-1.0, 0, 0]]))
+    out, source = trim_mesh(mesh, np.array([[-1.0, 0, 0]]), np.array([-5.0]))
     assert out is mesh and source.tolist() == list(range(6))
-    out, source = trim_mesh(mesh, np.array([[-5.0, 0, 0]]), np.array([[-1.0, 0, 0]]))
+    out, source = trim_mesh(mesh, np.array([[-1.0, 0, 0]]), np.array([5.0]))
     assert out.n_faces == 0 and len(source) == 0
 
 
@@ -228,11 +228,11 @@ def test_per_face_materials_follow_their_faces():
     st = ShapeState(Scope(np.zeros(3), np.eye(3), np.ones(3)), mesh)
     st.context["face_materials"] = (np.arange(6), ["m"] * 6, 6)
 
-    class _Planes:
+    class _Planes(FacePlanes):
         def planes(self):  # x <= 0.5 kept: the +x face goes, the others are halved or kept
             return np.array([[0.5, 0, 0]]), np.array([[-1.0, 0, 0]]), np.array([True])
 
-    st.trim = TrimState(_Planes())
+    st.trim = TrimState(_Planes(None, (), np.array([0.0, 1, 0])))
     assert apply_trim(st)
     fm = st.context["face_materials"]
     normals = st.geometry.face_normals()

@@ -88,6 +88,7 @@ class FacePlanes:
         self.faces = faces
         self.up = up
         self._planes = None
+        self._active = {}
 
     def planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(origins (N, 3), normals (N, 3), vertical (N,) bool)``; a point ``p`` is kept
@@ -95,6 +96,17 @@ class FacePlanes:
         if self._planes is None:
             self._planes = _bisecting_planes(self.edges, self.faces, self.up)
         return self._planes
+
+    def active(self, horizontal: bool, vertical: bool):
+        """``(normals, offsets)`` of the planes switched on (a point ``p`` is kept when
+        ``normal · p >= offset``), or ``None`` when there are none; cached per switch setting."""
+        key = (horizontal, vertical)
+        if key not in self._active:
+            origins, normals, is_vertical = self.planes()
+            on = (is_vertical & vertical) | (~is_vertical & horizontal)
+            self._active[key] = ((normals[on], np.einsum("pk,pk->p", origins[on], normals[on]))
+                                 if on.any() else None)
+        return self._active[key]
 
 
 def _bisecting_planes(edges: MeshEdges, faces, up: np.ndarray):
@@ -135,14 +147,10 @@ class TrimState:
     vertical: bool = True
 
     def active(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Origins and normals of the planes switched on, or ``None`` when there are none."""
+        """Normals and offsets of the planes switched on, or ``None`` when there are none."""
         if self.planes is None or not (self.horizontal or self.vertical):
             return None
-        origins, normals, vertical = self.planes.planes()
-        if not (self.horizontal and self.vertical):
-            on = vertical if self.vertical else ~vertical
-            origins, normals = origins[on], normals[on]
-        return (origins, normals) if len(origins) else None
+        return self.planes.active(self.horizontal, self.vertical)
 
 
 _DEFAULT = TrimState()
@@ -156,14 +164,15 @@ def comp_trim(state, edges: MeshEdges, faces, scope) -> TrimState:
 
 # ---- applying planes -----------------------------------------------------------------------
 
-def trim_mesh(mesh: Mesh, origins: np.ndarray, normals: np.ndarray) -> tuple[Mesh, np.ndarray]:
-    """Cut away what lies beyond each plane; returns the mesh and, per new face, the face it
-    came from.  Faces wholly on the kept side are kept as they are (no copy when none is cut)."""
+def trim_mesh(mesh: Mesh, normals: np.ndarray, offsets: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """Cut away what lies beyond each plane (keep ``normal · p >= offset``); returns the mesh
+    and, per new face, the face it came from.  Faces wholly on the kept side are kept as they
+    are (no copy when none is cut)."""
     source = np.arange(mesh.n_faces)
-    for o, n in zip(origins, normals):  # bounded: one pass per plane
+    for n, c in zip(normals, offsets):  # bounded: one pass per plane
         if not mesh.n_faces:
             break
-        mesh, kept_from = _cut(mesh, o, n)
+        mesh, kept_from = _cut(mesh, n * c, n)
         source = source[kept_from]
     return mesh, source
 
@@ -263,24 +272,26 @@ def _trim_vertical(env, args):
 
 def trim_key(state) -> tuple:
     """The part of an instancing cache key that trim planes decide: the active planes that
-    pass within reach of the scope box (its largest size plus 1 m, room for an asset fitted to
-    a flat scope), in the scope frame.  Planes farther away cannot cut what the subtree
-    inserts, so repeated tiles away from a corner still share one recording."""
+    may cut what the subtree inserts, in the scope frame.  That is the scope box grown along
+    its zero sizes by the depth an asset fitted to it gets (CityEngine fits a zero size to the
+    mean of the other sizes times the asset's proportion; assets are taken to be no deeper
+    than they are wide and high, and at least 1 m is allowed).  Planes farther away leave the
+    key, so tiles away from a corner still share one recording.  (A subtree that moves its
+    geometry out of that box before inserting could be replayed with the wrong cuts.)"""
     trim = state.trim
     active = trim.active() if trim is not None else None
     if active is None:
         return ()
-    origins, normals = active
+    normals, offsets = active
     sc = state.scope
-    rot, org, size = sc.rotation, sc.origin, sc.size
-    box = (_BOX_CORNERS * size) @ rot.T + org
-    dist = np.einsum("bpk,pk->bp", box[:, None, :] - origins[None], normals)
-    near = dist.min(axis=0) < float(size.max()) + 1.0
+    size = sc.size
+    flat = size < 1e-6
+    depth = max(float(size[~flat].mean()) if not flat.all() else 0.0, 1.0)
+    local = normals @ sc.rotation  # plane normals in the scope frame
+    at_origin = normals @ sc.origin - offsets  # signed distance of the scope origin
+    nearest = at_origin + np.where(flat, -np.abs(local) * depth,
+                                   np.minimum(local * size, 0.0)).sum(axis=1)
+    near = nearest < 1e-6
     if not near.any():
         return ()
-    n_local = normals[near] @ rot
-    offset = np.einsum("pk,pk->p", org - origins[near], normals[near])
-    return (np.round(n_local, 9).tobytes(), np.round(offset, 6).tobytes())
-
-
-_BOX_CORNERS = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], float)
+    return (np.round(local[near], 9).tobytes(), np.round(at_origin[near], 6).tobytes())
