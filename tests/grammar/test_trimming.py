@@ -280,3 +280,32 @@ def test_switching_trim_planes_inside_an_instanced_subtree():
     vertical_only = derive(TILES, lot_size="12.5x8.2")[0]
     assert sum(p.mesh.area() for p in plain.parts) < sum(p.mesh.area()
                                                          for p in vertical_only.parts)
+
+
+L_RULES = """
+Lot --> extrude(6) comp(f) { side : Facade | all : NIL }
+Facade --> split(y) { ~3 : split(x) { ~2 : Tile }* }*
+Tile --> i("{asset}")
+"""
+
+
+@pytest.mark.parametrize("asset", ["builtin:cube", "slab.obj"])
+def test_fitted_assets_meet_at_a_concave_corner_when_instanced(tmp_path, asset):
+    from facadeforge.geometry.footprints import Footprint
+
+    # a thin slab (2 × 3 × 0.4) and the cube reach out in front of the facade by their
+    # proportions; at the L's inner corner the neighbours' pieces overlap and are mitred
+    (tmp_path / "slab.obj").write_text("v 0 0 0\nv 2 0 0\nv 2 3 0\nv 0 3 0\nv 0 0 0.4\nv 2 0 0.4\n"
+                                       "v 2 3 0.4\nv 0 3 0.4\nf 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\n"
+                                       "f 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n")
+    ring = [(0, 0), (12, 0), (12, 6), (6, 6), (6, 12), (0, 12)]
+    lot = Footprint("L", np.array([[x, 0.0, z] for x, z in ring]))
+    rules = load_rules(L_RULES.replace("{asset}", asset), assets=tmp_path)
+    plain = derive(rules, [lot], keep_tree=True)[0]
+    fast = derive(rules, [lot], keep_tree=False)[0]
+    assert not plain.warnings
+    assert _faces(plain) == _faces(fast)
+    whole = derive(L_RULES.replace("{asset}", asset).replace("Lot -->",
+                                                              "Lot --> set(trim.vertical, false)"),
+                   [lot], assets=tmp_path)[0]
+    assert sum(p.mesh.area() for p in plain.parts) < sum(p.mesh.area() for p in whole.parts) - 0.1

@@ -40,6 +40,11 @@ UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV"}
 # operations that cut their geometry at the shape's trim planes (ops/trimming.py)
 TRIM_OPS = {"i", "trim", "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone",
             "primitiveDisk", "primitiveSphere"}
+# operations that keep a shape's geometry inside its scope box, so that an asset inserted below
+# them reaches no farther than its proportions allow (which trim planes can cut it)
+IN_SCOPE_OPS = {"split", "comp", "setback", "setbackPerEdge", "setbackToArea", "shapeL",
+                "shapeU", "shapeO", "splitArea", "color", "report", "print", "label", "texture",
+                "setupProjection", "projectUV", "deleteUV", "set", "NIL"} | UV_OPS
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
@@ -52,6 +57,8 @@ class RuleInfo:
     centers: bool = False  # calls center (depends on the pivot scope)
     uses_uv: bool = False  # reads or rewrites texture coordinates (tileUV, split(u|v), …)
     trims: bool = False  # inserts or trims (depends on the trim planes it inherits)
+    assets: set = field(default_factory=set)  # the i("literal") assets it inserts
+    far: bool = False  # may put geometry beyond its scope box (s, t, extrude, primitives…)
     calls: set = field(default_factory=set)  # (module id, rule or function name)
 
 
@@ -82,15 +89,17 @@ class Purity:
                     if other is None:
                         continue
                     before = (info.pure, len(info.reads), info.projects, info.centers,
-                              info.uses_uv, info.trims)
+                              info.uses_uv, info.trims, len(info.assets), info.far)
                     info.pure &= other.pure
                     info.reads |= other.reads
                     info.projects |= other.projects
                     info.centers |= other.centers
                     info.uses_uv |= other.uses_uv
                     info.trims |= other.trims
+                    info.assets |= other.assets
+                    info.far |= other.far
                     if (info.pure, len(info.reads), info.projects, info.centers,
-                            info.uses_uv, info.trims) != before:
+                            info.uses_uv, info.trims, len(info.assets), info.far) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -128,8 +137,7 @@ class Purity:
                         info.centers = True
                     if name in UV_OPS:
                         info.uses_uv = True
-                    if name in TRIM_OPS:
-                        info.trims = True
+                    _note_reach(name, args, info)
                     for a in args:
                         self._expr(m, a, info)
                     continue
@@ -142,6 +150,7 @@ class Purity:
             elif t is A.BodyOp:
                 if op.name in IMPURE_OPS:
                     info.pure = False
+                _note_reach(op.name, op.args, info)
                 if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
                         and op.args[0].name in ("u", "v"):
                     info.uses_uv = True
@@ -216,6 +225,19 @@ class Purity:
                     stack.extend((b.selector, b.ops))
 
 
+def _note_reach(name: str, args, info: RuleInfo) -> None:
+    """What an operation tells about where trim planes may cut below it (``trims``, ``assets``,
+    ``far``)."""
+    if name in TRIM_OPS:
+        info.trims = True
+        if name == "i" and len(args) == 1 and isinstance(args[0], A.Str):
+            info.assets.add(args[0].value)
+            return
+    if name not in IN_SCOPE_OPS or (name == "set" and args and isinstance(args[0], A.Name)
+                                    and args[0].name.startswith("scope.")):
+        info.far = True
+
+
 def _hashable(v):
     if isinstance(v, np.ndarray):
         return ("arr", v.shape, tuple(v.reshape(-1).tolist()))
@@ -265,7 +287,7 @@ def instance_key(mod, name, args, state, info: RuleInfo):
            np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
-           state.label, proj_key, pivot_key, trim_key(state) if info.trims else ())
+           state.label, proj_key, pivot_key, trim_key(state, info.assets, info.far) if info.trims else ())
     return key, uv_map
 
 

@@ -12,7 +12,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
-from .trimming import apply_trim
+from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
 
@@ -296,7 +296,9 @@ def op_insert(call):
             raise CGARuntimeError(f"unknown builtin asset '{name}'; use one of "
                                   + ", ".join("builtin:" + k for k in sorted(PRIMITIVES)))
         mesh = make()
-        _fit_unit_mesh(st, mesh, mesh.bounds())
+        bounds = mesh.bounds()
+        note_asset(name, bounds)
+        _fit_unit_mesh(st, mesh, bounds)
         st.context.pop("face_kinds", None)
         apply_trim(st)
         return
@@ -309,7 +311,9 @@ def op_insert(call):
         raise CGARuntimeError(str(e)) from None
     if asset is None:
         raise CGARuntimeError(f"asset '{name}' not found under {resolver.roots[0] if resolver.roots else '?'}")
-    _fit_unit_mesh(st, asset.mesh, asset.mesh.bounds())
+    bounds = asset.mesh.bounds()
+    note_asset(name, bounds)
+    _fit_unit_mesh(st, asset.mesh, bounds)
     st.context.pop("face_kinds", None)
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces

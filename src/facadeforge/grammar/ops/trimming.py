@@ -270,27 +270,53 @@ def _trim_vertical(env, args):
 
 # ---- instancing ----------------------------------------------------------------------------
 
-def trim_key(state) -> tuple:
-    """The part of an instancing cache key that trim planes decide: the active planes that
-    may cut what the subtree inserts, in the scope frame.  That is the scope box grown along
-    its zero sizes by the depth an asset fitted to it gets (CityEngine fits a zero size to the
-    mean of the other sizes times the asset's proportion; assets are taken to be no deeper
-    than they are wide and high, and at least 1 m is allowed).  Planes farther away leave the
-    key, so tiles away from a corner still share one recording.  (A subtree that moves its
-    geometry out of that box before inserting could be replayed with the wrong cuts.)"""
+#: per inserted asset name, how far it reaches along each axis when fitted to a flat scope:
+#: its extent there over the smallest other extent (bounded by the rules' asset names)
+_PROPORTIONS: dict[str, np.ndarray] = {}
+
+
+def note_asset(name: str, bounds: np.ndarray) -> None:
+    """Remember the proportions of an asset ``i()`` inserts (for :func:`trim_key`)."""
+    if name in _PROPORTIONS:
+        return
+    ext = np.maximum(bounds[1] - bounds[0], 0.0)
+    ratio = np.ones(3)
+    for k in range(3):
+        others = [ext[j] for j in range(3) if j != k and ext[j] > EPS]
+        ratio[k] = ext[k] / min(others) if others else 1.0
+    _PROPORTIONS[name] = ratio
+
+
+def _reach(size: np.ndarray, assets, far: bool) -> np.ndarray:
+    """How far (per axis) a subtree's inserted geometry may stick out of a scope box with one or
+    two zero sizes.  CityEngine fits a zero size to the mean of the others times the asset's
+    proportion; with known assets and only operations that stay in the box that bounds it,
+    otherwise the mean of the other sizes (at least 1 m) stands in."""
+    flat = size < 1e-6
+    if flat.all():
+        return np.full(3, 1e6)  # a point scope: assets keep their own size
+    mean = float(size[~flat].mean())
+    known = [_PROPORTIONS.get(a) for a in assets]
+    if far or not known or any(r is None for r in known):
+        return np.where(flat, max(mean, 1.0), 0.0)
+    return np.where(flat, mean * np.max(known, axis=0), 0.0)
+
+
+def trim_key(state, assets=(), far: bool = True) -> tuple:
+    """The part of an instancing cache key that trim planes decide: the active planes that may
+    cut what the subtree inserts (those reaching the scope box grown by :func:`_reach`), in
+    the scope frame.  Planes farther away leave the key, so tiles away from a corner still share
+    one recording.  ``assets`` and ``far`` come from the subtree's analysis (instancing.py)."""
     trim = state.trim
     active = trim.active() if trim is not None else None
     if active is None:
         return ()
     normals, offsets = active
     sc = state.scope
-    size = sc.size
-    flat = size < 1e-6
-    depth = max(float(size[~flat].mean()) if not flat.all() else 0.0, 1.0)
     local = normals @ sc.rotation  # plane normals in the scope frame
     at_origin = normals @ sc.origin - offsets  # signed distance of the scope origin
-    nearest = at_origin + np.where(flat, -np.abs(local) * depth,
-                                   np.minimum(local * size, 0.0)).sum(axis=1)
+    reach = _reach(sc.size, assets, far)
+    nearest = at_origin + (np.minimum(local * sc.size, 0.0) - np.abs(local) * reach).sum(axis=1)
     near = nearest < 1e-6
     if not near.any():
         return ()
