@@ -309,3 +309,23 @@ def test_fitted_assets_meet_at_a_concave_corner_when_instanced(tmp_path, asset):
                                                               "Lot --> set(trim.vertical, false)"),
                    [lot], assets=tmp_path)[0]
     assert sum(p.mesh.area() for p in plain.parts) < sum(p.mesh.area() for p in whole.parts) - 0.1
+
+
+def test_subtree_analysis_for_trim_keys():
+    from facadeforge.grammar.instancing import Purity
+
+    rules = load_rules("""
+Lot --> comp(f) { all : A }
+A --> split(x) { ~1 : B }*
+B --> color("#ffffff") i("window.obj")
+C --> s('1, '1, 0.3) i("window.obj")
+D --> comp(v) { all : i("post.obj") }
+E --> extrude(1) trim()
+F --> set(trim.horizontal, true) B
+""")
+    p = Purity(rules.ruleset)
+    main = rules.ruleset.main
+    info = {name: p.rule(main, name) for name in "ABCDEF"}
+    assert info["A"].trims and info["A"].assets == {"window.obj"} and not info["A"].far
+    assert info["C"].far and info["D"].far and info["E"].far and info["E"].trims
+    assert not info["F"].pure  # switching planes on or off is never replayed

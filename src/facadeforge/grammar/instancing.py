@@ -233,8 +233,9 @@ def _note_reach(name: str, args, info: RuleInfo) -> None:
         if name == "i" and len(args) == 1 and isinstance(args[0], A.Str):
             info.assets.add(args[0].value)
             return
-    if name not in IN_SCOPE_OPS or (name == "set" and args and isinstance(args[0], A.Name)
-                                    and args[0].name.startswith("scope.")):
+    first = args[0].name if args and isinstance(args[0], A.Name) else None
+    if name not in IN_SCOPE_OPS or (name == "set" and str(first).startswith("scope.")) or (
+            name == "comp" and first != "f"):  # comp(e|v): assets keep their size on an edge
         info.far = True
 
 
@@ -283,11 +284,12 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         p = state.pivot
         pivot_key = (np.round((p.origin - org) @ rot, 6).tobytes(), np.round(p.size, 6).tobytes(),
                      np.round(rot.T @ p.rotation, 9).tobytes())
+    trims = trim_key(state, info.assets, info.far) if info.trims else ()
     key = (id(mod), name, tuple(_hashable(a) for a in args), np.round(sc.size, 6).tobytes(),
            np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
-           state.label, proj_key, pivot_key, trim_key(state, info.assets, info.far) if info.trims else ())
+           state.label, proj_key, pivot_key, trims)
     return key, uv_map
 
 
