@@ -187,15 +187,28 @@ def test_groups_get_planes_only_at_their_border():
 
 
 def test_hip_roof_planes_classified_against_the_face_pivot():
-    # on a hip roof the hips make vertical planes (54.7° on a 45° roof face), ridge and eave
-    # horizontal ones, as in the reference's pictures
-    m = _model("Lot --> roofHip(45) comp(f) { bottom : NIL | all : report(\"n\", 1) "
-               "s('1, '1, 0.3) t(0, 0, -0.3) i(\"builtin:cube\") R. }", lot="10x6")
-    assert not m.warnings and len(m.reports["n"]) == 4
-    total = sum(p.mesh.area() for p in m.parts)
-    plain = _model("Lot --> roofHip(45) comp(f) { bottom : NIL | all : set(trim.vertical, false) "
+    # on a hip roof the hips make vertical planes (54.7° to the eave on a 45° roof face), ridge
+    # and eaves horizontal ones, as in the reference's pictures
+    from facadeforge.grammar.ops.subdivision import face_scope
+
+    (part,) = _model("Lot --> roofHip(45) R.", lot="10x6").parts
+    roof = part.mesh
+    edges = MeshEdges(roof)
+    normals = roof.face_normals()
+    kinds = []
+    for f in np.flatnonzero(normals[:, 1] > 0.1):
+        up = face_scope(roof.vertices[roof.face(f)], normals[f]).rotation[:, 1]
+        _, _, vertical = FacePlanes(edges, (f,), up).planes()
+        kinds.append((len(roof.face(f)), int(vertical.sum()), int((~vertical).sum())))
+    # trapezoids: 2 hips, the ridge and the eave (shared with the bottom face);
+    # triangles: 2 hips and the eave
+    assert sorted(kinds) == [(3, 2, 1), (3, 2, 1), (4, 2, 2), (4, 2, 2)]
+    cut = _model("Lot --> roofHip(45) comp(f) { bottom : NIL | all : "
+                 "s('1, '1, 0.3) t(0, 0, -0.3) i(\"builtin:cube\") R. }", lot="10x6")
+    whole = _model("Lot --> roofHip(45) comp(f) { bottom : NIL | all : set(trim.vertical, false) "
                    "s('1, '1, 0.3) t(0, 0, -0.3) i(\"builtin:cube\") R. }", lot="10x6")
-    assert total < sum(p.mesh.area() for p in plain.parts) - 1.0  # the hips cut
+    assert not cut.warnings
+    assert sum(p.mesh.area() for p in cut.parts) < sum(p.mesh.area() for p in whole.parts) - 1.0
 
 
 # ---- cutting ---------------------------------------------------------------------------------

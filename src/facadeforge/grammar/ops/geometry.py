@@ -300,7 +300,7 @@ def op_insert(call):
         note_asset(name, bounds)
         _fit_unit_mesh(st, mesh, bounds)
         st.context.pop("face_kinds", None)
-        apply_trim(st)
+        apply_trim(st, fitted=True)
         return
     resolver = call.derivation.assets
     if resolver is None:
@@ -318,13 +318,13 @@ def op_insert(call):
     if asset.face_material is not None:
         # several materials: kept per face until an operation changes the faces
         st.context["face_materials"] = (asset.face_material, asset.materials, st.geometry.n_faces)
-        apply_trim(st)
+        apply_trim(st, fitted=True)
         return
     if asset.material.texture and "colormap" not in st.material:
         st.material["colormap"] = asset.material.texture
     if "color" not in st.material and asset.material.color != (1.0, 1.0, 1.0):
         st.material["color"] = tuple(asset.material.color)
-    apply_trim(st)
+    apply_trim(st, fitted=True)
 
 
 #: Per primitive: (resolution arguments, dimension arguments) of CityEngine's signatures, e.g.
@@ -404,7 +404,7 @@ def _primitive_op(kind):
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
-        apply_trim(st)
+        apply_trim(st, fitted=True)
     return fn
 
 

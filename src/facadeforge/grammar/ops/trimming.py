@@ -206,14 +206,22 @@ def _cut(mesh: Mesh, origin: np.ndarray, normal: np.ndarray) -> tuple[Mesh, np.n
     return Mesh.merge([mesh.subset(kept), cut]), np.concatenate([kept, src]).astype(np.int64)
 
 
-def apply_trim(st) -> bool:
+def apply_trim(st, fitted: bool = False) -> bool:
     """Cut the shape's geometry at its active trim planes (``i()``, primitives, ``trim()``);
-    per-face materials and ``offset`` face kinds follow their faces.  True if anything was cut."""
+    per-face materials and ``offset`` face kinds follow their faces.  True if anything was cut.
+    ``fitted``: the geometry was just fitted to the scope box, so planes clear of the box are
+    skipped without looking at the vertices."""
     trim = st.trim
     active = trim.active() if trim is not None else None
     mesh = st.geometry
     if active is None or not mesh.n_faces:
         return False
+    if fitted:
+        local, at_origin = _in_scope_frame(*active, st.scope)
+        reaching = _nearest(local, at_origin, st.scope.size, np.zeros(3)) < EPS
+        if not reaching.any():
+            return False
+        active = (active[0][reaching], active[1][reaching])
     out, source = trim_mesh(mesh, *active)
     if out is mesh:
         return False
@@ -311,13 +319,20 @@ def trim_key(state, assets=(), far: bool = True) -> tuple:
     active = trim.active() if trim is not None else None
     if active is None:
         return ()
-    normals, offsets = active
     sc = state.scope
-    local = normals @ sc.rotation  # plane normals in the scope frame
-    at_origin = normals @ sc.origin - offsets  # signed distance of the scope origin
-    reach = _reach(sc.size, assets, far)
-    nearest = at_origin + (np.minimum(local * sc.size, 0.0) - np.abs(local) * reach).sum(axis=1)
-    near = nearest < 1e-6
+    local, at_origin = _in_scope_frame(*active, sc)
+    near = _nearest(local, at_origin, sc.size, _reach(sc.size, assets, far)) < 1e-6
     if not near.any():
         return ()
     return (np.round(local[near], 9).tobytes(), np.round(at_origin[near], 6).tobytes())
+
+
+def _in_scope_frame(normals: np.ndarray, offsets: np.ndarray, scope):
+    """Plane normals in the scope frame and the signed distance of the scope origin."""
+    return normals @ scope.rotation, normals @ scope.origin - offsets
+
+
+def _nearest(local: np.ndarray, at_origin: np.ndarray, size: np.ndarray, reach: np.ndarray):
+    """Per plane, the smallest signed distance over the scope box grown by ``reach`` per axis
+    (negative: part of the box lies on the cut side)."""
+    return at_origin + (np.minimum(local * size, 0.0) - np.abs(local) * reach).sum(axis=1)
