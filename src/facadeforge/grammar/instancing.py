@@ -25,6 +25,7 @@ import numpy as np
 
 from . import ast as A
 from .module import Module, RuleSet
+from .ops.trimming import trim_key
 
 IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
                 "scope.elevation", "pivot.px", "pivot.py", "pivot.pz", "pivot.ox", "pivot.oy",
@@ -39,6 +40,14 @@ CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp
 # operations whose result depends on the UV values a shape inherits (not only on its position)
 UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV",
           "insertAlongUV"}
+# operations that cut their geometry at the shape's trim planes (ops/trimming.py)
+TRIM_OPS = {"i", "trim", "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone",
+            "primitiveDisk", "primitiveSphere"}
+# operations that keep a shape's geometry inside its scope box, so that an asset inserted below
+# them reaches no farther than its proportions allow (which trim planes can cut it)
+IN_SCOPE_OPS = {"split", "comp", "setback", "setbackPerEdge", "setbackToArea", "shapeL",
+                "shapeU", "shapeO", "splitArea", "color", "report", "print", "label", "texture",
+                "setupProjection", "projectUV", "deleteUV", "set", "NIL"} | (UV_OPS - {"insertAlongUV"})
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
@@ -50,6 +59,9 @@ class RuleInfo:
     projects: bool = False  # calls projectUV (depends on inherited projections)
     centers: bool = False  # calls center (depends on the pivot scope)
     uses_uv: bool = False  # reads or rewrites texture coordinates (tileUV, split(u|v), …)
+    trims: bool = False  # inserts or trims (depends on the trim planes it inherits)
+    assets: set = field(default_factory=set)  # the i("literal") assets it inserts
+    far: bool = False  # may put geometry beyond its scope box (s, t, extrude, primitives…)
     calls: set = field(default_factory=set)  # (module id, rule or function name)
 
 
@@ -84,14 +96,18 @@ class Purity:
                     other = self.info.get(callee)
                     if other is None:
                         continue
-                    before = (info.pure, len(info.reads), info.projects, info.centers, info.uses_uv)
+                    before = (info.pure, len(info.reads), info.projects, info.centers,
+                              info.uses_uv, info.trims, len(info.assets), info.far)
                     info.pure &= other.pure
                     info.reads |= other.reads
                     info.projects |= other.projects
                     info.centers |= other.centers
                     info.uses_uv |= other.uses_uv
+                    info.trims |= other.trims
+                    info.assets |= other.assets
+                    info.far |= other.far
                     if (info.pure, len(info.reads), info.projects, info.centers,
-                            info.uses_uv) != before:
+                            info.uses_uv, info.trims, len(info.assets), info.far) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -123,12 +139,13 @@ class Purity:
                     if name == "projectUV":
                         info.projects = True
                     if name == "set" and args and isinstance(args[0], A.Name) \
-                            and args[0].name.startswith("scope.t"):
-                        info.pure = False  # sets an absolute position
+                            and args[0].name.startswith(("scope.t", "trim.")):
+                        info.pure = False  # sets an absolute position, or which planes trim
                     if name == "center":
                         info.centers = True
                     if name in UV_OPS:
                         info.uses_uv = True
+                    _note_reach(name, args, info)
                     for a in args:
                         self._expr(m, a, info)
                     continue
@@ -141,6 +158,7 @@ class Purity:
             elif t is A.BodyOp:
                 if op.name in IMPURE_OPS:
                     info.pure = False
+                _note_reach(op.name, op.args, info)
                 if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
                         and op.args[0].name in ("u", "v"):
                     info.uses_uv = True
@@ -220,6 +238,20 @@ class Purity:
                     stack.extend((b.selector, b.ops))
 
 
+def _note_reach(name: str, args, info: RuleInfo) -> None:
+    """What an operation tells about where trim planes may cut below it (``trims``, ``assets``,
+    ``far``)."""
+    if name in TRIM_OPS:
+        info.trims = True
+        if name == "i" and len(args) == 1 and isinstance(args[0], A.Str):
+            info.assets.add(args[0].value)
+            return
+    first = args[0].name if args and isinstance(args[0], A.Name) else None
+    if name not in IN_SCOPE_OPS or (name == "set" and str(first).startswith("scope.")) or (
+            name == "comp" and first != "f"):  # comp(e|v): assets keep their size on an edge
+        info.far = True
+
+
 def _hashable(v):
     if isinstance(v, np.ndarray):
         return ("arr", v.shape, tuple(v.reshape(-1).tolist()))
@@ -265,11 +297,12 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         p = state.pivot
         pivot_key = (np.round((p.origin - org) @ rot, 6).tobytes(), np.round(p.size, 6).tobytes(),
                      np.round(rot.T @ p.rotation, 9).tobytes())
+    trims = trim_key(state, info.assets, info.far) if info.trims else ()
     key = (id(mod), name, tuple(_hashable(a) for a in args), np.round(sc.size, 6).tobytes(),
            np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
-           state.label, proj_key, pivot_key)
+           state.label, proj_key, pivot_key, trims)
     return key, uv_map
 
 

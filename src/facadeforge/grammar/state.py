@@ -27,14 +27,17 @@ class ShapeState:
     The scope is shared copy-on-write between a state, its copies, its successors and the shape
     tree: read ``scope`` freely, but change it only through ``own_scope()``.  Most shapes never
     move their scope, so most copies never happen.
+
+    ``trim`` holds the trim planes a ``comp(f)`` gave the shape and the ``trim.*`` switches
+    (an immutable ``ops.trimming.TrimState``, shared as is; ``None`` until either exists).
     """
 
     __slots__ = ("_scope", "_own", "geometry", "material", "attrs", "context", "projections",
-                 "label", "tags", "seed", "draws", "pivot")
+                 "label", "tags", "seed", "draws", "pivot", "trim")
 
     def __init__(self, scope: Scope, geometry: Mesh, material=None, attrs=None, context=None,
                  projections=None, label: str = "", tags=None, seed: int = 0, draws: int = 0,
-                 pivot: Scope | None = None):
+                 pivot: Scope | None = None, trim=None):
         self._scope = scope
         self._own = False
         self.geometry = geometry
@@ -47,6 +50,7 @@ class ShapeState:
         self.seed = seed
         self.draws = draws
         self.pivot = pivot
+        self.trim = trim
 
     @property
     def scope(self) -> Scope:
@@ -73,7 +77,7 @@ class ShapeState:
         self._own = False
         return ShapeState(self._scope, self.geometry, dict(self.material), dict(self.attrs),
                           dict(self.context), dict(self.projections), self.label, dict(self.tags),
-                          self.seed, 0, self.pivot)
+                          self.seed, 0, self.pivot, self.trim)
 
     def child(self, index: int) -> ShapeState:
         """Copy for the ``index``-th successor, with its own random stream."""

@@ -12,6 +12,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
+from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
 
@@ -285,16 +286,24 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
 
 @operation("i", 1, 3, selectors=(1, 2))
 def op_insert(call):
-    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope."""
+    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope, then cut at the
+    shape's trim planes (CityEngine "insert operation", note on trim planes:
+    https://doc.arcgis.com/en/cityengine/latest/cga/cga-i.htm)."""
     st = call.state
     name = call.text(0)
     mesh, asset = load_asset(call, name)
-    _fit_unit_mesh(st, mesh, mesh.bounds())
+    bounds = mesh.bounds()
+    note_asset(name, bounds)
+    _fit_unit_mesh(st, mesh, bounds)
     st.context.pop("face_kinds", None)
     st.context.pop("asset_material", None)
-    st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
-    if asset is not None:
+    several = asset is not None and asset.face_material is not None
+    if several:  # per-face materials before the cut, which keeps them with their faces
         apply_asset_material(st, asset, asset.face_material)
+    apply_trim(st, fitted=True)
+    if asset is not None and not several:
+        apply_asset_material(st, asset, None)
+    st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
 
 
 def load_asset(call, name: str):
@@ -421,6 +430,7 @@ def _primitive_op(kind):
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())
         st.context.pop("face_kinds", None)
+        apply_trim(st, fitted=True)
     return fn
 
 

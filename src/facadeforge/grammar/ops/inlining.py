@@ -142,6 +142,7 @@ def _take(state, result) -> None:
     state.projections = dict(result.projections)
     state.label = result.label
     state.tags = dict(result.tags)
+    state.trim = result.trim
     state.context.pop("face_materials", None)
     if "face_materials" in result.context:
         state.context["face_materials"] = result.context["face_materials"]

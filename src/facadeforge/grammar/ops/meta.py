@@ -7,6 +7,7 @@ from ..state import splitmix64
 from ..values import CGARuntimeError, to_float, to_str
 from . import operation
 from .appearance import set_material
+from .trimming import set_trim
 
 
 @operation("set", 2, names=(0,))
@@ -18,8 +19,11 @@ def op_set(call):
     if name.startswith("material."):
         set_material(st, name[len("material."):], value)
         return
-    if name.startswith("trim.") or name.startswith("pivot."):
-        return  # trim planes and pivots are not modelled (docs/cga-dialect.md)
+    if name.startswith("trim."):
+        set_trim(st, name[len("trim."):], value)
+        return
+    if name.startswith("pivot."):
+        return  # pivots are not modelled (docs/cga-dialect.md)
     if name.startswith("scope."):
         _set_scope(call, st, name[len("scope."):], to_float(value))
         return

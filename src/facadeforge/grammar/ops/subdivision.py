@@ -14,6 +14,7 @@ from ...model.scope import Scope
 from .. import ast as A
 from ..values import CGARuntimeError, Floating, Relative, to_float
 from . import operation
+from .trimming import MeshEdges, comp_trim
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -515,6 +516,7 @@ def _comp_faces(call, st):
         extra = {"inside": np.zeros(n, bool), "border": np.zeros(n, bool)}
     taken = np.zeros(n, bool)
     out = []
+    edges = MeshEdges(mesh)  # trim planes, worked out only if a successor needs them
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
@@ -531,6 +533,7 @@ def _comp_faces(call, st):
             ps.scope = face_scope(mesh.vertices[mesh.face(idx[0])], normals[idx[0]])
             ps.geometry = sub
             ps.fit_scope()
+            ps.trim = comp_trim(st, edges, idx, ps.scope)
             ps.context = {**_clean(st.context), "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
@@ -539,6 +542,7 @@ def _comp_faces(call, st):
             poly = mesh.vertices[mesh.face(f)]
             ps.scope = face_scope(poly, normals[f])
             ps.geometry = mesh.subset([f])
+            ps.trim = comp_trim(st, edges, (f,), ps.scope)
             ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "index": j, "component": int(f)}))

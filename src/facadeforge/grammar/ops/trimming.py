@@ -1,1 +1,338 @@
-"""(work in progress)"""
+"""CityEngine trim planes: made by ``comp(f)``, applied by ``i()``, the primitives and ``trim()``.
+
+References (CityEngine CGA reference):
+
+* trim operation — https://doc.arcgis.com/en/cityengine/latest/cga/cga-trim.htm
+* trim attribute — https://doc.arcgis.com/en/cityengine/latest/cga/cga-trim-attribute.htm
+* insert operation, note on trim planes — https://doc.arcgis.com/en/cityengine/latest/cga/cga-i.htm
+
+``comp(f)`` gives every new shape one trim plane per edge its face(s) share with another face of
+the split geometry: the plane through that edge bisecting the angle between the two faces, so
+that geometry inserted on two neighbouring faces meets cleanly (at 45° on a box corner).  A
+plane is *vertical* when its edge makes 40° or more with the xz-plane of the new shape's pivot
+(the face frame: x along the face's first edge, z along its normal), else *horizontal*;
+``trim.vertical`` (default true) and ``trim.horizontal`` (default false) switch the two kinds on
+and off for a shape and its successors.  Successors (split pieces, inserted assets…) inherit the
+planes; they stay where ``comp`` put them in world space.
+
+Where the reference is silent, this runtime does what a CityEngine user expects:
+
+* every edge shared by exactly two faces makes a plane, closed volume or not (the reference's
+  examples trim the faces of an open hip roof); edges of three or more faces make none;
+* a new ``comp(f)`` replaces the inherited planes with its own (``comp(e|v)`` keeps them);
+* planes are unbounded; cutting removes the part beyond the plane without capping the cut
+  (the mitred faces of neighbouring pieces meet there);
+* ``=`` groups get planes only at edges shared with faces outside the group.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ...geometry.cut import _clip_slab, _convex_faces
+from ...geometry.mesh import EPS, Mesh, cross3, plane_basis
+from ..values import CGARuntimeError, to_bool, type_name
+from . import operation, shape_function
+
+#: sin(40°): an edge at least this steep against the pivot's xz-plane makes a vertical plane
+_VERTICAL_SIN = math.sin(math.radians(40.0))
+
+
+class MeshEdges:
+    """Which face shares each face edge of a mesh, computed once per ``comp(f)`` and only when
+    a successor asks for its planes (most never insert anything)."""
+
+    def __init__(self, mesh: Mesh):
+        self.mesh = mesh
+        self._partner = None
+
+    def partner(self) -> np.ndarray:
+        """(C,) the corner of the other face on the same edge, -1 for border and non-manifold
+        edges (corner ``c`` stands for the edge from its vertex to the next corner's)."""
+        if self._partner is None:
+            self._partner = _edge_partners(self.mesh)
+        return self._partner
+
+
+def _next_corner(mesh: Mesh) -> np.ndarray:
+    nxt = np.arange(1, len(mesh.corners) + 1)
+    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
+    return nxt
+
+
+def _edge_partners(mesh: Mesh) -> np.ndarray:
+    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
+    _, weld = np.unique(key, axis=0, return_inverse=True)
+    w = weld.reshape(-1)[mesh.corners]
+    pairs = np.sort(np.stack([w, w[_next_corner(mesh)]], axis=1), axis=1)
+    _, edge, count = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
+    edge = edge.reshape(-1)
+    partner = np.full(len(w), -1, np.int64)
+    two = (count[edge] == 2) & (pairs[:, 0] != pairs[:, 1])
+    order = np.flatnonzero(two)[np.argsort(edge[two], kind="stable")]
+    a, b = order[0::2], order[1::2]
+    partner[a], partner[b] = b, a
+    return partner
+
+
+class FacePlanes:
+    """The trim planes of one ``comp(f)`` successor: faces ``faces`` of ``edges.mesh``,
+    classified against the pivot's y axis ``up``.  Computed on first use, then shared by every
+    descendant."""
+
+    def __init__(self, edges: MeshEdges, faces, up: np.ndarray):
+        self.edges = edges
+        self.faces = faces
+        self.up = up
+        self._planes = None
+        self._active = {}
+
+    def planes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(origins (N, 3), normals (N, 3), vertical (N,) bool)``; a point ``p`` is kept
+        when ``(p - origin) · normal >= 0``."""
+        if self._planes is None:
+            self._planes = _bisecting_planes(self.edges, self.faces, self.up)
+        return self._planes
+
+    def active(self, horizontal: bool, vertical: bool):
+        """``(normals, offsets)`` of the planes switched on (a point ``p`` is kept when
+        ``normal · p >= offset``), or ``None`` when there are none; cached per switch setting."""
+        key = (horizontal, vertical)
+        if key not in self._active:
+            origins, normals, is_vertical = self.planes()
+            on = (is_vertical & vertical) | (~is_vertical & horizontal)
+            self._active[key] = ((normals[on], np.einsum("pk,pk->p", origins[on], normals[on]))
+                                 if on.any() else None)
+        return self._active[key]
+
+
+def _bisecting_planes(edges: MeshEdges, faces, up: np.ndarray):
+    mesh = edges.mesh
+    partner = edges.partner()
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    mine = np.zeros(mesh.n_faces, bool)
+    mine[np.asarray(faces, np.int64)] = True
+    c = np.flatnonzero(mine[face_of] & (partner >= 0))
+    c = c[~mine[face_of[partner[c]]]]
+    nxt = _next_corner(mesh)
+    normals = mesh.face_normals()
+    a = mesh.vertices[mesh.corners[c]]
+    e = _unit(mesh.vertices[mesh.corners[nxt[c]]] - a)
+    p = partner[c]
+    e_other = _unit(mesh.vertices[mesh.corners[nxt[p]]] - mesh.vertices[mesh.corners[p]])
+    # inward directions of both faces, perpendicular to the edge: their difference is the normal
+    # of the plane through the edge that halves the angle between the faces
+    m = cross3(normals[face_of[c]], e) - cross3(normals[face_of[p]], e_other)
+    length = np.linalg.norm(m, axis=1)
+    ok = length > 1e-6
+    m = m[ok] / length[ok, None]
+    vertical = np.abs(e[ok] @ up) >= _VERTICAL_SIN - 1e-9
+    return a[ok], m, vertical
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), EPS)
+
+
+@dataclass(frozen=True)
+class TrimState:
+    """What ``ShapeState.trim`` holds: the inherited planes and the two ``trim.*`` switches.
+    Immutable, so states share it freely (``None`` in a state means the default)."""
+
+    planes: FacePlanes | None = None
+    horizontal: bool = False
+    vertical: bool = True
+
+    def active(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Normals and offsets of the planes switched on, or ``None`` when there are none."""
+        if self.planes is None or not (self.horizontal or self.vertical):
+            return None
+        return self.planes.active(self.horizontal, self.vertical)
+
+
+_DEFAULT = TrimState()
+
+
+def comp_trim(state, edges: MeshEdges, faces, scope) -> TrimState:
+    """Trim state of a ``comp(f)`` successor made of ``faces`` with pivot ``scope``."""
+    old = state.trim or _DEFAULT
+    return TrimState(FacePlanes(edges, faces, scope.rotation[:, 1]), old.horizontal, old.vertical)
+
+
+# ---- applying planes -----------------------------------------------------------------------
+
+def trim_mesh(mesh: Mesh, normals: np.ndarray, offsets: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """Cut away what lies beyond each plane (keep ``normal · p >= offset``); returns the mesh
+    and, per new face, the face it came from.  Faces wholly on the kept side are kept as they
+    are (no copy when none is cut)."""
+    source = np.arange(mesh.n_faces)
+    for n, c in zip(normals, offsets):  # bounded: one pass per plane
+        if not mesh.n_faces:
+            break
+        mesh, kept_from = _cut(mesh, n * c, n)
+        source = source[kept_from]
+    return mesh, source
+
+
+def _cut(mesh: Mesh, origin: np.ndarray, normal: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    d = ((mesh.vertices - origin) @ normal)[mesh.corners]
+    lo = np.minimum.reduceat(d, mesh.starts[:-1])
+    hi = np.maximum.reduceat(d, mesh.starts[:-1])
+    keep = lo >= -EPS
+    crossing = np.flatnonzero(~keep & (hi > EPS))
+    if keep.all():
+        return mesh, np.arange(mesh.n_faces)
+    kept = np.flatnonzero(keep)
+    if not len(crossing):
+        return mesh.subset(kept), kept
+    frame = plane_basis(normal)  # columns: two in-plane axes, then the normal
+    local = (mesh.vertices - origin) @ frame
+    normals = mesh.face_normals()
+    convex = _convex_faces(mesh, normals)
+    big = float(d.max()) + 1.0
+    polys, uvs, src = [], [], []
+    for f in crossing:
+        c0, c1 = mesh.starts[f], mesh.starts[f + 1]
+        uv = None if mesh.corner_uvs is None else mesh.corner_uvs[c0:c1]
+        for q, quv in _clip_slab(local[mesh.corners[c0:c1]], uv, 2, 0.0, big,
+                                 normals[f] @ frame, convex[f]):
+            polys.append(q @ frame.T + origin)
+            uvs.append(quv)
+            src.append(f)
+    cut = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
+    return Mesh.merge([mesh.subset(kept), cut]), np.concatenate([kept, src]).astype(np.int64)
+
+
+def apply_trim(st, fitted: bool = False) -> bool:
+    """Cut the shape's geometry at its active trim planes (``i()``, primitives, ``trim()``);
+    per-face materials and ``offset`` face kinds follow their faces.  True if anything was cut.
+    ``fitted``: the geometry was just fitted to the scope box, so planes clear of the box are
+    skipped without looking at the vertices."""
+    trim = st.trim
+    active = trim.active() if trim is not None else None
+    mesh = st.geometry
+    if active is None or not mesh.n_faces:
+        return False
+    if fitted:
+        local, at_origin = _in_scope_frame(*active, st.scope)
+        reaching = _nearest(local, at_origin, st.scope.size, np.zeros(3)) < EPS
+        if not reaching.any():
+            return False
+        active = (active[0][reaching], active[1][reaching])
+    out, source = trim_mesh(mesh, *active)
+    if out is mesh:
+        return False
+    st.geometry = out
+    _follow_faces(st.context, source, mesh.n_faces)
+    return True
+
+
+def _follow_faces(ctx: dict, source: np.ndarray, n_before: int) -> None:
+    kinds = ctx.get("face_kinds")
+    if kinds is not None:
+        if len(kinds) == n_before:
+            ctx["face_kinds"] = [kinds[i] for i in source]
+        else:
+            ctx.pop("face_kinds")
+    fm = ctx.get("face_materials")
+    if fm is not None:
+        if fm[2] == n_before:
+            ctx["face_materials"] = (np.asarray(fm[0])[source], fm[1], len(source))
+        else:
+            ctx.pop("face_materials")
+
+
+@operation("trim", 0, 0)
+def op_trim(call):
+    """``trim()``: apply the shape's active trim planes to its geometry (CityEngine "trim
+    operation", https://doc.arcgis.com/en/cityengine/latest/cga/cga-trim.htm).  The scope is
+    kept; without planes (no ``comp(f)`` above) the geometry stays as it is."""
+    apply_trim(call.state)
+
+
+# ---- the trim attribute --------------------------------------------------------------------
+
+def set_trim(st, key: str, value) -> None:
+    """``set(trim.horizontal|vertical, bool)`` for the shape and its successors (CityEngine
+    "trim attribute", https://doc.arcgis.com/en/cityengine/latest/cga/cga-trim-attribute.htm)."""
+    if key not in ("horizontal", "vertical"):
+        raise CGARuntimeError(f"set: 'trim.{key}' is not a trim attribute; use trim.horizontal "
+                              "or trim.vertical")
+    if not isinstance(value, (bool, int, float)):
+        raise CGARuntimeError(f"set(trim.{key}, …) takes true or false, not a {type_name(value)}")
+    st.trim = replace(st.trim or _DEFAULT, **{key: to_bool(value)})
+
+
+@shape_function("trim.horizontal")
+def _trim_horizontal(env, args):
+    return (env.state.trim or _DEFAULT).horizontal
+
+
+@shape_function("trim.vertical")
+def _trim_vertical(env, args):
+    return (env.state.trim or _DEFAULT).vertical
+
+
+# ---- instancing ----------------------------------------------------------------------------
+
+#: per inserted asset name, how far it reaches along each axis when fitted to a flat scope:
+#: its extent there over the smallest other extent (bounded by the rules' asset names)
+_PROPORTIONS: dict[str, np.ndarray] = {}
+
+
+def note_asset(name: str, bounds: np.ndarray) -> None:
+    """Remember the proportions of an asset ``i()`` inserts (for :func:`trim_key`)."""
+    if name in _PROPORTIONS:
+        return
+    ext = np.maximum(bounds[1] - bounds[0], 0.0)
+    ratio = np.ones(3)
+    for k in range(3):
+        others = [ext[j] for j in range(3) if j != k and ext[j] > EPS]
+        ratio[k] = ext[k] / min(others) if others else 1.0
+    _PROPORTIONS[name] = ratio
+
+
+def _reach(size: np.ndarray, assets, far: bool) -> np.ndarray:
+    """How far (per axis) a subtree's inserted geometry may stick out of a scope box with one or
+    two zero sizes.  CityEngine fits a zero size to the mean of the others times the asset's
+    proportion; with known assets and only operations that stay in the box that bounds it,
+    otherwise the mean of the other sizes (at least 1 m) stands in."""
+    flat = size < 1e-6
+    if flat.all():
+        return np.full(3, 1e6)  # a point scope: assets keep their own size
+    mean = float(size[~flat].mean())
+    known = [_PROPORTIONS.get(a) for a in assets]
+    if far or not known or any(r is None for r in known):
+        return np.where(flat, max(mean, 1.0), 0.0)
+    return np.where(flat, mean * np.max(known, axis=0), 0.0)
+
+
+def trim_key(state, assets=(), far: bool = True) -> tuple:
+    """The part of an instancing cache key that trim planes decide: the active planes that may
+    cut what the subtree inserts (those reaching the scope box grown by :func:`_reach`), in
+    the scope frame.  Planes farther away leave the key, so tiles away from a corner still share
+    one recording.  ``assets`` and ``far`` come from the subtree's analysis (instancing.py)."""
+    trim = state.trim
+    active = trim.active() if trim is not None else None
+    if active is None:
+        return ()
+    sc = state.scope
+    local, at_origin = _in_scope_frame(*active, sc)
+    near = _nearest(local, at_origin, sc.size, _reach(sc.size, assets, far)) < 1e-6
+    if not near.any():
+        return ()
+    return (np.round(local[near], 9).tobytes(), np.round(at_origin[near], 6).tobytes())
+
+
+def _in_scope_frame(normals: np.ndarray, offsets: np.ndarray, scope):
+    """Plane normals in the scope frame and the signed distance of the scope origin."""
+    return normals @ scope.rotation, normals @ scope.origin - offsets
+
+
+def _nearest(local: np.ndarray, at_origin: np.ndarray, size: np.ndarray, reach: np.ndarray):
+    """Per plane, the smallest signed distance over the scope box grown by ``reach`` per axis
+    (negative: part of the box lies on the cut side)."""
+    return at_origin + (np.minimum(local * size, 0.0) - np.abs(local) * reach).sum(axis=1)
