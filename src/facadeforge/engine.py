@@ -165,8 +165,13 @@ def derive_facade(rules, width: float, height: float, *, start: str | None = Non
 
 
 def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, strict=False,
-                     start=None, limits: Limits | None = None, keep_tree: bool = True) -> Model:
-    """Derive the rules on one footprint (``keep_tree=False`` drops the shape tree)."""
+                     start=None, limits: Limits | None = None, keep_tree: bool = True,
+                     neighbours=None) -> Model:
+    """Derive the rules on one footprint (``keep_tree=False`` drops the shape tree).
+
+    ``neighbours`` are the occluders (``(Mesh, label)``) of the buildings around it, for
+    ``inter`` occlusion queries.  When the rules use occlusion queries the model keeps its own
+    occluders in ``model.occluders`` for its neighbours."""
     t0 = time.perf_counter()
     merged = {**{k: v for k, v in fp.attributes.items() if not k.startswith("_")}, **(attrs or {})}
     known = set(rules.ruleset.main.attrs)
@@ -175,9 +180,13 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
         if "." not in k and k not in known:
             raise RuleError(f"--attr {k}: the rules have no attribute '{k}'"
                             + _suggest(k, known))
+    from .grammar.ops.occlusion import Occluder
+
+    around = [Occluder(-1 - k, mesh, label) for k, (mesh, label) in enumerate(neighbours or ())]
     d = Derivation(rules.ruleset, initial_state(fp), fp.name, overrides, seed, strict,
-                   rules.assets, limits, start, instancing=not keep_tree)
+                   rules.assets, limits, start, instancing=not keep_tree, neighbours=around)
     model = d.run()
+    model.occluders = [(o.mesh, o.label) for o in d.occluders] if d.leaf_occluders else []
     model.attributes.update({k: v for k, v in fp.attributes.items()})
     model.attributes["seconds"] = time.perf_counter() - t0
     model.attributes["shapes"] = d.shape_count + 1
@@ -211,11 +220,35 @@ def _worker_init(spec):
     _WORKER["spec"] = spec
 
 
-def _worker_run(fp: Footprint) -> Model:
+def _worker_run(job) -> Model:
+    fp, neighbours, keep_tree = job
     s = _WORKER["spec"]
     return derive_footprint(_WORKER["rules"], fp, attrs=s["attrs"], seed=s["seed"],
                             strict=s["strict"], start=s["start"], limits=s["limits"],
-                            keep_tree=s["keep_tree"])
+                            keep_tree=keep_tree, neighbours=neighbours)
+
+
+def neighbour_occluders(models: list[Model], reach: float = 0.01) -> list[list]:
+    """For each model, the occluders of the other models whose bounds come within ``reach``
+    metres of its own (first pass of the ``inter`` occlusion queries)."""
+    boxes = []
+    for m in models:
+        occ = getattr(m, "occluders", [])
+        b = np.array([mesh.bounds() for mesh, _ in occ]) if occ else np.zeros((0, 2, 3))
+        boxes.append(b)
+    whole = [(b[:, 0].min(axis=0), b[:, 1].max(axis=0)) if len(b) else None for b in boxes]
+    out = []
+    for i in range(len(models)):
+        near = []
+        if whole[i] is not None:
+            lo, hi = whole[i][0] - reach, whole[i][1] + reach
+            for j, m in enumerate(models):
+                if j == i or whole[j] is None or np.any(whole[j][0] > hi) or np.any(whole[j][1] < lo):
+                    continue
+                hit = np.all((boxes[j][:, 0] <= hi) & (boxes[j][:, 1] >= lo), axis=1)
+                near.extend(m.occluders[k] for k in np.flatnonzero(hit))
+        out.append(near)
+    return out
 
 
 def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | None = None,
@@ -257,16 +290,41 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
     loaded = rules if isinstance(rules, Rules) else load_rules(rules, rule=rule, assets=assets,
                                                                  start=start, style=style)
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
+    # ``inter`` occlusion queries need the neighbours' occluders: as CityEngine's runtime does,
+    # every initial shape is derived once for its occluders, then for real with its neighbours'
+    two_pass = len(fps) > 1 and _uses_occlusion(loaded)
     if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "style": style,
-                "attrs": attrs,
-                "seed": seed, "strict": strict, "limits": limits, "keep_tree": keep_tree}
+                "attrs": attrs, "seed": seed, "strict": strict, "limits": limits}
         chunks = max(1, len(fps) // (n_workers * 4))
         with ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,)) as pool:
-            return list(pool.map(_worker_run, fps, chunksize=chunks))
-    return [derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
-                             limits=limits, keep_tree=keep_tree) for fp in fps]
+            around = [None] * len(fps)
+            if two_pass:
+                first = list(pool.map(_worker_run, [(fp, None, False) for fp in fps],
+                                      chunksize=chunks))
+                around = neighbour_occluders(first)
+            return list(pool.map(_worker_run, [(fp, a, keep_tree) for fp, a in zip(fps, around)],
+                                 chunksize=chunks))
+
+    def one(fp, around=None, tree=keep_tree):
+        return derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
+                                limits=limits, keep_tree=tree, neighbours=around)
+
+    if not two_pass:
+        return [one(fp) for fp in fps]
+    around = neighbour_occluders([one(fp, tree=False) for fp in fps])
+    return [one(fp, a) for fp, a in zip(fps, around)]
+
+
+def _uses_occlusion(rules: Rules) -> bool:
+    from .grammar.instancing import Purity
+
+    ruleset = rules.ruleset
+    purity = getattr(ruleset, "_purity", None)
+    if purity is None:
+        purity = ruleset._purity = Purity(ruleset)
+    return purity.uses_occlusion
 
 
 def stats(models: list[Model], seconds: float) -> dict:

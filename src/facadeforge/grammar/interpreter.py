@@ -221,7 +221,7 @@ class Derivation:
     def __init__(self, ruleset: RuleSet, state: ShapeState, name: str = "building",
                  attrs: dict | None = None, seed: int = 0, strict: bool = False, assets=None,
                  limits: Limits | None = None, start_rule: str | None = None,
-                 instancing: bool = False):
+                 instancing: bool = False, neighbours=None):
         self.ruleset = ruleset
         self.initial = state
         self.name = name
@@ -243,14 +243,19 @@ class Derivation:
         self.shape_count = 0
         self._deadline = 0.0
         self.occluders: list = []  # (node id, ancestors, (2,3) bounds) for occlusion queries
+        # occluders of the other buildings around this one (``inter`` occlusion queries;
+        # engine.derive finds them in a first pass over all initial shapes)
+        self.neighbours: list = list(neighbours or [])
         self._instances: dict = {}
         self.sink: list | None = None  # collects leaf shapes while an ``inline`` derives
         self.inline_depth = 0
         self._purity = None
+        purity = getattr(ruleset, "_purity", None)
+        if purity is None:
+            purity = ruleset._purity = Purity(ruleset)
+        # closed leaf shapes are occluders too (CityEngine), worth keeping only for queries
+        self.leaf_occluders = purity.uses_occlusion
         if instancing:
-            purity = getattr(ruleset, "_purity", None)
-            if purity is None:
-                purity = ruleset._purity = Purity(ruleset)
             self._purity = None if purity.uses_occlusion else purity
 
     # -- attributes --------------------------------------------------------------------------
@@ -424,6 +429,8 @@ class Derivation:
         if state.geometry.n_faces == 0:
             return
         node.material = self.material(state)
+        if self.leaf_occluders:
+            self.add_occluder(state)
         fm = state.context.get("face_materials")
         if fm is not None and fm[2] == state.geometry.n_faces:
             face_material, materials, _ = fm

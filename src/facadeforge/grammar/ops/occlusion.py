@@ -1,9 +1,12 @@
-"""Occlusion queries ``inside()``, ``overlaps()``, ``touches()`` (intra-building).
+"""Occlusion queries ``inside()``, ``overlaps()``, ``touches()``.
 
 As in CityEngine, a shape that is split into components (``comp``, ``split``) on a closed volume
-leaves an *occluder*: its volume.  A query tests the current shape's geometry against the
-occluders of the same building that are not its own ancestors.  Occluders of other buildings
-(``inter``) are not known while buildings derive independently, so ``inter`` queries are false.
+leaves an *occluder*: its volume; so does a leaf shape whose geometry is closed (a roof, a
+tree).  An ``intra`` query tests the current shape's geometry against the occluders of the same
+building that are not its own ancestors; an ``inter`` query against the occluders of the
+neighbouring buildings, which ``engine.derive`` finds by deriving every initial shape once
+before the real derivation (as CityEngine's procedural runtime generates occluders first);
+``all``, the default, against both.
 """
 
 from __future__ import annotations
@@ -11,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...geometry.mesh import EPS, Mesh
-from ..values import to_str
+from ..values import CGARuntimeError, to_str
 from . import shape_function
 
 TOUCH_TOL = 1e-3
@@ -66,13 +69,19 @@ def _ray_inside(mesh: Mesh, pts: np.ndarray, strict: bool) -> np.ndarray:
 
 
 def _candidates(env, args):
+    """Occluders a query tests: ``intra`` those of this building that are not the shape's own
+    ancestors, ``inter`` those of the neighbouring buildings, ``all`` (the default) both."""
     mode = to_str(args[0]) if args else "all"
+    if mode not in ("intra", "inter", "all"):
+        raise CGARuntimeError(f"occlusion target '{mode}' is not intra, inter or all")
     label = to_str(args[1]) if len(args) > 1 else None
-    if mode == "inter":
-        return []
-    own = env.state.context.get("occluder_ancestors", ())
-    occ = [o for o in env.derivation.occluders if o.id not in own]
-    if label is not None:
+    occ = []
+    if mode != "inter":
+        own = env.state.context.get("occluder_ancestors", ())
+        occ = [o for o in env.derivation.occluders if o.id not in own]
+    if mode != "intra":
+        occ.extend(env.derivation.neighbours)
+    if label:
         occ = [o for o in occ if o.label == label]
     return occ
 
@@ -105,17 +114,30 @@ def _overlaps(env, args):
     return any(bool(np.any(o.contains(pts, strict=True))) for o in _candidates(env, args)) if len(pts) else False
 
 
+def _face_interior(mesh: Mesh) -> np.ndarray:
+    """Face centroids and the corners pulled a tenth of the way towards them: points that lie on
+    an occluder's surface only when a face touches it over an area, not along an edge."""
+    cent = np.add.reduceat(mesh.vertices[mesh.corners], mesh.starts[:-1], axis=0) \
+        / mesh.face_sizes[:, None]
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    inner = mesh.vertices[mesh.corners] * 0.9 + cent[face_of] * 0.1
+    return np.concatenate([cent, inner])
+
+
 @shape_function("touches")
 def _touches(env, args):
+    """Overlap, or contact over an area (CityEngine: "overlaps or has planar contact"): a
+    tile meeting a neighbour only along its edge does not touch it."""
     g = _geometry(env)
     pts = _sample(g)
     if not len(pts):
         return False
-    lo, hi = g.bounds() if g.n_faces else (pts.min(axis=0), pts.max(axis=0))
+    lo, hi = g.bounds()
+    interior = _face_interior(g)
     for o in _candidates(env, args):
         olo, ohi = o.bounds
         if np.any(lo > ohi + TOUCH_TOL) or np.any(hi < olo - TOUCH_TOL):
             continue
-        if np.any(o.contains(pts, strict=False)):
+        if np.any(o.contains(pts, strict=True)) or np.any(o.contains(interior, strict=False)):
             return True
     return False

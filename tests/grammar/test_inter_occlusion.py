@@ -1,0 +1,60 @@
+"""``inter`` occlusion queries: buildings see their neighbours' occluders (a first pass over all
+initial shapes finds them, as CityEngine's runtime generates occluders before the models)."""
+
+import numpy as np
+import pytest
+
+from facadeforge import derive, load_rules
+from facadeforge.geometry.footprints import Footprint
+
+RULES = """Lot --> extrude(6) comp(f) {{ side : Facade | top : Roof. }}
+Facade --> split(x) {{ ~2 : Tile }}*
+Tile --> case touches({target}) : Wall. else : Window.
+"""
+
+
+def lot(x0, x1, z0=0.0, z1=8.0):
+    return np.array([[x0, 0, z1], [x1, 0, z1], [x1, 0, z0], [x0, 0, z0]], float)
+
+
+def wall_area(models):
+    return sum(p.mesh.area() for m in models for p in m.parts if p.symbol == "Wall")
+
+
+@pytest.mark.parametrize("target, walls", [("inter", 2 * 8 * 6), ("all", 2 * 8 * 6), ("intra", 0)])
+@pytest.mark.parametrize("workers", [1, 2])
+def test_party_walls_see_the_neighbour(target, walls, workers):
+    fps = [Footprint("a", lot(0, 10)), Footprint("b", lot(10, 20)), Footprint("c", lot(40, 50)),
+           Footprint("d", lot(60, 70))]
+    rules = RULES.format(target=target)
+    models = derive(load_rules(rules), fps, workers=workers)
+    assert not any(m.warnings for m in models)
+    # a and b share the 8 m x 6 m wall at x = 10: its tiles on both sides become walls
+    assert wall_area(models) == pytest.approx(walls)
+    assert wall_area(models[2:]) == 0
+
+
+def test_a_lone_building_has_no_neighbours():
+    models = derive(load_rules(RULES.format(target="inter")), [Footprint("a", lot(0, 10))])
+    assert wall_area(models) == 0
+
+
+def test_closed_leaf_shapes_are_occluders():
+    # a 6 m block left as one closed leaf beside a 12 m tower: the tower's two lower floors on
+    # the shared wall touch it over their area; the third only along its lower edge
+    rules = """attr kind = "tower"
+Lot --> case kind == "block" : extrude(6) Mass.
+        else : extrude(12) comp(f) { side : Facade | top : Roof. }
+Facade --> split(y) { ~3 : Floor }*
+Floor --> split(x) { ~2 : Tile }*
+Tile --> case touches(inter) : Wall. else : Window.
+"""
+    fps = [Footprint("a", lot(0, 10), {"kind": "block"}), Footprint("b", lot(10, 20))]
+    models = derive(load_rules(rules), fps, workers=1)
+    assert not any(m.warnings for m in models)
+    assert wall_area(models) == pytest.approx(8 * 6)
+
+
+def test_bad_occlusion_target_is_a_warning():
+    m = derive(load_rules(RULES.format(target="neighbours")), None, lot_size="10x8")[0]
+    assert any("occlusion target 'neighbours'" in w for w in m.warnings)
