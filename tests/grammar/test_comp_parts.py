@@ -2,19 +2,9 @@
 
 import numpy as np
 import pytest
+from cga_helpers import by_symbol, run
 
 from facadeforge import derive, load_rules
-
-
-def run(src, lot="10x8"):
-    return derive(load_rules(src), None, lot_size=lot)[0]
-
-
-def by_symbol(model):
-    out = {}
-    for p in model.parts:
-        out.setdefault(p.symbol, []).append(p)
-    return out
 
 
 def test_comp_materials_of_a_shape_with_per_face_materials():

@@ -2,20 +2,10 @@
 
 import numpy as np
 import pytest
+from cga_helpers import by_symbol, run
 
-from facadeforge import derive, load_rules
+from facadeforge import load_rules
 from facadeforge.errors import DerivationError, RuleSyntaxError
-
-
-def run(src, lot="10x8"):
-    return derive(load_rules(src), None, lot_size=lot)[0]
-
-
-def by_symbol(model):
-    out = {}
-    for p in model.parts:
-        out.setdefault(p.symbol, []).append(p)
-    return out
 
 
 def tree_symbols(node):

@@ -4,24 +4,14 @@ import math
 
 import numpy as np
 import pytest
-
-from facadeforge import derive, load_rules
-from facadeforge.geometry.footprints import Footprint
+from cga_helpers import areas, run
 
 # L: a 10 x 2 arm (z in [2, 4]) and a 3 x 2 stub below its left end; total area 26
 L_POLY = np.array([[0, 0, 0], [0, 0, 4], [10, 0, 4], [10, 0, 2], [3, 0, 2], [3, 0, 0]], float)[::-1]
 
 
-def run(src, lot="10x8", poly=None):
-    fp = [Footprint("fp", poly)] if poly is not None else None
-    return derive(load_rules(src), fp, lot_size=None if fp else lot)[0]
 
 
-def areas(model):
-    out = {}
-    for p in model.parts:
-        out[p.symbol] = out.get(p.symbol, 0.0) + p.mesh.area()
-    return out
 
 
 INNER = "Lot --> innerRectangle({m}) {{ shape : S. | remainder : R. }}"

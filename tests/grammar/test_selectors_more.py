@@ -5,21 +5,7 @@ import math
 
 import numpy as np
 import pytest
-
-from facadeforge import derive, load_rules
-from facadeforge.geometry.footprints import Footprint
-
-
-def run(src, lot="10x8", poly=None):
-    fp = [Footprint("fp", poly)] if poly is not None else None
-    return derive(load_rules(src), fp, lot_size=None if fp else lot)[0]
-
-
-def areas(model):
-    out = {}
-    for p in model.parts:
-        out[p.symbol] = out.get(p.symbol, 0.0) + p.mesh.area()
-    return out
+from cga_helpers import areas, run
 
 
 def reports(model, key):

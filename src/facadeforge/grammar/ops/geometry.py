@@ -698,11 +698,12 @@ def _convert(env, args):
     return float(out[comp])
 
 
-def _asset_file(env, name: str, what: str):
-    """A readable file under the asset roots for a rule's file function, or a CGA warning."""
+def _asset_file(env, name: str, what: str, mesh: bool = False):
+    """A readable file under the asset roots for a rule's file function (its loaded asset with
+    ``mesh``), or a CGA warning."""
     res = env.derivation.assets
     try:
-        p = res.resolve(name) if res is not None else None
+        p = (res.mesh(name) if mesh else res.resolve(name)) if res is not None else None
     except InputError as e:
         raise CGARuntimeError(str(e)) from None
     if p is None:

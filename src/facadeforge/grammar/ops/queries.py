@@ -19,11 +19,11 @@ import math
 
 import numpy as np
 
-from ...errors import InputError
 from ...geometry.mesh import EPS, Mesh
 from ..values import CGARuntimeError, to_float, to_str
 from . import shape_function
 from .geometry import (
+    _asset_file,
     _asset_info,
     _face_selection,
     _file_search,
@@ -156,14 +156,7 @@ def _files_search(env, args):
 
 
 def _asset(env, name: str):
-    res = env.derivation.assets
-    try:
-        asset = res.mesh(name) if res is not None else None
-    except InputError as e:
-        raise CGARuntimeError(str(e)) from None
-    if asset is None:
-        raise CGARuntimeError(f"asset '{name}' not found under the asset root")
-    return asset
+    return _asset_file(env, name, "asset", mesh=True)
 
 
 def _obj_groups(env, name: str) -> list[str]:
