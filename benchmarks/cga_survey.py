@@ -58,6 +58,7 @@ def survey_one(path: Path, timeout: float) -> dict:
 def cause(message: str) -> str:
     """A message without its location and quoted names: what the failure is."""
     text = re.sub(r"^.*?:\d+:\d+: ", "", message)
+    text = re.sub(r"/\S+\.(cga|rpk)\b", "FILE", text)
     text = re.sub(r"'[^']*'", "'…'", text)
     text = re.sub(r"under \S+", "under …", text)
     return re.sub(r" \(in rule [^)]*\)", "", text)[:120]
