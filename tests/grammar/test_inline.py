@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from cga_helpers import by_symbol, run
 
-from facadeforge import load_rules
+from facadeforge import derive, load_rules
 from facadeforge.errors import DerivationError, RuleSyntaxError
 
 
@@ -167,3 +167,18 @@ def test_unify_merges_overlaps_within_one_shape():
     m = run("Lot --> inline(unify) { inline { [ extrude(2) A. ] [ t(1,0,1) s(10,0,8) extrude(3) B. ] } } U.")
     (u,) = m.parts
     assert u.mesh.is_closed() and u.mesh.volume() == pytest.approx(274)
+
+
+def test_boolean_faces_keep_their_first_edge_so_walls_stand_upright():
+    m = derive(load_rules("Lot --> subtract { extrude(4) | t(2,-1,2) s(4,6,4) primitiveCube } "
+                          "comp(f) { side : S. }"), None, lot_size="10x8", keep_tree=True)[0]
+
+    def scopes(node):
+        out = [node.scope] if node.symbol == "S" else []
+        for c in node.children:
+            out += scopes(c)
+        return out
+    walls = scopes(m.root)
+    assert len(walls) == 8
+    # x along the bottom edge, y up, as the walls of an extruded lot are
+    assert all(np.allclose(sc.rotation[:, 1], [0, 1, 0], atol=1e-9) for sc in walls)

@@ -13,7 +13,9 @@ from .mesh import Mesh
 def unit_cube() -> Mesh:
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                   [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
-    faces = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [3, 7, 6, 2], [1, 2, 6, 5], [0, 4, 7, 3]]
+    # every side face starts with its bottom edge, so comp(f) gives walls x along the ground
+    # and y up, as the walls of an extruded lot
+    faces = [[1, 0, 3, 2], [4, 5, 6, 7], [0, 1, 5, 4], [3, 7, 6, 2], [5, 1, 2, 6], [0, 4, 7, 3]]
     uv = [np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)] * 6
     return Mesh(v, faces, uv)
 

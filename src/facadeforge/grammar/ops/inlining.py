@@ -316,14 +316,34 @@ def _from_manifold(result, inputs: list, first_face: np.ndarray) -> tuple[Mesh, 
     polys, uvs, origin = [], [], []
     for key in np.unique(fid):
         group = tris[fid == key]
+        piece = int(np.searchsorted(first_face, key, side="right") - 1)
+        source = inputs[piece]
+        src_poly = source.vertices[source.face(int(key - first_face[piece]))]
+        src_normal = polygon_normal(src_poly)
         for loop in _join_triangles(props, group):
+            # a subtracted operand's faces come out turned over: their first edge runs backwards
+            turned = polygon_normal(props[loop, :3]) @ src_normal < 0
+            first = src_poly[1] - src_poly[0]
+            loop = _keep_first_edge(props, loop, -first if turned else first)
             polys.append(props[loop, :3])
             uvs.append(props[loop, 3:5])
-            piece = int(np.searchsorted(first_face, key, side="right") - 1)
             origin.append((piece, key - first_face[piece]))
     has_uv = any(m.corner_uvs is not None for m in inputs)
     mesh = Mesh.from_polygons(polys, uvs if has_uv else None)
     return mesh, np.asarray(origin, np.int64).reshape(-1, 2)
+
+
+def _keep_first_edge(props: np.ndarray, loop: list, first: np.ndarray) -> list:
+    """``loop`` started at the corner whose outgoing edge runs most nearly along the input
+    polygon's first edge ``first``, so that a face's scope (x along its first edge) comes out as
+    it went in: a wall's first edge stays its bottom edge."""
+    p = props[loop, :3]
+    e = np.roll(p, -1, axis=0) - p
+    length = np.linalg.norm(e, axis=1)
+    f = first / max(np.linalg.norm(first), EPS)
+    score = np.where(length > EPS, (e @ f) / np.maximum(length, EPS), -2.0)
+    k = int(np.argmax(score - 1e-9 * np.arange(len(loop))))
+    return loop[k:] + loop[:k]
 
 
 def _join_triangles(props: np.ndarray, tris: np.ndarray) -> list:

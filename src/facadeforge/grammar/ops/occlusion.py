@@ -47,21 +47,27 @@ class Occluder:
         return inbox & _ray_inside(self.mesh, pts, strict)
 
 
+#: Ray direction of the inside test: slightly off the axes, so that rays along a building's
+#: walls do not graze the edges between its triangles (which would break the even-odd count)
+_RAY = np.linalg.qr(np.array([[1.0, 0.0012345, 0.0023456], [0, 1, 0], [0, 0, 1]]).T)[0].T
+
+
 def _ray_inside(mesh: Mesh, pts: np.ndarray, strict: bool) -> np.ndarray:
-    """Even-odd ray casting along +x against the triangulated mesh."""
+    """Even-odd ray casting (along :data:`_RAY`'s first axis) against the triangulated mesh."""
     pos, _, _, _ = mesh.triangulate()
-    tri = pos.reshape(-1, 3, 3)
+    tri = (pos @ _RAY.T).reshape(-1, 3, 3)
+    q = pts @ _RAY.T
     out = np.zeros(len(pts), bool)
-    for k, p in enumerate(pts):
-        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-        # barycentric test in the yz plane, then intersection x beyond p.x
-        v0, v1 = b - a, c - a
-        den = v0[:, 1] * v1[:, 2] - v0[:, 2] * v1[:, 1]
-        ok = np.abs(den) > EPS
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    v0, v1 = b - a, c - a
+    den = v0[:, 1] * v1[:, 2] - v0[:, 2] * v1[:, 1]
+    ok = np.abs(den) > EPS
+    safe = np.where(ok, den, 1.0)
+    for k, p in enumerate(q):
+        # barycentric test in the plane across the ray, then the crossing beyond p
         w = p - a
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = (w[:, 1] * v1[:, 2] - w[:, 2] * v1[:, 1]) / den
-            t = (v0[:, 1] * w[:, 2] - v0[:, 2] * w[:, 1]) / den
+        s = (w[:, 1] * v1[:, 2] - w[:, 2] * v1[:, 1]) / safe
+        t = (v0[:, 1] * w[:, 2] - v0[:, 2] * w[:, 1]) / safe
         hit = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
         x = a[:, 0] + s * v0[:, 0] + t * v1[:, 0]
         out[k] = np.count_nonzero(hit & (x > p[0] + (TOUCH_TOL if strict else -TOUCH_TOL))) % 2 == 1
