@@ -58,3 +58,19 @@ Tile --> case touches(inter) : Wall. else : Window.
 def test_bad_occlusion_target_is_a_warning():
     m = derive(load_rules(RULES.format(target="neighbours")), None, lot_size="10x8")[0]
     assert any("occlusion target 'neighbours'" in w for w in m.warnings)
+
+
+def test_the_modern_example_on_its_pair_of_lots():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    models = derive(load_rules(root / "examples/grammars/modern.cga"),
+                    root / "examples/footprints/pair.geojson", workers=1)
+    assert [m.warnings for m in models] == [[], []]
+    tall, low = models
+    # the tall building's party wall below the low roof (3 floors) is wall where they touch
+    party = [p for p in tall.parts if p.symbol == "Wall"
+             and np.allclose(p.mesh.bounds()[:, 0], 36.0) and p.mesh.bounds()[1, 1] <= 9.6 + 1e-6]
+    assert sum(p.mesh.area() for p in party) > 0
+    assert not [p for p in tall.parts if p.symbol == "Glass" and p.mesh.bounds()[0, 0] > 35.8
+                and p.mesh.bounds()[1, 1] < 9.6 and not -15.6 < p.mesh.bounds()[0, 2] < -8.4]
