@@ -38,3 +38,14 @@ def test_comp_no_align_keeps_the_scope_orientation():
                 return hit
     f = find(m.root)
     assert f.scope.rotation == pytest.approx(np.eye(3))
+
+
+def test_comp_faces_keep_the_per_face_materials_of_an_inline():
+    m = run("Lot --> extrude(1) inline { split(x){ '0.5: color(1,0,0) A | '0.5: color(0,0,1) A } } "
+            "comp(f){ all : X. }")
+    colours = {}
+    for p in m.parts:
+        key = tuple(np.round(p.material.color, 3))
+        colours[key] = colours.get(key, 0.0) + p.mesh.area()
+    # two 5 x 8 x 1 boxes: 106 m² each, red and blue, through the component split
+    assert colours == {(1.0, 0.0, 0.0): pytest.approx(106), (0.0, 0.0, 1.0): pytest.approx(106)}

@@ -32,6 +32,7 @@ IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "sco
                 "pivot.oz", "geometry.isInstanced", "geometry.groups"}
 IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDistance",
                 "contextCompare", "contextCount", "geometry.isInstanced", "geometry.groups",
+                "getGeoCoord",
                 "assetApproxRatio", "assetApproxSize", "assetFitSize", "imageApproxRatio"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
@@ -82,6 +83,9 @@ class Purity:
                 info = RuleInfo()
                 for owner, rdef in redefined.values():
                     self._ops(owner, rdef.body, info)
+                for arity, rdef in m.rules.get(name, {}).items():  # and the rest stay
+                    if arity not in redefined:
+                        self._ops(m, rdef.body, info)
                 self.info[(id(m), name)] = info
             for name, overloads in m.functions.items():
                 info = RuleInfo()

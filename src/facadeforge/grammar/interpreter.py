@@ -567,6 +567,7 @@ class _RunContext:
                 elif t is A.Push:
                     sub_state = state.copy()
                     sub_state.draws = state.draws
+                    sub_state.mark_pivot()  # center() aligns to the pushed shape (reference)
                     if self.run(op.ops, sub_state, env.with_state(sub_state), origin):
                         consumed = True
                     state.draws = sub_state.draws

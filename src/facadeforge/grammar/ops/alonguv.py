@@ -231,11 +231,13 @@ def _convex(uv: np.ndarray) -> bool:
 
 def _lay(source: _AssetInUV, patches):
     """The asset's faces laid on every patch, u tile by u tile: (polygons, uvs, asset faces)."""
-    tiles = [(p, k) for p in patches
-             for k in range(math.floor(p.lo[0]), max(math.ceil(p.hi[0]), math.floor(p.lo[0]) + 1))]
-    if len(tiles) > MAX_TILES:
-        raise CGARuntimeError(f"{_NAME}: the shape's u range holds {len(tiles)} asset copies "
+    spans = [(math.floor(p.lo[0]), max(math.ceil(p.hi[0]), math.floor(p.lo[0]) + 1))
+             for p in patches]
+    count = sum(b - a for a, b in spans)   # counted before any list is built
+    if count > MAX_TILES:
+        raise CGARuntimeError(f"{_NAME}: the shape's u range holds {count} asset copies "
                               f"(more than {MAX_TILES}); scale the uvs down (scaleUV, normalizeUV)")
+    tiles = [(p, k) for p, (a, b) in zip(patches, spans) for k in range(a, b)]
     polys, uvs, faces = [], [], []
     flips = {id(p): p.orientation() * (-1.0 if source.flips else 1.0) < 0 for p in patches}
     for patch, k in tiles:

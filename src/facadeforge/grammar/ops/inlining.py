@@ -53,6 +53,7 @@ def derive_now(run, ops: tuple, state, env) -> list:
     d.sink, d._purity = sink, None
     work = state.copy()
     work.draws = state.draws
+    work.mark_pivot()  # center() inside aligns to the shape entering the operand
     try:
         from ...model.shape import Shape
 

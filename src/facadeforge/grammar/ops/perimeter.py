@@ -59,7 +59,14 @@ def op_split_and_setback_perimeter(call):
             pieces.append((branch, geom))
     n = len(pieces)
     if remainder is not None:
-        pieces.append((remainder, pe.shape if taken is None else pe.shape.difference(taken)))
+        # the rest of the face is what the sections left, not the face minus the union of the
+        # bands: that union can lose slivers on near-degenerate coordinates, so a piece would be
+        # counted twice (sections and remainder always add up to the face)
+        from shapely import union_all
+
+        used = union_all([g for _, g in pieces]) if pieces else None
+        rest = pe.shape if used is None else pe.shape.difference(used, grid_size=1e-9)
+        pieces.append((remainder, rest))
     out = pe.shapes(st, pieces)
     for ps, _, info in out:
         if info["index"] < n:

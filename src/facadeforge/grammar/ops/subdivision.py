@@ -459,7 +459,6 @@ def _comp_parts(call, st, kind: str):
     """``comp(m|g|h)``: components made of several faces keep the shape's scope orientation,
     fitted to the component."""
     parts = _part_faces(st, kind)
-    fm = st.context.get("face_materials")
     out, taken = [], np.zeros(len(parts), bool)
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
@@ -475,11 +474,8 @@ def _comp_parts(call, st, kind: str):
             ps = st.child(len(out))
             ps.geometry = st.geometry.subset(faces)
             ps.fit_scope()
-            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(groups),
-                          "comp.sel": sel_name}
-            ps.context.pop("face_materials", None)
-            if fm is not None and fm[2] == st.geometry.n_faces:
-                ps.context["face_materials"] = (np.asarray(fm[0])[faces], fm[1], len(faces))
+            ps.context = {**_clean(st.context, faces, st.geometry.n_faces), "comp.index": j,
+                          "comp.total": len(groups), "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "index": j,
                                          "components": faces.tolist()}))
     return out
@@ -534,7 +530,8 @@ def _comp_faces(call, st):
             ps.geometry = sub
             ps.fit_scope()
             ps.trim = comp_trim(st, edges, idx, ps.scope)
-            ps.context = {**_clean(st.context), "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
+            ps.context = {**_clean(st.context, idx, n), "comp.index": 0, "comp.total": 1,
+                          "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
         for j, f in enumerate(idx):
@@ -543,14 +540,20 @@ def _comp_faces(call, st):
             ps.scope = face_scope(poly, normals[f])
             ps.geometry = mesh.subset([f])
             ps.trim = comp_trim(st, edges, (f,), ps.scope)
-            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+            ps.context = {**_clean(st.context, [f], n), "comp.index": j, "comp.total": len(idx),
                           "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "index": j, "component": int(f)}))
     return out
 
 
-def _clean(ctx: dict) -> dict:
-    return {k: v for k, v in ctx.items() if k != "face_kinds"}
+def _clean(ctx: dict, faces=None, n_faces: int = 0) -> dict:
+    """The context a component inherits: no face kinds, and per-face materials (an asset's, an
+    inline's or a Boolean's) narrowed to the component's ``faces`` of the ``n_faces``."""
+    out = {k: v for k, v in ctx.items() if k != "face_kinds"}
+    fm = out.pop("face_materials", None)
+    if fm is not None and faces is not None and fm[2] == n_faces:
+        out["face_materials"] = (np.asarray(fm[0])[np.asarray(faces)], fm[1], len(faces))
+    return out
 
 
 def _comp_edges(call, st):

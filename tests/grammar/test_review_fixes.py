@@ -1,0 +1,63 @@
+"""Fixes from the review of the CityEngine-coverage work: each test failed before its fix."""
+
+import numpy as np
+import pytest
+from cga_helpers import areas, run
+
+from facadeforge import derive, load_rules
+
+
+def test_perimeter_sections_and_remainder_add_up_to_the_face():
+    m = run("Lot --> splitAndSetbackPerimeter(0){ ~1 : 1 : A }* { remainder : R }")
+    a = areas(m)
+    assert a["R"] == pytest.approx(48) and a["A"] + a["R"] == pytest.approx(80)
+
+
+def test_center_inside_a_boolean_operand_of_the_start_rule():
+    # the cut box is centred on the mass, so the courtyard is in the middle: 282 m²
+    m = run("Lot --> extrude(3) subtract { A. | s('0.5,'2,'0.5) center(xz) t(0,-1,0) B. } R.")
+    assert areas(m)["R"] == pytest.approx(60 + 60 + 108 + 54)
+
+
+def test_center_inside_a_push_of_the_start_rule():
+    m = run("Lot --> [ s('0.5, 0, '0.5) center(xz) C. ]")
+    lo, hi = m.parts[0].mesh.bounds()
+    assert lo[[0, 2]] == pytest.approx([2.5, 2]) and hi[[0, 2]] == pytest.approx([7.5, 6])
+
+
+def _colours(models):
+    out = {}
+    for m in models:
+        for p in m.parts:
+            key = tuple(np.round(p.material.color, 3))
+            out[key] = out.get(key, 0) + 1
+    return out
+
+
+def test_instancing_keeps_the_random_version_of_a_partly_redefined_rule(tmp_path):
+    (tmp_path / "y.cga").write_text(
+        "Tile --> color(1,0,0) X.\n"
+        "Tile(a) --> case rand(0,1) > 0.5 : color(0,1,0) X. else : color(0,0,1) X.\n")
+    (tmp_path / "main.cga").write_text(
+        'import y : "y.cga"\ny.Tile --> color(1,1,0) X.\n'
+        "Lot --> extrude(3) comp(f){ side: F }\nF --> split(x){ ~1: y.Tile(1) }*\n")
+    rules = load_rules(tmp_path / "main.cga")
+    plain = derive(rules, None, lot_size="10x8", keep_tree=True)
+    fast = derive(rules, None, lot_size="10x8", keep_tree=False)
+    assert _colours(plain) == _colours(fast)
+
+
+def test_instancing_does_not_replay_geo_coordinates():
+    rules = load_rules("""Lot --> extrude(3) comp(f){ side: F }
+F --> split(x){ ~1: Tile }*
+Tile --> T
+T --> report("g", getGeoCoord(X)) X.""")
+    plain = derive(rules, None, lot_size="10x8", keep_tree=True)[0]
+    fast = derive(rules, None, lot_size="10x8", keep_tree=False)[0]
+    assert sorted(plain.reports["g"]) == pytest.approx(sorted(fast.reports["g"]))
+
+
+def test_insert_along_uv_refuses_too_many_copies_before_building_them():
+    m = run('Lot --> setupProjection(0, scope.xz, 1e-9, 1e-9) projectUV(0) '
+            'insertAlongUV(0, "builtin:cube", 1) X.')
+    assert any("asset copies" in w for w in m.warnings)
