@@ -61,3 +61,19 @@ def test_insert_along_uv_refuses_too_many_copies_before_building_them():
     m = run('Lot --> setupProjection(0, scope.xz, 1e-9, 1e-9) projectUV(0) '
             'insertAlongUV(0, "builtin:cube", 1) X.')
     assert any("asset copies" in w for w in m.warnings)
+
+
+def test_extruding_a_face_with_a_hole_raises_no_inner_walls():
+    # the courtyard lot is stored as triangles; its prism has only the outer and courtyard walls
+    m = run("Lot --> A\nA --> subtract { X. | s('0.5,'1,'0.5) center(xz) Y. } extrude(3) R.")
+    assert areas(m)["R"] == pytest.approx(60 + 60 + 108 + 54)
+    assert m.parts[0].mesh.is_closed()
+
+
+def test_extruding_pieces_that_share_edges_gives_one_volume():
+    m = run("Lot --> inline(recompose) split(x) { 4: X. | ~1: split(z) { 2: X. | 2: NIL }* } "
+            "extrude(10) M.")
+    (mass,) = m.parts
+    # the F: 56 m² of caps twice, its 48 m perimeter walls, no wall inside
+    assert mass.mesh.area() == pytest.approx(2 * 56 + 48 * 10)
+    assert mass.mesh.volume() == pytest.approx(560)

@@ -17,8 +17,13 @@ from .trimming import apply_trim, note_asset
 # ---- extrude ----------------------------------------------------------------------------------
 
 def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, list[str]]:
-    """Prism of every face: bottom (reversed), side quads, top.  Returns mesh and face kinds."""
-    polys, kinds = [], []
+    """Prism of every face: bottom (reversed), side quads, top.  Returns mesh and face kinds.
+
+    Where two faces share an edge and move the same way, their two side quads on it would be
+    one wall seen from both sides, enclosing nothing: both are left out, so pieces that share
+    edges (a face with a hole stored as triangles, a recomposed footprint) extrude to one
+    volume without inner walls."""
+    polys, kinds, sides = [], [], {}
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
@@ -29,15 +34,26 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         k = len(p)
         for j in range(k):
             a, b = p[j], p[(j + 1) % k]
+            if mesh.n_faces > 1:
+                sides[_edge_key(a, b, d)] = len(polys) + len(faces)
             faces.append(np.array([a, b, b + d, a + d]))
         faces.append(top)
         if distance < 0:
             faces = [q[::-1] for q in faces]
         polys.extend(faces)
         kinds.extend(["bottom"] + ["side"] * k + ["top"])
+    inner = {i for (a, b, d), i in sides.items() if (b, a, d) in sides}
+    if inner:
+        polys = [q for i, q in enumerate(polys) if i not in inner]
+        kinds = [k for i, k in enumerate(kinds) if i not in inner]
     out = Mesh.from_polygons(polys)
-    out.closed = mesh.n_faces == 1  # a single face's prism is closed
+    out.closed = True if mesh.n_faces == 1 else None  # a single face's prism is closed
     return out, kinds
+
+
+def _edge_key(a, b, d) -> tuple:
+    """An edge and an extrusion vector, rounded to the geometric tolerance (1e-6 m)."""
+    return (tuple(np.round(a, 6)), tuple(np.round(b, 6)), tuple(np.round(d, 6)))
 
 
 @operation("extrude", 1, 2, selectors=(0,), selector_min_args=2)
