@@ -77,3 +77,14 @@ def test_extruding_pieces_that_share_edges_gives_one_volume():
     # the F: 56 m² of caps twice, its 48 m perimeter walls, no wall inside
     assert mass.mesh.area() == pytest.approx(2 * 56 + 48 * 10)
     assert mass.mesh.volume() == pytest.approx(560)
+
+
+def test_set_elems_ignores_negative_indices_and_their_values():
+    m = run('Lot --> print(setElems([1, 2], [-1, 0], [9, 7])) print(setElems([1, 2], -1, 5)) X.')
+    assert not m.warnings
+    assert m.attributes["prints"] == ["(7,2)", "(1,2)"]
+
+
+def test_a_boolean_keyword_called_like_an_operation_says_how_to_write_it():
+    m = run("Lot --> extrude(2) subtract(foo) B\nB --> X.")
+    assert any("write subtract { A | B }" in w for w in m.warnings)

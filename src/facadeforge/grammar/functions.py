@@ -412,7 +412,8 @@ MAX_ARRAY_SIZE = 100_000
 
 def _selected(index, length: int, what: str) -> list[int]:
     """Positions an index argument selects: one index, an index array or a logical array.
-    Negative indices are dropped, as ``setElems`` ignores them."""
+    Negative indices stay in the list (their values must still be counted); the callers skip
+    them, as ``setElems`` ignores them."""
     if isinstance(index, np.ndarray):
         flat = index.reshape(-1)
         if flat.dtype.kind == "b":
@@ -426,7 +427,7 @@ def _selected(index, length: int, what: str) -> list[int]:
             raise CGARuntimeError(f"setElems: {what} must be numbers or bools, got {type_name(index)}")
     else:
         picked = [to_float(index, f"setElems {what}")]
-    return [int(i) for i in picked if i >= 0]
+    return [int(i) for i in picked]
 
 
 def _element_of(arr: np.ndarray, value):
@@ -466,8 +467,10 @@ def _set_elems(env, a):
     arr = _arr(a[0], "setElems array")
     if len(a) == 3:
         flat = arr.reshape(-1)
-        idx = _selected(a[1], len(flat), "indices")
-        vals = _values_for(arr, a[2], len(idx))
+        chosen = _selected(a[1], len(flat), "indices")
+        pairs = [(i, v) for i, v in zip(chosen, _values_for(arr, a[2], len(chosen))) if i >= 0]
+        idx = [i for i, _ in pairs]
+        vals = [v for _, v in pairs]
         if arr.ndim == 2 and any(i >= flat.size for i in idx):
             raise CGARuntimeError("setElems: an index past the end of a 2D array; use "
                                   "setElems(array, rows, cols, values) to grow it")
@@ -479,10 +482,13 @@ def _set_elems(env, a):
     rows = _selected(a[1], grid.shape[0], "row indices")
     cols = _selected(a[2], grid.shape[1], "column indices")
     vals = _values_for(arr, a[3], len(rows) * len(cols))
-    shape = (max([grid.shape[0]] + [r + 1 for r in rows]), max([grid.shape[1]] + [c + 1 for c in cols]))
+    cells = [((r, c), v) for ((r, c), v) in zip(((r, c) for r in rows for c in cols), vals)
+             if r >= 0 and c >= 0]
+    shape = (max([grid.shape[0]] + [r + 1 for (r, _), _ in cells]),
+             max([grid.shape[1]] + [c + 1 for (_, c), _ in cells]))
     out = _grown(grid, shape)
-    for k, (r, c) in enumerate((r, c) for r in rows for c in cols):
-        out[r, c] = vals[k]
+    for (r, c), v in cells:
+        out[r, c] = v
     return out
 
 

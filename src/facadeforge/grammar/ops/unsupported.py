@@ -17,8 +17,19 @@ def _unsupported(name: str):
     return fn
 
 
+def _boolean_form(name: str):
+    def fn(call):
+        raise CGARuntimeError(f"{name}(…) is not a Boolean operation form; write {name} {{ A | B }}, "
+                              f"{name} Rule or {name}(swap) Rule")
+    return fn
+
+
+for _name in ("union", "subtract", "intersect"):  # the Boolean forms are syntax (cga.lark)
+    if _name not in OPERATIONS:
+        operation(_name, 0, 16, selectors=tuple(range(16)))(_boolean_form(_name))
+
 for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
-              "footprint", "taper", "union", "subtract", "intersect", "resetMaterial",
+              "footprint", "taper", "resetMaterial",
               "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180",
               "copyUV", "splitAndSetbackPerimeter", "setTagsFromEdgeAttrs"):
     if _name not in OPERATIONS:
