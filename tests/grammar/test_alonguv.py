@@ -12,22 +12,19 @@ from facadeforge.geometry.footprints import Footprint
 from facadeforge.geometry.mesh import Mesh
 from facadeforge.grammar.ops.alonguv import _inverse_bilinear, _Patch, _vertex_normals
 
-BOX = """# 2 x 1 x 0.5 box: x in [0, 2], y in [0, 1], z in [-0.25, 0.25]
-v 0 0 -0.25
-v 2 0 -0.25
-v 2 1 -0.25
-v 0 1 -0.25
-v 0 0 0.25
-v 2 0 0.25
-v 2 1 0.25
-v 0 1 0.25
-f 1 4 3 2
-f 5 6 7 8
-f 1 2 6 5
-f 4 8 7 3
-f 1 5 8 4
-f 2 3 7 6
-"""
+BOX_FACES = "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6\n"
+
+
+def box_obj(lo, hi) -> str:
+    """An axis-aligned box from ``lo`` to ``hi`` as OBJ text (faces outward)."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    corners = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+               (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
+    return "".join(f"v {x} {y} {z}\n" for x, y, z in corners) + BOX_FACES
+
+
+# 2 x 1 x 0.5 box: x in [0, 2], y in [0, 1], z in [-0.25, 0.25]
+BOX = box_obj((0, 0, -0.25), (2, 1, 0.25))
 
 # a prism along x whose triangular section is 1 high at z = 0 and 0 high at z = 1
 WEDGE = """v 0 0 0
@@ -44,21 +41,7 @@ f 2 5 6 3
 """
 
 # a unit cube floating one unit above its origin: y in [1, 2]
-SLAB = """v 0 1 0
-v 1 1 0
-v 1 2 0
-v 0 2 0
-v 0 1 1
-v 1 1 1
-v 1 2 1
-v 0 2 1
-f 1 4 3 2
-f 5 6 7 8
-f 1 2 6 5
-f 4 8 7 3
-f 1 5 8 4
-f 2 3 7 6
-"""
+SLAB = box_obj((0, 1, 0), (1, 2, 1))
 
 PROJECT = "setupProjection(0, scope.xz, {w}, 8) projectUV(0)"
 
