@@ -88,3 +88,10 @@ def test_set_elems_ignores_negative_indices_and_their_values():
 def test_a_boolean_keyword_called_like_an_operation_says_how_to_write_it():
     m = run("Lot --> extrude(2) subtract(foo) B\nB --> X.")
     assert any("write subtract { A | B }" in w for w in m.warnings)
+
+
+@pytest.mark.parametrize("op", ['splitAndSetbackPerimeter(0, "a"){ 1 : 1 : A }', "taper(0/0)",
+                                "extrude(1/0)"])
+def test_operations_refuse_numbers_that_are_not_numbers(op):
+    m = run(f"Lot --> {op} X.")
+    assert any("is nan" in w or "is inf" in w for w in m.warnings), m.warnings

@@ -88,7 +88,11 @@ class OpCall:
             if default is None:
                 raise CGARuntimeError(f"{self.name}: argument {i + 1} is missing")
             return default
-        return to_float(self.args[i], f"{self.name} argument {i + 1}")
+        v = to_float(self.args[i], f"{self.name} argument {i + 1}")
+        if v != v or v in (float("inf"), float("-inf")):
+            raise CGARuntimeError(f"{self.name}: argument {i + 1} is {v} (a string that is not a "
+                                  "number, or a division by zero?); the shape is left as it was")
+        return v
 
     def size(self, i: int, current: float, default: float | None = None) -> float:
         """A size argument: number, ``'relative`` (× current) or ``~float`` (taken as is)."""
