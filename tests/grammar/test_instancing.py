@@ -25,9 +25,9 @@ Wall --> color("#ccbb99") translateUV(0, 0.25, 0) WallUV
 
 
 def signature(models):
-    """Faces (not parts: instancing merges alike parts) sorted by a coarse key, with their exact
-    corner positions and UVs."""
-    rows = []
+    """Faces (not parts: instancing merges alike parts) grouped by rule, label and material,
+    with their exact corner positions and UVs."""
+    groups = {}
     for m in models:
         for p in m.parts:
             mesh = p.mesh
@@ -36,16 +36,26 @@ def signature(models):
                 c0, c1 = mesh.starts[f], mesh.starts[f + 1]
                 v = mesh.vertices[mesh.corners[c0:c1]]
                 uv = uvs[c0:c1] if uvs is not None else np.zeros((len(v), 2))
-                coarse = (np.round(v, 3) + 0.0).tobytes()
-                rows.append(((p.symbol, p.label, p.material.key(), coarse), v, uv))
-    rows.sort(key=lambda r: r[0])
-    return rows
+                groups.setdefault((p.symbol, p.label, p.material.key(), len(v)), []).append((v, uv))
+    return groups
 
 
 def assert_same_parts(a, b):
-    assert [r[0] for r in a] == [r[0] for r in b]
-    for (_, va, ua), (_, vb, ub) in zip(a, b):
-        assert np.allclose(va, vb, atol=1e-6) and np.allclose(ua, ub, atol=1e-6)
+    """Every face of ``a`` has its own face in ``b`` with the same corners (1e-6 m) and UVs;
+    faces are paired by their centroids with a tree, so no rounding grid can split a pair."""
+    from scipy.spatial import cKDTree
+
+    assert sorted(a) == sorted(b) and all(len(a[k]) == len(b[k]) for k in a)
+    for key, faces_a in a.items():
+        faces_b = b[key]
+        tree = cKDTree(np.array([v.mean(axis=0) for v, _ in faces_b]))
+        used = set()
+        for v, uv in faces_a:
+            hits = [j for j in tree.query_ball_point(v.mean(axis=0), r=1e-6) if j not in used]
+            match = next((j for j in hits if np.allclose(faces_b[j][0], v, atol=1e-6)
+                          and np.allclose(faces_b[j][1], uv, atol=1e-6)), None)
+            assert match is not None, f"{key[0]}: no matching face for {np.round(v, 4).tolist()}"
+            used.add(match)
 
 
 @pytest.mark.parametrize("grammar,lot,assets", [

@@ -95,3 +95,15 @@ def test_a_boolean_keyword_called_like_an_operation_says_how_to_write_it():
 def test_operations_refuse_numbers_that_are_not_numbers(op):
     m = run(f"Lot --> {op} X.")
     assert any("is nan" in w or "is inf" in w for w in m.warnings), m.warnings
+
+
+def test_an_offset_border_is_one_component_and_extrudes_like_a_ring():
+    # CityEngine's border is one face with a hole: one shape, and its frame has 8 walls, not 16
+    m = run('Lot --> offset(-1) comp(f) { inside : I. | border : report("n", comp.total) '
+            'extrude(0.5) F. }')
+    frames = [p for p in m.parts if p.symbol == "F"]
+    assert len(frames) == 1 and m.reports["n"] == [1]
+    mesh = frames[0].mesh
+    assert mesh.is_closed() and mesh.volume() == pytest.approx((80 - 48) * 0.5)
+    # top and bottom rings (4 trapezoids each) plus 4 outer and 4 inner walls
+    assert mesh.n_faces == 16 and mesh.triangle_count() == 32

@@ -23,7 +23,7 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     one wall seen from both sides, enclosing nothing: both are left out, so pieces that share
     edges (a face with a hole stored as triangles, a recomposed footprint) extrude to one
     volume without inner walls."""
-    polys, kinds, sides = [], [], {}
+    polys, kinds, sides = [], [], []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
@@ -35,14 +35,14 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         for j in range(k):
             a, b = p[j], p[(j + 1) % k]
             if mesh.n_faces > 1:
-                sides[_edge_key(a, b, d)] = len(polys) + len(faces)
+                sides.append((len(polys) + len(faces), a, b, d))
             faces.append(np.array([a, b, b + d, a + d]))
         faces.append(top)
         if distance < 0:
             faces = [q[::-1] for q in faces]
         polys.extend(faces)
         kinds.extend(["bottom"] + ["side"] * k + ["top"])
-    inner = {i for (a, b, d), i in sides.items() if (b, a, d) in sides}
+    inner = _paired_walls(sides)
     if inner:
         polys = [q for i, q in enumerate(polys) if i not in inner]
         kinds = [k for i, k in enumerate(kinds) if i not in inner]
@@ -51,9 +51,17 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     return out, kinds
 
 
-def _edge_key(a, b, d) -> tuple:
-    """An edge and an extrusion vector, rounded to the geometric tolerance (1e-6 m)."""
-    return (tuple(np.round(a, 6)), tuple(np.round(b, 6)), tuple(np.round(d, 6)))
+def _paired_walls(sides: list) -> set:
+    """Indices of side walls whose edge another face has the other way round with the same
+    extrusion vector (within 1e-6 m; a tree query, so rounding boundaries cannot split a pair)."""
+    if len(sides) < 2:
+        return set()
+    from scipy.spatial import cKDTree
+
+    fwd = np.array([np.concatenate([a, b, d]) for _, a, b, d in sides])
+    rev = np.array([np.concatenate([b, a, d]) for _, a, b, d in sides])
+    hits = cKDTree(fwd).query_ball_point(rev, r=1e-6)
+    return {sides[i][0] for i, js in enumerate(hits) if any(j != i for j in js)}
 
 
 @operation("extrude", 1, 2, selectors=(0,), selector_min_args=2)
@@ -77,6 +85,7 @@ def op_extrude(call):
     first_normal = st.geometry.face_normals()[0]
     st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
     st.context["face_kinds"] = kinds
+    st.context.pop("face_rings", None)
     align_scope_y(st, direction(first_normal))
     st.fit_scope()
 
@@ -140,13 +149,14 @@ def op_offset(call):
     if mode not in ("all", "inside", "border"):
         raise CGARuntimeError(f"offset mode must be all, inside or border, not '{mode}'")
     mesh = st.geometry
-    polys, kinds = [], []
+    polys, kinds, rings = [], [], []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
         n = normals[f]
         if not n.any():
             continue
+        before = len(polys)
         basis = plane_basis(n, p[1] - p[0])
         xy = (p - p[0]) @ basis[:, :2]
         lift = lambda q, p0=p[0], b=basis: p0 + q @ b[:, :2].T  # noqa: E731
@@ -163,6 +173,7 @@ def op_offset(call):
                     quad = np.array([outer_ring[j], outer_ring[jn], inner_ring[jn], inner_ring[j]])
                     polys.append(lift(quad))
                     kinds.append("border")
+            rings.extend(f if k == "border" else -1 for k in kinds[before:])
             continue
         # large offsets: shapely's mitre buffer, border triangulated
         base = shapely.Polygon(xy).buffer(0)
@@ -181,8 +192,12 @@ def op_offset(call):
                 for tri in simple_pieces(g):
                     polys.append(lift(tri))
                     kinds.append("border")
+        rings.extend(f if k == "border" else -1 for k in kinds[before:])
     st.geometry = Mesh.from_polygons(polys)
     st.context["face_kinds"] = kinds
+    # CityEngine's border is one face with a hole; here it is pieces, remembered per ring so
+    # that comp(f){ border : … } makes one shape of each ring, as CityEngine does
+    st.context["face_rings"] = rings
     if st.geometry.n_faces:
         st.fit_scope()
 

@@ -534,22 +534,47 @@ def _comp_faces(call, st):
                           "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
-        for j, f in enumerate(idx):
+        groups = _components(idx, st.context.get("face_rings"), kinds, n)
+        for j, group in enumerate(groups):
+            f = group[0]
             ps = st.child(len(out))
             poly = mesh.vertices[mesh.face(f)]
             ps.scope = face_scope(poly, normals[f])
-            ps.geometry = mesh.subset([f])
-            ps.trim = comp_trim(st, edges, (f,), ps.scope)
-            ps.context = {**_clean(st.context, [f], n), "comp.index": j, "comp.total": len(idx),
-                          "comp.sel": sel_name}
-            out.append((ps, branch.ops, {"sel": sel_name, "index": j, "component": int(f)}))
+            ps.geometry = mesh.subset(group)
+            if len(group) > 1:
+                ps.fit_scope()
+            ps.trim = comp_trim(st, edges, tuple(group), ps.scope)
+            ps.context = {**_clean(st.context, group, n), "comp.index": j,
+                          "comp.total": len(groups), "comp.sel": sel_name}
+            info = {"sel": sel_name, "index": j, "component": int(f)}
+            if len(group) > 1:
+                info["components"] = [int(g) for g in group]
+            out.append((ps, branch.ops, info))
     return out
+
+
+def _components(idx: np.ndarray, rings, kinds, n: int) -> list[list[int]]:
+    """The components of ``comp(f)`` among the selected faces ``idx``: one per face, except the
+    pieces of one ``offset`` border ring, which are one face with a hole in CityEngine."""
+    if rings is None or kinds is None or len(rings) != n or len(kinds) != n:
+        return [[int(f)] for f in idx]
+    groups, ring_group = [], {}
+    for f in idx:
+        r = rings[f]
+        if r < 0:
+            groups.append([int(f)])
+        elif r in ring_group:
+            ring_group[r].append(int(f))
+        else:
+            ring_group[r] = [int(f)]
+            groups.append(ring_group[r])
+    return groups
 
 
 def _clean(ctx: dict, faces=None, n_faces: int = 0) -> dict:
     """The context a component inherits: no face kinds, and per-face materials (an asset's, an
     inline's or a Boolean's) narrowed to the component's ``faces`` of the ``n_faces``."""
-    out = {k: v for k, v in ctx.items() if k != "face_kinds"}
+    out = {k: v for k, v in ctx.items() if k not in ("face_kinds", "face_rings")}
     fm = out.pop("face_materials", None)
     if fm is not None and faces is not None and fm[2] == n_faces:
         out["face_materials"] = (np.asarray(fm[0])[np.asarray(faces)], fm[1], len(faces))
