@@ -27,7 +27,8 @@ def test_party_walls_see_the_neighbour(target, walls, workers):
     fps = [Footprint("a", lot(0, 10)), Footprint("b", lot(10, 20)), Footprint("c", lot(40, 50)),
            Footprint("d", lot(60, 70))]
     rules = RULES.format(target=target)
-    models = derive(load_rules(rules), fps, workers=workers)
+    # rule text, not loaded rules: with workers=2 the worker processes load it (both passes)
+    models = derive(rules, fps, workers=workers)
     assert not any(m.warnings for m in models)
     # a and b share the 8 m x 6 m wall at x = 10: its tiles on both sides become walls
     assert wall_area(models) == pytest.approx(walls)

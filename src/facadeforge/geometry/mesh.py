@@ -232,16 +232,25 @@ class Mesh:
         return self.closed
 
     def _compute_closed(self) -> bool:
-        key = np.round(self.vertices / 1e-6).astype(np.int64)
-        _, weld = np.unique(key, axis=0, return_inverse=True)
-        w = weld.reshape(-1)[self.corners]
+        _, counts = self.welded_edges()
+        return bool(len(counts)) and bool(np.all(counts == 2))
+
+    def next_corners(self) -> np.ndarray:
+        """(C,) for each corner, the index of the next corner of its face."""
         nxt = np.arange(1, len(self.corners) + 1)
         nxt[self.starts[1:] - 1] = self.starts[:-1]
-        a, b = w, w[nxt]
+        return nxt
+
+    def welded_edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """The edges after coincident vertices are welded (:func:`weld_ids`): (E, 2) sorted
+        welded-vertex pairs, and how many faces use each."""
+        w = weld_ids(self.vertices)[self.corners]
+        a, b = w, w[self.next_corners()]
         keep = a != b
         e = np.sort(np.stack([a[keep], b[keep]], axis=1), axis=1)
-        _, counts = np.unique(e, axis=0, return_counts=True)
-        return bool(len(counts)) and bool(np.all(counts == 2))
+        if not len(e):
+            return np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
+        return np.unique(e, axis=0, return_counts=True)
 
     # -- triangulation -----------------------------------------------------------------------
     def triangulate(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -302,6 +311,15 @@ class Mesh:
 
 
 # -- polygon helpers -------------------------------------------------------------------------
+
+def weld_ids(points: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
+    """(N,) for each point, the id of its welded vertex: points on the same ``tolerance`` grid
+    cell are one vertex (ids number the distinct cells)."""
+    if not len(points):
+        return np.zeros(0, np.int64)
+    key = np.round(np.asarray(points, float) / tolerance).astype(np.int64)
+    return np.unique(key, axis=0, return_inverse=True)[1].reshape(-1)
+
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.cross`` for (..., 3) arrays without its axis juggling (a hot path on tiny arrays)."""

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ...geometry.mesh import EPS, Mesh, cross3, polygon_area
+from ...geometry.mesh import EPS, Mesh, cross3, polygon_area, weld_ids
 from ..values import CGARuntimeError
 from . import operation
 from .geometry import apply_asset_material, load_asset
@@ -129,9 +129,7 @@ class _AssetInUV:
 def _vertex_normals(shape: Mesh) -> np.ndarray:
     """(C, 3) unit normal per corner: the area-weighted face normals around each welded
     vertex (the reference computes them from the shape's geometry, merging duplicates)."""
-    key = np.round(shape.vertices / 1e-6).astype(np.int64)
-    _, weld = np.unique(key, axis=0, return_inverse=True)
-    w = weld.reshape(-1)[shape.corners]
+    w = weld_ids(shape.vertices)[shape.corners]
     face_of = np.repeat(np.arange(shape.n_faces), shape.face_sizes)
     newell = shape._newell()
     acc = np.zeros((w.max() + 1, 3))

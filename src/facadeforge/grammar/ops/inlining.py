@@ -28,7 +28,7 @@ from collections import deque
 
 import numpy as np
 
-from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
+from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ..values import CGARuntimeError
 
 #: Vertices closer than this are one vertex when ``recompose`` reconnects pieces (metres).
@@ -191,10 +191,8 @@ def recompose(meshes: list, d=None) -> tuple[Mesh, np.ndarray]:
     if not merged.n_faces:
         return merged, origin
     v = merged.vertices
-    key = np.round(v / WELD_TOLERANCE).astype(np.int64)
-    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    verts = v[first]
+    inverse = weld_ids(v, WELD_TOLERANCE)
+    verts = v[np.unique(inverse, return_index=True)[1]]  # each welded vertex at its first point
     corners = inverse[merged.corners]
     faces = np.split(corners, merged.starts[1:-1])
     uvs = merged.uvs
@@ -396,7 +394,8 @@ def _common_plane(meshes):
 def _planar_boolean(a_meshes, b_meshes, kind, plane):
     """Booleans of polygons lying in one plane (shapely in the plane's 2D frame)."""
     from shapely import Polygon, make_valid, union_all
-    from shapely.geometry.polygon import orient
+
+    from ...geometry.polygon import simple_pieces
 
     origin, basis = plane
     to2d = basis[:, :2]
@@ -412,18 +411,11 @@ def _planar_boolean(a_meshes, b_meshes, kind, plane):
         res = a.difference(region(b_meshes))
     else:
         res = a.intersection(region(b_meshes))
-    polys = []
+    out = []
     for g in getattr(res, "geoms", [res]):
-        if g.geom_type != "Polygon" or g.is_empty:
-            continue
-        g = orient(g, 1.0)
-        if g.interiors:  # a polygon with holes: triangulate it (our faces have no holes)
-            from shapely import constrained_delaunay_triangles
-
-            polys.extend(orient(t, 1.0) for t in constrained_delaunay_triangles(g).geoms)
-        else:
-            polys.append(g)
-    out = [origin + np.asarray(p.exterior.coords)[:-1] @ to2d.T for p in polys]
+        if g.geom_type == "Polygon" and not g.is_empty:
+            # a polygon with holes becomes triangles (our faces have none), as offset does
+            out.extend(origin + ring @ to2d.T for ring in simple_pieces(g))
     mesh = Mesh.from_polygons(out)
     # faces of a planar Boolean result no longer map to single input faces: each takes the
     # first input's first material

@@ -92,12 +92,17 @@ def _candidates(env, args):
     return occ
 
 
+def _centroids(mesh: Mesh) -> np.ndarray:
+    """(F, 3) mean corner of each face."""
+    return np.add.reduceat(mesh.vertices[mesh.corners], mesh.starts[:-1], axis=0) \
+        / mesh.face_sizes[:, None]
+
+
 def _sample(mesh: Mesh) -> np.ndarray:
     """Vertices plus face centroids: enough to tell inside from partly inside."""
     if not mesh.n_faces:
         return np.zeros((0, 3))
-    cent = np.add.reduceat(mesh.vertices[mesh.corners], mesh.starts[:-1], axis=0) / mesh.face_sizes[:, None]
-    return np.concatenate([mesh.used_vertices(), cent])
+    return np.concatenate([mesh.used_vertices(), _centroids(mesh)])
 
 
 def _geometry(env):
@@ -123,8 +128,7 @@ def _overlaps(env, args):
 def _face_interior(mesh: Mesh) -> np.ndarray:
     """Face centroids and the corners pulled a tenth of the way towards them: points that lie on
     an occluder's surface only when a face touches it over an area, not along an edge."""
-    cent = np.add.reduceat(mesh.vertices[mesh.corners], mesh.starts[:-1], axis=0) \
-        / mesh.face_sizes[:, None]
+    cent = _centroids(mesh)
     face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
     inner = mesh.vertices[mesh.corners] * 0.9 + cent[face_of] * 0.1
     return np.concatenate([cent, inner])

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from ...geometry.mesh import EPS, Mesh
+from ...geometry.mesh import EPS, Mesh, weld_ids
 from ..values import CGARuntimeError, to_float, to_str
 from . import shape_function
 from .geometry import (
@@ -39,15 +39,11 @@ from .geometry import (
 def _edge_uses(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edges after welding coincident vertices: (E, 2) welded vertex pairs, how many faces use
     each, and the welded positions."""
-    pts, weld = np.unique(np.round(mesh.vertices / 1e-6).astype(np.int64), axis=0,
-                          return_inverse=True)
-    ring = weld.reshape(-1)[mesh.corners]
-    nxt = np.arange(1, len(ring) + 1)
-    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
-    pairs = np.sort(np.column_stack([ring, ring[nxt]]), axis=1)
-    pairs = pairs[pairs[:, 0] != pairs[:, 1]]
-    edges, uses = np.unique(pairs, axis=0, return_counts=True)
-    return edges, uses, pts * 1e-6
+    weld = weld_ids(mesh.vertices)
+    pts = np.zeros((weld.max() + 1 if len(weld) else 0, 3))
+    pts[weld] = mesh.vertices
+    edges, uses = mesh.welded_edges()
+    return edges, uses, pts
 
 
 @shape_function("geometry.boundaryLength")

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
+from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool
@@ -417,12 +417,9 @@ def rectified_mesh(mesh: Mesh, scope: Scope, max_angle: float) -> Mesh:
     c = int(np.argmax(np.abs(total)))
     a, b = (c + 1) % 3, (c + 2) % 3
     # weld coincident corners so that neighbouring faces move together
-    _, weld = np.unique(np.round(local / 1e-6).astype(np.int64), axis=0, return_inverse=True)
-    weld = weld.reshape(-1)
+    weld = weld_ids(local)
     corners = weld[mesh.corners]
-    nxt = np.arange(1, len(corners) + 1)
-    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
-    i, j = corners, corners[nxt]
+    i, j = corners, corners[mesh.next_corners()]
     pts = np.zeros((weld.max() + 1, 3))
     pts[weld] = local
     d = pts[j] - pts[i]

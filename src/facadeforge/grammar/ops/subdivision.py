@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.mesh import EPS, Mesh, cross3
+from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from .. import ast as A
@@ -362,16 +362,7 @@ def component_count(st, kind: str) -> int:
         return len(mesh.corners)
     if kind in ("m", "g", "h"):
         return len(_part_faces(st, kind))
-    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
-    if not len(key):
-        return 0
-    _, weld = np.unique(key, axis=0, return_inverse=True)
-    w = weld.reshape(-1)[mesh.corners]
-    nxt = np.arange(1, len(mesh.corners) + 1)
-    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
-    e = np.sort(np.stack([w, w[nxt]], axis=1), axis=1)
-    e = e[e[:, 0] != e[:, 1]]
-    return len(np.unique(e, axis=0))
+    return len(mesh.welded_edges()[0])
 
 
 def _add_street_selectors(table: dict, outward=None, object_rot=None) -> None:
@@ -585,9 +576,7 @@ def _comp_edges(call, st):
     mesh = st.geometry
     if mesh.n_faces == 0:
         return []
-    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
-    _, weld = np.unique(key, axis=0, return_inverse=True)
-    weld = weld.reshape(-1)
+    weld = weld_ids(mesh.vertices)
     edges, seen, edge_faces = [], {}, []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):

@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...geometry.cut import _clip_slab, _convex_faces
-from ...geometry.mesh import EPS, Mesh, cross3, plane_basis
+from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, weld_ids
 from ..values import CGARuntimeError, to_bool, type_name
 from . import operation, shape_function
 
@@ -57,17 +57,9 @@ class MeshEdges:
         return self._partner
 
 
-def _next_corner(mesh: Mesh) -> np.ndarray:
-    nxt = np.arange(1, len(mesh.corners) + 1)
-    nxt[mesh.starts[1:] - 1] = mesh.starts[:-1]
-    return nxt
-
-
 def _edge_partners(mesh: Mesh) -> np.ndarray:
-    key = np.round(mesh.vertices / 1e-6).astype(np.int64)
-    _, weld = np.unique(key, axis=0, return_inverse=True)
-    w = weld.reshape(-1)[mesh.corners]
-    pairs = np.sort(np.stack([w, w[_next_corner(mesh)]], axis=1), axis=1)
+    w = weld_ids(mesh.vertices)[mesh.corners]
+    pairs = np.sort(np.stack([w, w[mesh.next_corners()]], axis=1), axis=1)
     _, edge, count = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
     edge = edge.reshape(-1)
     partner = np.full(len(w), -1, np.int64)
@@ -117,7 +109,7 @@ def _bisecting_planes(edges: MeshEdges, faces, up: np.ndarray):
     mine[np.asarray(faces, np.int64)] = True
     c = np.flatnonzero(mine[face_of] & (partner >= 0))
     c = c[~mine[face_of[partner[c]]]]
-    nxt = _next_corner(mesh)
+    nxt = mesh.next_corners()
     normals = mesh.face_normals()
     a = mesh.vertices[mesh.corners[c]]
     e = _unit(mesh.vertices[mesh.corners[nxt[c]]] - a)

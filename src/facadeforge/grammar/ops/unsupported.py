@@ -1,8 +1,8 @@
 """CityEngine operations this runtime does not implement (yet).
 
-Loaded after every other op module: a name registered here only if no module implements it.
-Rules using these still load and derive; each use is a warning, or nothing for the few that only
-touch rendering hints (see docs/cga-dialect.md, "Not yet supported").
+Loaded after every other op module (a name is registered here only if no module implements it).
+Rules using these still load and derive; each use is a warning (see docs/cga-dialect.md, "Not yet
+supported").  ``modify`` is registered by ops/cleanup.py, which knows its body syntax.
 """
 
 from __future__ import annotations
@@ -28,15 +28,7 @@ for _name in ("union", "subtract", "intersect"):  # the Boolean forms are syntax
     if _name not in OPERATIONS:
         operation(_name, 0, 16, selectors=tuple(range(16)))(_boolean_form(_name))
 
-for _name in ("insertAlongUV", "alignScopeToGeometryBBox", "mirrorScope", "setPivot", "rectify",
-              "footprint", "taper", "resetMaterial",
-              "setTrimming", "trimPlanes", "tagEdges", "tag", "deleteTags", "rotateUV180",
-              "copyUV", "splitAndSetbackPerimeter", "setTagsFromEdgeAttrs"):
+# geometry tags: not yet (docs/cga-dialect.md)
+for _name in ("tag", "deleteTags", "setTagsFromEdgeAttrs"):
     if _name not in OPERATIONS:
         operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
-
-# accepted and ignored until implemented
-for _name in ("cleanupGeometry", "reduceGeometry", "trim", "deleteHoles", "softenNormals",
-              "setNormals", "resetGeometry", "modify"):
-    if _name not in OPERATIONS:
-        operation(_name, 0, 8, selectors=tuple(range(8)))(lambda call: None)
