@@ -171,6 +171,15 @@ Lot --> print(geometry.isOriented(top)) print(geometry.isOriented(front)) print(
     assert any("unknown face selector 'upwards'" in x for x in w)
 
 
+def test_n_holes_counts_the_holes_of_pieces_around_them():
+    # an offset border is four pieces around one hole; a courtyard cut out of a lot likewise
+    out = prints("""Lot --> offset(-2, border) print(geometry.nHoles) deleteHoles() print(geometry.nHoles)
+Lot2 --> X""")
+    assert out == ["1", "0"]
+    out = prints("Lot --> subtract { X. | s('0.5,'1,'0.5) center(xz) Y. } print(geometry.nHoles)")
+    assert out == ["1"]
+
+
 def test_is_instanced_groups_and_materials(tmp_path):
     (tmp_path / "two.mtl").write_text("newmtl Wood\nKd 0.5 0.3 0.1\nnewmtl Bark\nKd 0.2 0.1 0\n")
     (tmp_path / "tree.obj").write_text(

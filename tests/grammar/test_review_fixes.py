@@ -107,3 +107,19 @@ def test_an_offset_border_is_one_component_and_extrudes_like_a_ring():
     assert mesh.is_closed() and mesh.volume() == pytest.approx((80 - 48) * 0.5)
     # top and bottom rings (4 trapezoids each) plus 4 outer and 4 inner walls
     assert mesh.n_faces == 16 and mesh.triangle_count() == 32
+
+
+def test_reset_geometry_drops_trim_planes_and_the_pivot():
+    # a cube inserted after resetGeometry is not cut by the planes comp(f) left on the wall
+    m = run("Lot --> extrude(4) comp(f) { front : resetGeometry() s(2, 2, 2) primitiveCube() C. }")
+    (c,) = m.parts
+    assert c.mesh.n_faces == 6 and c.mesh.area() == pytest.approx(24)
+    m = run("Lot --> setPivot(xyz, 2) resetGeometry() print(pivot.px) X.")
+    assert m.attributes["prints"] == ["0"]
+
+
+def test_copy_uv_sets_do_not_follow_split_pieces():
+    m = run("""Lot --> setupProjection(0, scope.xz, scope.sx, scope.sz) projectUV(0) copyUV(0, 1)
+        split(x) { 5 : A. | 5 : B }
+B --> copyUV(1, 0) X.""")
+    assert any("uv set 1 holds no texture coordinates for these faces" in w for w in m.warnings)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import EPS, Mesh, polygon_normal
+from .mesh import EPS, Mesh, polygon_normal, weld_ids
 
 WELD_EPS = 1e-6  # metres: "identical" vertices (the weld of Mesh.is_closed)
 ANGLE_EPS = 1e-6  # radians: "collinear" / "coplanar" at tolerance 0
@@ -41,13 +41,18 @@ class Poly:
 def weld(vertices: np.ndarray, distance: float) -> np.ndarray:
     """Per vertex, the id of the vertex it merges into.  In id order, each vertex not merged yet
     keeps its position and takes in the unmerged vertices within ``distance`` of it (at least
-    :data:`WELD_EPS`): no chains, so a merged vertex never moves further than ``distance``."""
-    from scipy.spatial import cKDTree
-
+    :data:`WELD_EPS`): no chains, so a merged vertex never moves further than ``distance``.
+    ``distance`` 0 is the weld of ``Mesh.is_closed`` (:func:`weld_ids`), each group merging
+    into its first vertex."""
     n = len(vertices)
     target = np.arange(n)
     if n == 0:
         return target
+    if distance <= WELD_EPS:
+        ids = weld_ids(vertices, WELD_EPS)
+        return np.unique(ids, return_index=True)[1][ids]
+    from scipy.spatial import cKDTree
+
     near = cKDTree(vertices).query_ball_point(vertices, max(distance, WELD_EPS))
     done = np.zeros(n, bool)
     for i in range(n):
@@ -370,6 +375,19 @@ def _outer_loop(vertices, polys: list[Poly], members: list[int]):
         return None
     verts = outer[0]
     return verts, [out[a][1] for a in verts]
+
+
+def count_holes(mesh: Mesh) -> int:
+    """How many holes the faces have: our faces are simple polygons, so a face with holes is a
+    connected set of coplanar pieces whose outline has inner loops (see :func:`fill_holes`)."""
+    v = mesh.vertices
+    polys = [p for p in to_polys(mesh, weld(v, 0.0)) if len(p.verts) >= 3]
+    holes = 0
+    for members in _regions(v, polys, [0] * mesh.n_faces):
+        out = _outline(polys, members) if len(members) > 1 else None
+        if out is not None:
+            holes += max(len(_loops({a: b for a, (b, _) in out.items()})) - 1, 0)
+    return holes
 
 
 def fill_holes(mesh: Mesh, groups=None) -> tuple[Mesh, np.ndarray]:

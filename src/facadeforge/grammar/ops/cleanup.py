@@ -9,6 +9,7 @@ and leaves the scope as it is (these operations do not move the shape).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from . import operation
 
 #: context entries that describe the current geometry (or how it is trimmed): invalid once the
 #: geometry is replaced by the initial shape's
-_GEOMETRY_CONTEXT = ("face_kinds", "face_materials", "trim_planes")
+_GEOMETRY_CONTEXT = ("face_kinds", "face_materials", "face_rings", "pivot")
 
 
 def _unit_tolerance(call, i: int, what: str) -> float:
@@ -98,6 +99,8 @@ def op_reset_geometry(call):
     st.geometry = initial.geometry
     st.scope = initial.scope
     st.pivot = initial.pivot
+    if st.trim is not None:
+        st.trim = replace(st.trim, planes=None)
     for key in _GEOMETRY_CONTEXT:
         st.context.pop(key, None)
 

@@ -23,7 +23,8 @@ def op_set(call):
         set_trim(st, name[len("trim."):], value)
         return
     if name.startswith("pivot."):
-        return  # pivots are not modelled (docs/cga-dialect.md)
+        raise CGARuntimeError(f"set({name}, …) is not supported; move the pivot with setPivot(…) "
+                              "or alignScopeToGeometry(…)")
     if name.startswith("scope."):
         _set_scope(call, st, name[len("scope."):], to_float(value))
         return

@@ -91,9 +91,12 @@ def _is_oriented(env, args):
 
 @shape_function("geometry.nHoles")
 def _n_holes(env, args):
-    """``geometry.nHoles()`` (func_geometry.html#nHoles): this runtime's faces are simple
-    polygons (holes of initial shapes are bridged into their outlines when read), so 0."""
-    return 0.0
+    """``geometry.nHoles()`` (func_geometry.html#nHoles): faces here are simple polygons, so
+    a face with holes (an ``offset`` border, a courtyard cut out) is pieces around them; the
+    holes are the inner loops of such pieces' outline."""
+    from ...geometry.cleanup import count_holes
+
+    return float(count_holes(env.state.geometry))
 
 
 def _inserted(env):
@@ -222,8 +225,8 @@ def _pick(env, ranked: list[str], n) -> str:
     if k < 1:
         raise CGARuntimeError(f"n must be an integer >= 1, got {to_str(n)}")
     best = ranked[:k]
-    if not best:
-        return ""
+    if len(best) <= 1:  # the best one: no draw, so later rand() values stay as they were
+        return best[0] if best else ""
     return best[min(int(env.random_float() * len(best)), len(best) - 1)]
 
 

@@ -375,17 +375,20 @@ def op_copy_uv(call):
     g = st.geometry
     if src == dst or not g.n_faces:
         return
-    sets = st.context.get(UV_SETS_KEY, {})
-    sets = {k: v for k, v in sets.items() if len(v) == len(g.corners)}  # faces since changed
+    # the sets belong to these very faces: moving them keeps them (same corner array), cutting
+    # or rebuilding the faces does not
+    held = st.context.get(UV_SETS_KEY)
+    sets = dict(held[1]) if held is not None and held[0] is g.corners else {}
     uv = g.corner_uvs if src == 0 else sets.get(src)
     if uv is None:
-        raise CGARuntimeError(f"copyUV: uv set {src} holds no texture coordinates; project them "
-                              f"first (setupProjection({src}, …) projectUV({src}))")
+        raise CGARuntimeError(f"copyUV: uv set {src} holds no texture coordinates for these "
+                              f"faces; only set 0 is projected here, so fill set {src} with "
+                              f"copyUV(0, {src}) on the same faces")
     if dst == 0:
         st.geometry = g.with_uvs(uv.copy())
     else:
         sets[dst] = uv.copy()
-    st.context[UV_SETS_KEY] = sets
+    st.context[UV_SETS_KEY] = (g.corners, sets)
 
 
 # ---- rectify -----------------------------------------------------------------------------------

@@ -48,6 +48,16 @@ class MeshEdges:
     def __init__(self, mesh: Mesh):
         self.mesh = mesh
         self._partner = None
+        self._frame = None
+
+    def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(face normals, next corner of each corner, face of each corner)``, once per mesh:
+        every component of the ``comp`` reads them."""
+        if self._frame is None:
+            m = self.mesh
+            self._frame = (m.face_normals(), m.next_corners(),
+                           np.repeat(np.arange(m.n_faces), m.face_sizes))
+        return self._frame
 
     def partner(self) -> np.ndarray:
         """(C,) the corner of the other face on the same edge, -1 for border and non-manifold
@@ -104,13 +114,12 @@ class FacePlanes:
 def _bisecting_planes(edges: MeshEdges, faces, up: np.ndarray):
     mesh = edges.mesh
     partner = edges.partner()
-    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
-    mine = np.zeros(mesh.n_faces, bool)
-    mine[np.asarray(faces, np.int64)] = True
-    c = np.flatnonzero(mine[face_of] & (partner >= 0))
-    c = c[~mine[face_of[partner[c]]]]
-    nxt = mesh.next_corners()
-    normals = mesh.face_normals()
+    normals, nxt, face_of = edges.frame()
+    faces = np.asarray(faces, np.int64)
+    # the components' own corners only: a comp of F faces must not cost F × F
+    c = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in faces])
+    c = c[partner[c] >= 0]
+    c = c[~np.isin(face_of[partner[c]], faces)]
     a = mesh.vertices[mesh.corners[c]]
     e = _unit(mesh.vertices[mesh.corners[nxt[c]]] - a)
     p = partner[c]
@@ -277,14 +286,15 @@ _PROPORTIONS: dict[str, np.ndarray] = {}
 
 def note_asset(name: str, bounds: np.ndarray) -> None:
     """Remember the proportions of an asset ``i()`` inserts (for :func:`trim_key`)."""
-    if name in _PROPORTIONS:
-        return
     ext = np.maximum(bounds[1] - bounds[0], 0.0)
     ratio = np.ones(3)
     for k in range(3):
         others = [ext[j] for j in range(3) if j != k and ext[j] > EPS]
         ratio[k] = ext[k] / min(others) if others else 1.0
-    _PROPORTIONS[name] = ratio
+    # one name may be different files (another rule package, another asset folder): keep the
+    # largest reach seen, so an instancing key never misses a plane an asset could reach
+    known = _PROPORTIONS.get(name)
+    _PROPORTIONS[name] = ratio if known is None else np.maximum(known, ratio)
 
 
 def _reach(size: np.ndarray, assets, far: bool) -> np.ndarray:
