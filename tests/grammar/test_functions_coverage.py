@@ -190,7 +190,8 @@ Lot --> print(geometry.isInstanced) print(geometry.groups)
         i("tree.obj") print(geometry.isInstanced) print(geometry.groups) print(geometry.materials)
         s(2, 2, 2) print(geometry.isInstanced)
         split(x) { '0.5 : print(geometry.isInstanced) A. | ~1 : B. }''', assets=tmp_path)
-    assert out == ["false", "(lot)", "true", "(trunk,crown)", "(Bark,Wood)", "true", "false"]
+    # materials in component-split order: comp(m) takes them as the faces first use them
+    assert out == ["false", "(lot)", "true", "(trunk,crown)", "(Wood,Bark)", "true", "false"]
 
 
 # ---- files and assets -----------------------------------------------------------------------

@@ -238,8 +238,7 @@ def test_trim_mesh_leaves_uncut_meshes_alone():
 
 def test_per_face_materials_follow_their_faces():
     mesh = _prism([(0, 0), (0, 1), (1, 1), (1, 0)])
-    st = ShapeState(Scope(np.zeros(3), np.eye(3), np.ones(3)), mesh)
-    st.context["face_materials"] = (np.arange(6), ["m"] * 6, 6)
+    st = ShapeState(Scope(np.zeros(3), np.eye(3), np.ones(3)), mesh.with_column("material", range(6)))
 
     class _Planes(FacePlanes):
         def planes(self):  # x <= 0.5 kept: the +x face goes, the others are halved or kept
@@ -247,12 +246,12 @@ def test_per_face_materials_follow_their_faces():
 
     st.trim = TrimState(_Planes(None, (), np.array([0.0, 1, 0])))
     assert apply_trim(st)
-    fm = st.context["face_materials"]
+    fm = st.geometry.column("material")
     normals = st.geometry.face_normals()
-    assert fm[2] == st.geometry.n_faces == 5
+    assert len(fm) == st.geometry.n_faces == 5
     original = mesh.face_normals()
     for f in range(5):
-        assert normals[f] == pytest.approx(original[fm[0][f]])
+        assert normals[f] == pytest.approx(original[fm[f]])
 
 
 # ---- instancing ----------------------------------------------------------------------------

@@ -31,7 +31,8 @@ def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None =
     Returns
     -------
     list of Mesh
-        One (possibly empty) mesh per slab, in the scope frame.
+        One (possibly empty) mesh per slab, in the scope frame.  A cut face keeps its face data
+        (tags, material); cap faces have none (CityEngine, "Tag propagation").
     """
     cuts = np.asarray(cuts, float)
     n = len(cuts) - 1
@@ -66,7 +67,7 @@ def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None =
             inside &= ~(at_hi & (normals[:, axis] < 0) & (i < n - 1))
         crossing = np.flatnonzero((fmin < hi - EPS) & (fmax > lo + EPS) & ~inside)
         parts = [mesh.subset(np.flatnonzero(inside))] if inside.any() else []
-        polys, uvs = [], []
+        polys, uvs, source = [], [], []
         for f in crossing:
             idx = mesh.face(f)
             p = mesh.vertices[idx]
@@ -74,8 +75,10 @@ def split_along_axis(mesh: Mesh, axis: int, cuts: np.ndarray, cap: bool | None =
             for q, quv in _clip_slab(p, uv, axis, lo, hi, normals[f], convex[f]):
                 polys.append(q)
                 uvs.append(quv)
+                source.append(f)
         if polys:
-            parts.append(Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None))
+            parts.append(Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
+                         .inherit(mesh, source))
         if cap:
             for c, sign in ((lo, -1.0), (hi, 1.0)):
                 if (sign < 0 and i == 0 and lo <= coord.min() + EPS) or (
@@ -116,7 +119,8 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | 
         if len(below) >= 3:
             out.append(Mesh(np.array(below), corners=np.arange(len(below)),
                             starts=np.array([0, len(below)]),
-                            corner_uvs=None if buv is None else np.array(buv), closed=False))
+                            corner_uvs=None if buv is None else np.array(buv), closed=False,
+                            face_data=mesh.face_data))
         else:
             out.append(Mesh())
     return out

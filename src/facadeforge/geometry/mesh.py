@@ -8,6 +8,12 @@ triangulated only for export and rendering.
 Faces are stored flat (CSR): ``corners`` lists vertex indices face after face and ``starts`` (F+1)
 marks where each face begins.  Transforming or merging a 10 000-face asset is then a handful of
 numpy calls instead of a Python loop per face, which is what makes inserting assets cheap.
+
+Per-face data travels with the faces: ``face_data`` maps a column name to an (F,) object array
+(``None`` = unset).  The grammar keeps there what CityEngine stores on a geometry's faces: a face's
+own material, its geometry tags, and which ``offset`` kind and border ring it came from (see
+:data:`FACE_COLUMNS`).  Selecting, merging, moving and reversing faces carry the columns; an
+operation that builds new faces says which old face each came from (:meth:`Mesh.inherit`).
 """
 
 from __future__ import annotations
@@ -17,6 +23,99 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 EPS = 1e-9  # geometric tolerance in metres: one place, used by every cut and classification
+
+FACE_COLUMNS = {
+    "material": "the face's own material (an asset's, an inline's or a Boolean operand's), "
+                "under the shape's material attributes",
+    "tags": "the face's geometry tags, a tuple of strings (CGA ``tag``, auto-tags)",
+    "kind": "which part of an ``offset`` the face is: 'inside' or 'border'",
+    "ring": "the border ring an ``offset`` piece belongs to (pieces of one ring are one face "
+            "with a hole in CityEngine)",
+}
+
+
+#: Per-corner columns and what they describe: ``edge`` columns the edge from the corner to the
+#: next corner of its face, ``vertex`` columns the corner's vertex.
+CORNER_COLUMNS = {"edge_tags": "edge", "vertex_tags": "vertex"}
+
+
+def _column(values, n: int) -> np.ndarray:
+    """An (n,) object array from a sequence (or ``None``: all unset)."""
+    out = np.empty(n, dtype=object)
+    if values is not None:
+        out[:] = list(values) if not isinstance(values, np.ndarray) else values
+    return out
+
+
+def _take(data: dict | None, index) -> dict | None:
+    """Columns at ``index`` (-1: unset).  Columns are never changed in place once made: meshes
+    share them."""
+    if data is None:
+        return None
+    if isinstance(index, slice):
+        return {k: v[index].copy() for k, v in data.items()}
+    index = np.asarray(index, np.int64)
+    new = index < 0
+    out = {}
+    for k, v in data.items():
+        col = v[np.where(new, 0, index)] if len(v) else _column(None, len(index))
+        if new.any():
+            col[new] = None
+        out[k] = col
+    return out
+
+
+def _set_column(data: dict | None, name: str, values, n: int) -> dict | None:
+    out = dict(data or {})
+    if values is None:
+        out.pop(name, None)
+    else:
+        out[name] = _column(values, n)
+    return out or None
+
+
+def _concat_columns(parts: list) -> dict | None:
+    """Columns of meshes appended in order (``parts``: (columns or None, length) each); a mesh
+    without a column gets unset values there."""
+    names = sorted({k for data, _ in parts if data for k in data})
+    if not names:
+        return None
+    return {k: np.concatenate([data[k] if data and k in data else _column(None, n)
+                               for data, n in parts]) for k in names}
+
+
+def _corner_sources(mesh: Mesh, parent: Mesh, source: np.ndarray, tol: float = 1e-6) -> np.ndarray:
+    """For each corner of ``mesh``, the corner of its face's source face in ``parent`` whose
+    data it keeps (-1 none): for vertex columns the parent corner at the same place, for edge
+    columns the parent edge the corner's edge lies on.  Returns (2, C): vertex and edge
+    sources."""
+    out = np.full((2, len(mesh.corners)), -1, np.int64)
+    nxt = mesh.next_corners()
+    p = mesh.vertices[mesh.corners]
+    for f in range(mesh.n_faces):
+        s = source[f]
+        if s < 0:
+            continue
+        a0, a1 = parent.starts[s], parent.starts[s + 1]
+        a = parent.vertices[parent.corners[a0:a1]]
+        b = np.roll(a, -1, axis=0)
+        d = b - a
+        dd = np.maximum(np.einsum("ij,ij->i", d, d), tol * tol)
+        for c in range(mesh.starts[f], mesh.starts[f + 1]):
+            q, r = p[c], p[nxt[c]]
+            near = np.flatnonzero(np.abs(a - q).max(axis=1) <= tol)
+            if len(near):
+                out[0, c] = a0 + near[0]
+            # the edge q→r lies on parent edge k when both ends are on segment k
+            tq = ((q - a) * d).sum(axis=1) / dd
+            tr = ((r - a) * d).sum(axis=1) / dd
+            on_q = np.abs(a + tq[:, None] * d - q).max(axis=1) <= tol
+            on_r = np.abs(a + tr[:, None] * d - r).max(axis=1) <= tol
+            ok = on_q & on_r & (tq >= -tol) & (tq <= 1 + tol) & (tr >= -tol) & (tr <= 1 + tol)
+            hit = np.flatnonzero(ok)
+            if len(hit):
+                out[1, c] = a0 + hit[0]
+    return out
 
 
 class Mesh:
@@ -36,11 +135,15 @@ class Mesh:
         The flat form of ``uvs``.
     """
 
-    __slots__ = ("vertices", "corners", "starts", "corner_uvs", "closed")
+    __slots__ = ("vertices", "corners", "starts", "corner_uvs", "closed", "face_data",
+                 "corner_data")
 
     def __init__(self, vertices=None, faces: Sequence | None = None, uvs: Sequence | None = None,
-                 *, corners=None, starts=None, corner_uvs=None, closed: bool | None = None):
+                 *, corners=None, starts=None, corner_uvs=None, closed: bool | None = None,
+                 face_data: dict | None = None, corner_data: dict | None = None):
         self.closed = closed  # cached topology: None = not yet known
+        self.face_data = face_data or None  # column -> (F,) object array; see FACE_COLUMNS
+        self.corner_data = corner_data or None  # column -> (C,) object array; CORNER_COLUMNS
         self.vertices = (np.zeros((0, 3)) if vertices is None
                          else np.asarray(vertices, dtype=float).reshape(-1, 3))
         if corners is not None:
@@ -83,7 +186,8 @@ class Mesh:
     # -- construction ------------------------------------------------------------------------
     @staticmethod
     def from_polygons(polygons: Iterable[np.ndarray], uvs: Sequence | None = None) -> Mesh:
-        """Mesh with one face per polygon (each (k, 3)), vertices not shared."""
+        """Mesh with one face per polygon (each (k, 3)), vertices not shared (no face data: see
+        :meth:`inherit`)."""
         polys = [np.asarray(p, float).reshape(-1, 3) for p in polygons]
         if not polys:
             return Mesh()
@@ -111,12 +215,73 @@ class Mesh:
             cuv = np.concatenate([np.zeros((len(m.corners), 2)) if m.corner_uvs is None else m.corner_uvs
                                   for m in ms])
         return Mesh(np.concatenate([m.vertices for m in ms]), corners=corners, starts=starts,
-                    corner_uvs=cuv)
+                    corner_uvs=cuv,
+                    face_data=_concat_columns([(m.face_data, m.n_faces) for m in ms]),
+                    corner_data=_concat_columns([(m.corner_data, len(m.corners)) for m in ms]))
 
     def copy(self) -> Mesh:
         return Mesh(self.vertices.copy(), corners=self.corners.copy(), starts=self.starts.copy(),
                     corner_uvs=None if self.corner_uvs is None else self.corner_uvs.copy(),
-                    closed=self.closed)
+                    closed=self.closed, face_data=_take(self.face_data, slice(None)),
+                    corner_data=_take(self.corner_data, slice(None)))
+
+    def _like(self, vertices=None, **changes) -> Mesh:
+        """This mesh with some of its arrays replaced (the others shared)."""
+        kw = dict(corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs,
+                  closed=self.closed, face_data=self.face_data, corner_data=self.corner_data)
+        kw.update(changes)
+        return Mesh(self.vertices if vertices is None else vertices, **kw)
+
+    # -- per-face and per-corner data ------------------------------------------------------------
+    def column(self, name: str) -> np.ndarray | None:
+        """The (F,) object array of face column ``name``, or None when no face has it."""
+        return None if self.face_data is None else self.face_data.get(name)
+
+    def corner_column(self, name: str) -> np.ndarray | None:
+        """The (C,) object array of corner column ``name`` (see :data:`CORNER_COLUMNS`)."""
+        return None if self.corner_data is None else self.corner_data.get(name)
+
+    def with_column(self, name: str, values) -> Mesh:
+        """Same mesh with face column ``name`` set to ``values`` (one per face; None drops it)."""
+        return self._like(face_data=_set_column(self.face_data, name, values, self.n_faces))
+
+    def with_corner_column(self, name: str, values) -> Mesh:
+        """Same mesh with corner column ``name`` set (one value per corner; None drops it)."""
+        return self._like(corner_data=_set_column(self.corner_data, name, values,
+                                                  len(self.corners)))
+
+    def without_columns(self, *names: str) -> Mesh:
+        """Same mesh without the face columns ``names`` (itself when it has none of them)."""
+        if self.face_data is None or not any(k in self.face_data for k in names):
+            return self
+        data = {k: v for k, v in self.face_data.items() if k not in names}
+        return self._like(face_data=data or None)
+
+    def inherit(self, parent: Mesh, source, drop: Iterable[str] = (), corner_source=None) -> Mesh:
+        """This mesh with the data of ``parent``: face ``i`` takes that of parent face
+        ``source[i]`` (-1: a new face, unset); face columns named in ``drop`` are not taken.
+
+        Corner data (edge and vertex tags) follows ``corner_source`` when given: (2, C), per
+        corner the parent corner whose vertex data and whose edge data it takes (-1 none).
+        Else geometry decides: a corner takes the data of the source face's vertex it lies on,
+        and its edge that of the source face's edge it lies on, so pieces of a cut face keep the
+        tags of the edges they keep and new cut edges have none."""
+        if parent.face_data is None and parent.corner_data is None:
+            return self
+        src = np.asarray(source, np.int64).reshape(-1)
+        if len(src) != self.n_faces:
+            raise ValueError(f"inherit: {len(src)} sources for {self.n_faces} faces")
+        face_data = None
+        if parent.face_data is not None:
+            keep = {k: v for k, v in parent.face_data.items() if k not in drop}
+            face_data = _take(keep, src) or None
+        corner_data = None
+        if parent.corner_data is not None:
+            vsrc, esrc = (_corner_sources(self, parent, src) if corner_source is None
+                          else np.asarray(corner_source, np.int64))
+            corner_data = {k: _take({k: v}, esrc if CORNER_COLUMNS.get(k) == "edge" else vsrc)[k]
+                           for k, v in parent.corner_data.items()}
+        return self._like(face_data=face_data, corner_data=corner_data)
 
     def polygons(self) -> list[np.ndarray]:
         """Face corner positions, one (k, 3) array per face."""
@@ -132,16 +297,15 @@ class Mesh:
         # corner positions of the chosen faces without a loop: face start + offset within face
         sel = np.repeat(self.starts[idx] - starts[:-1], lengths) + np.arange(starts[-1])
         return Mesh(self.vertices[self.corners[sel]], corners=np.arange(len(sel)), starts=starts,
-                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel])
+                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel],
+                    face_data=_take(self.face_data, idx), corner_data=_take(self.corner_data, sel))
 
     def with_vertices(self, vertices: np.ndarray) -> Mesh:
         """Same faces on moved vertices (topology, hence closedness, is kept)."""
-        return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs,
-                    closed=self.closed)
+        return self._like(vertices=vertices)
 
     def with_uvs(self, corner_uvs: np.ndarray | None) -> Mesh:
-        return Mesh(self.vertices, corners=self.corners, starts=self.starts, corner_uvs=corner_uvs,
-                    closed=self.closed)
+        return self._like(corner_uvs=corner_uvs)
 
     def transformed(self, matrix: np.ndarray, offset: np.ndarray | None = None) -> Mesh:
         """Apply ``v @ matrix.T + offset``; faces are reversed when the map mirrors."""
@@ -153,16 +317,22 @@ class Mesh:
         return m.reversed() if np.linalg.det(matrix) < 0 else m
 
     def reversed(self) -> Mesh:
-        """Every face with its corner order reversed (normals flipped)."""
+        """Every face with its corner order reversed (normals flipped); an edge's data stays
+        with the edge, which now starts at the other end."""
         if not self.n_faces:
             return self.copy()
         sizes = self.face_sizes
         face_id = np.repeat(np.arange(self.n_faces), sizes)
         pos = np.arange(len(self.corners)) - self.starts[face_id]
         src = self.starts[face_id] + sizes[face_id] - 1 - pos
-        return Mesh(self.vertices, corners=self.corners[src], starts=self.starts,
-                    corner_uvs=None if self.corner_uvs is None else self.corner_uvs[src],
-                    closed=self.closed)
+        corner_data = None
+        if self.corner_data is not None:
+            edge_src = self.starts[face_id] + (sizes[face_id] - 2 - pos) % sizes[face_id]
+            corner_data = {k: v[edge_src if CORNER_COLUMNS.get(k) == "edge" else src]
+                           for k, v in self.corner_data.items()}
+        return self._like(corners=self.corners[src],
+                          corner_uvs=None if self.corner_uvs is None else self.corner_uvs[src],
+                          corner_data=corner_data)
 
     # -- measures ----------------------------------------------------------------------------
     @property

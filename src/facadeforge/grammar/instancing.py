@@ -268,6 +268,24 @@ def _hashable(v):
         return repr(v)
 
 
+def _face_data_key(g) -> tuple:
+    """The geometry's face columns as a key: tags and offset kinds as they are, materials by
+    identity, border rings by which faces share one (not by their ids)."""
+    if g.face_data is None:
+        return ()
+    out = []
+    for k in sorted(g.face_data):
+        col = g.face_data[k]
+        if k == "ring":
+            ids: dict = {}
+            out.append((k, tuple(None if r is None else ids.setdefault(r, len(ids)) for r in col)))
+        elif k == "material":
+            out.append((k, tuple(id(m) for m in col)))
+        else:
+            out.append((k, tuple(col)))
+    return tuple(out)
+
+
 def instance_key(mod, name, args, state, info: RuleInfo):
     """Cache key of a shape about to run ``name``, and the input's UV map; ``None`` when the
     shape cannot be instanced (UVs that are not an affine function of position)."""
@@ -288,8 +306,7 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         geom_key = ()
     ctx = state.context
     ctx_key = tuple((k, _hashable(ctx.get(k))) for k in sorted(info.reads))
-    extra = (ctx.get("label"), tuple(ctx.get("face_kinds") or ()),
-             id(ctx["face_materials"][0]) if "face_materials" in ctx else None)
+    extra = (ctx.get("label"), _face_data_key(g))
     proj_key = ()
     if info.projects:
         proj_key = tuple(sorted(

@@ -431,15 +431,14 @@ class Derivation:
         node.material = self.material(state)
         if self.leaf_occluders:
             self.add_occluder(state)
-        fm = state.context.get("face_materials")
-        if fm is not None and fm[2] == state.geometry.n_faces:
-            face_material, materials, _ = fm
-            for k, am in enumerate(materials):
-                idx = np.flatnonzero(face_material == k)
-                if len(idx) == 0:
-                    continue
-                mat = self.material(state, am)
-                self.parts.append(Part(state.geometry.subset(idx), label, mat, symbol, node.id))
+        own = state.geometry.column("material")
+        if own is not None:  # faces with their own material: one part per material
+            groups: dict = {}
+            for f, am in enumerate(own):
+                groups.setdefault(id(am), (am, []))[1].append(f)
+            for am, faces in groups.values():
+                mat = node.material if am is None else self.material(state, am)
+                self.parts.append(Part(state.geometry.subset(faces), label, mat, symbol, node.id))
             return
         self.parts.append(Part(state.geometry, label, node.material, symbol, node.id))
 

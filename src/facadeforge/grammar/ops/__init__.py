@@ -134,6 +134,7 @@ def load_all() -> dict[str, OpSpec]:
         roofs,
         scoping,
         subdivision,
+        tagging,
         transform,
         trimming,
     )

@@ -60,8 +60,6 @@ def op_insert_along_uv(call):
                              "(it is mapped onto triangles and quads only)")
     polys, uvs, faces = _lay(source, patches)
     st.geometry = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
-    st.context.pop("face_kinds", None)
-    st.context.pop("face_materials", None)
     if st.geometry.n_faces:
         st.fit_scope()
     if asset is not None:

@@ -17,9 +17,9 @@ from ...geometry import cleanup as kernel
 from ..values import CGARuntimeError
 from . import operation
 
-#: context entries that describe the current geometry (or how it is trimmed): invalid once the
-#: geometry is replaced by the initial shape's
-_GEOMETRY_CONTEXT = ("face_kinds", "face_materials", "face_rings", "pivot")
+#: context entries that describe the current geometry: invalid once the geometry is replaced by
+#: the initial shape's
+_GEOMETRY_CONTEXT = ("pivot",)
 
 
 def _unit_tolerance(call, i: int, what: str) -> float:
@@ -30,29 +30,14 @@ def _unit_tolerance(call, i: int, what: str) -> float:
     return t
 
 
-def _face_groups(st) -> list | None:
-    """Per face, what must stay apart when faces merge: material and ``comp`` face kind."""
-    n = st.geometry.n_faces
-    fm = st.context.get("face_materials")
-    kinds = st.context.get("face_kinds")
-    materials = fm[0] if fm is not None and fm[2] == n else None
-    kinds = kinds if kinds is not None and len(kinds) == n else None
-    if materials is None and kinds is None:
+def _face_groups(mesh) -> list | None:
+    """Per face, what must stay apart when faces merge: its own material, ``offset`` kind and
+    geometry tags (face columns, see ``geometry.mesh.FACE_COLUMNS``)."""
+    if mesh.face_data is None:
         return None
-    return [(None if materials is None else int(materials[f]), None if kinds is None else kinds[f])
-            for f in range(n)]
-
-
-def _replace_geometry(st, mesh, source: np.ndarray) -> None:
-    """New faces, each from input face ``source[i]``: per-face context follows them."""
-    n_old = st.geometry.n_faces
-    fm = st.context.get("face_materials")
-    if fm is not None and fm[2] == n_old:
-        st.context["face_materials"] = (np.asarray(fm[0])[source], fm[1], mesh.n_faces)
-    kinds = st.context.get("face_kinds")
-    if kinds is not None and len(kinds) == n_old:
-        st.context["face_kinds"] = [kinds[s] for s in source]
-    st.geometry = mesh
+    cols = [mesh.face_data.get(k) for k in ("material", "kind", "tags")]
+    return [tuple(None if c is None else (id(c[f]) if k == 0 else c[f]) for k, c in enumerate(cols))
+            for f in range(mesh.n_faces)]
 
 
 @operation("cleanupGeometry", 2, 2, selectors=(0,))
@@ -81,8 +66,8 @@ def op_cleanup_geometry(call):
     st = call.state
     if not st.geometry.n_faces:
         return
-    mesh, source = kernel.cleanup(st.geometry, comp, tol, _face_groups(st))
-    _replace_geometry(st, mesh, source)
+    mesh, source = kernel.cleanup(st.geometry, comp, tol, _face_groups(st.geometry))
+    st.geometry = mesh.inherit(st.geometry, source)
 
 
 @operation("resetGeometry", 0)
@@ -92,7 +77,7 @@ def op_reset_geometry(call):
     Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-reset-geometry-operation.htm.
     As documented, trim planes are removed and shape attributes (material, colour), rule
     attributes set with ``set`` and projections (``setupProjection``) stay.  Per-face data of the
-    old geometry (asset materials, ``comp`` face kinds) goes with it.
+    old geometry (its faces' materials and tags, ``offset`` parts) goes with it.
     """
     st = call.state
     initial = call.derivation.initial
@@ -118,8 +103,8 @@ def op_delete_holes(call):
     st = call.state
     if not st.geometry.n_faces:
         return
-    mesh, source = kernel.fill_holes(st.geometry, _face_groups(st))
-    _replace_geometry(st, mesh, source)
+    mesh, source = kernel.fill_holes(st.geometry, _face_groups(st.geometry))
+    st.geometry = mesh.inherit(st.geometry, source)
 
 
 @operation("reduceGeometry", 1)
@@ -138,7 +123,7 @@ def op_reduce_geometry(call):
     if not st.geometry.n_faces or frac == 0:
         return
     mesh, source = kernel.reduce(st.geometry, frac)
-    _replace_geometry(st, mesh, source)
+    st.geometry = mesh.inherit(st.geometry, source)
 
 
 NORMAL_MODES = ("hard", "conform", "soft", "auto")
@@ -162,7 +147,7 @@ def op_set_normals(call):
     st = call.state
     if mode == "conform" and st.geometry.n_faces:
         mesh, source = kernel.conform(st.geometry)
-        _replace_geometry(st, mesh, source)
+        st.geometry = mesh.inherit(st.geometry, source)
 
 
 @operation("softenNormals", 1)

@@ -13,7 +13,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError
 from . import operation
 from .roofs import _roof
-from .subdivision import _AXES, _selector_key, call_pieces
+from .subdivision import _AXES, OFFSET_COLUMNS, _selector_key, call_pieces
 
 # ---- innerRectangle -------------------------------------------------------------------------
 
@@ -195,7 +195,6 @@ def op_inner_rectangle(call):
             continue
         ps = st.child(len(out))
         ps.geometry = Mesh.from_polygons(faces)
-        ps.context.pop("face_kinds", None)
         ps.fit_scope()
         out.append((ps, branch.ops, {"sel": key}))
     return out
@@ -355,8 +354,8 @@ def op_split_area(call):
         ps.geometry = mesh.with_vertices(st.scope.to_world(mesh.vertices))
         ps.scope = Scope.trusted(st.scope.origin, st.scope.rotation, st.scope.size)
         ps.fit_scope()
+        ps.geometry = ps.geometry.without_columns(*OFFSET_COLUMNS)
         ctx = dict(st.context)
-        ctx.pop("face_kinds", None)
         ctx["split.index"], ctx["split.total"] = i, n
         ps.context = ctx
         out.append((ps, branch.ops, {"axis": axis_name, "index": i}))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from ...errors import InputError
@@ -12,18 +14,21 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
+from .tagging import auto_tag
 from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
 
 def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, list[str]]:
-    """Prism of every face: bottom (reversed), side quads, top.  Returns mesh and face kinds.
+    """Prism of every face: bottom (reversed), side quads, top.  Returns the mesh, whose faces
+    keep the face data of the face they rose from, and each face's part ("bottom", "side" or
+    "top").
 
     Where two faces share an edge and move the same way, their two side quads on it would be
     one wall seen from both sides, enclosing nothing: both are left out, so pieces that share
     edges (a face with a hole stored as triangles, a recomposed footprint) extrude to one
     volume without inner walls."""
-    polys, kinds, sides = [], [], []
+    polys, kinds, sides, source = [], [], [], []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
@@ -42,11 +47,12 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
             faces = [q[::-1] for q in faces]
         polys.extend(faces)
         kinds.extend(["bottom"] + ["side"] * k + ["top"])
+        source.extend([f] * (k + 2))
     inner = _paired_walls(sides)
     if inner:
-        polys = [q for i, q in enumerate(polys) if i not in inner]
-        kinds = [k for i, k in enumerate(kinds) if i not in inner]
-    out = Mesh.from_polygons(polys)
+        keep = [i for i in range(len(polys)) if i not in inner]
+        polys, kinds, source = [polys[i] for i in keep], [kinds[i] for i in keep], [source[i] for i in keep]
+    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring"))
     out.closed = True if mesh.n_faces == 1 else None  # a single face's prism is closed
     return out, kinds
 
@@ -84,8 +90,7 @@ def op_extrude(call):
         raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or world.y")
     first_normal = st.geometry.face_normals()[0]
     st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
-    st.context["face_kinds"] = kinds
-    st.context.pop("face_rings", None)
+    st.geometry = auto_tag(st.geometry, "extrude", kinds)
     align_scope_y(st, direction(first_normal))
     st.fit_scope()
 
@@ -105,6 +110,16 @@ def align_scope_y(st, y_axis: np.ndarray) -> None:
 
 
 # ---- offset -----------------------------------------------------------------------------------
+
+_RING_IDS = itertools.count()
+
+
+def new_ring_ids(rings) -> list:
+    """Fresh ids for the border rings of an ``offset`` (per piece: its face's index, -1 for
+    no ring): ids unique in the process, so rings stay apart when meshes are merged."""
+    ids = {}
+    return [None if r < 0 else ids.setdefault(r, next(_RING_IDS)) for r in rings]
+
 
 def _offset_ring(xy: np.ndarray, d: float) -> np.ndarray | None:
     """Mitre offset of a CCW ring by ``d`` (negative = inward), vertex for vertex; None if invalid."""
@@ -149,7 +164,7 @@ def op_offset(call):
     if mode not in ("all", "inside", "border"):
         raise CGARuntimeError(f"offset mode must be all, inside or border, not '{mode}'")
     mesh = st.geometry
-    polys, kinds, rings = [], [], []
+    polys, kinds, rings, source = [], [], [], []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
@@ -174,6 +189,7 @@ def op_offset(call):
                     polys.append(lift(quad))
                     kinds.append("border")
             rings.extend(f if k == "border" else -1 for k in kinds[before:])
+            source.extend([f] * (len(polys) - before))
             continue
         # large offsets: shapely's mitre buffer, border triangulated
         base = shapely.Polygon(xy).buffer(0)
@@ -193,11 +209,12 @@ def op_offset(call):
                     polys.append(lift(tri))
                     kinds.append("border")
         rings.extend(f if k == "border" else -1 for k in kinds[before:])
-    st.geometry = Mesh.from_polygons(polys)
-    st.context["face_kinds"] = kinds
+        source.extend([f] * (len(polys) - before))
     # CityEngine's border is one face with a hole; here it is pieces, remembered per ring so
     # that comp(f){ border : … } makes one shape of each ring, as CityEngine does
-    st.context["face_rings"] = rings
+    ring_ids = new_ring_ids(rings)
+    st.geometry = (Mesh.from_polygons(polys).inherit(mesh, source)
+                   .with_column("kind", kinds).with_column("ring", ring_ids))
     if st.geometry.n_faces:
         st.fit_scope()
 
@@ -252,10 +269,12 @@ def _is_convex2(xy: np.ndarray) -> bool:
 @operation("convexify", 0, 1)
 def op_convexify(call):
     st = call.state
-    polys = []
-    for p in st.geometry.polygons():
-        polys.extend(convex_parts(p))
-    st.geometry = Mesh.from_polygons(polys)
+    polys, source = [], []
+    for f, p in enumerate(st.geometry.polygons()):
+        parts = convex_parts(p)
+        polys.extend(parts)
+        source.extend([f] * len(parts))
+    st.geometry = Mesh.from_polygons(polys).inherit(st.geometry, source)
 
 
 # ---- small geometry edits -------------------------------------------------------------------------
@@ -326,7 +345,6 @@ def op_insert(call):
     bounds = mesh.bounds()
     note_asset(name, bounds)
     _fit_unit_mesh(st, mesh, bounds)
-    st.context.pop("face_kinds", None)
     st.context.pop("asset_material", None)
     several = asset is not None and asset.face_material is not None
     if several:  # per-face materials before the cut, which keeps them with their faces
@@ -364,7 +382,8 @@ def apply_asset_material(st, asset, face_material) -> None:
     of ``st.geometry``, or None) keeps several materials per face until an operation changes
     the faces; a single material gives its texture and colour where the shape has none."""
     if face_material is not None:
-        st.context["face_materials"] = (face_material, asset.materials, st.geometry.n_faces)
+        table = asset.materials
+        st.geometry = st.geometry.with_column("material", [table[k] for k in face_material])
         return
     own = {}
     if asset.material.texture:
@@ -460,7 +479,6 @@ def _primitive_op(kind):
             sc.origin = sc.to_world(shift[None])[0]
             sc.size = size
         _fit_unit_mesh(st, mesh, mesh.bounds())
-        st.context.pop("face_kinds", None)
         apply_trim(st, fitted=True)
     return fn
 

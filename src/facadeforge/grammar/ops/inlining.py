@@ -77,7 +77,6 @@ def merge_into(d, state, results: list, strategy: str) -> None:
     """Replace ``state``'s geometry and attributes by the merged ``results`` (``inline``)."""
     if not results:
         state.geometry = Mesh()
-        state.context.pop("face_materials", None)
         return
     if len(results) == 1:
         _take(state, results[0][0])
@@ -87,14 +86,14 @@ def merge_into(d, state, results: list, strategy: str) -> None:
     else:
         states = [s for s, _ in results]
         _agree(state, states)
-    meshes, per_piece, shared = _pieces(d, states)
+    meshes, shared = _pieces(d, states)
     if strategy == "unify":
         mesh, origin = boolean(meshes, [], "union", d)
     elif strategy == "recompose":
         mesh, origin = recompose(meshes, d)
     else:
         mesh, origin = Mesh.merge(meshes), _appended(meshes)
-    _set_geometry(state, mesh, origin, per_piece, shared)
+    _set_geometry(state, mesh, origin, meshes, shared)
 
 
 def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
@@ -105,10 +104,10 @@ def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
         _take(state, a_states[0])
     elif a_states:
         _agree(state, a_states)
-    meshes, per_piece, shared = _pieces(d, a_states + b_states)
+    meshes, shared = _pieces(d, a_states + b_states)
     n_a = sum(1 for s in a_states if s.geometry.n_faces)
     mesh, origin = boolean(meshes[:n_a], meshes[n_a:], kind, d)
-    _set_geometry(state, mesh, origin, per_piece, shared)
+    _set_geometry(state, mesh, origin, meshes, shared)
 
 
 def _appended(meshes: list) -> np.ndarray:
@@ -117,21 +116,17 @@ def _appended(meshes: list) -> np.ndarray:
                     np.int64).reshape(-1, 2)
 
 
-def _set_geometry(state, mesh: Mesh, origin: np.ndarray, per_piece, shared) -> None:
-    """The merged mesh, with the pieces' shared material or each face its own: the material of
-    the piece face it came from (``origin``: (piece, face) per face)."""
+def _set_geometry(state, mesh: Mesh, origin: np.ndarray, pieces: list, shared) -> None:
+    """The merged mesh; each face keeps the data of the piece face it came from (``origin``:
+    (piece, face) per face): its tags, and its material unless the pieces ``shared`` one."""
+    if mesh.n_faces and pieces:
+        offsets = np.cumsum([0] + [m.n_faces for m in pieces[:-1]])
+        mesh = mesh.inherit(Mesh.merge(pieces), offsets[origin[:, 0]] + origin[:, 1])
     state.geometry = mesh
-    state.context.pop("face_materials", None)
     if shared is not None:
         state.material = shared
-        return
-    if not mesh.n_faces:
-        return
-    offsets = np.cumsum([0] + [len(ms) for _, ms in per_piece[:-1]])
-    table = [m for _, ms in per_piece for m in ms]
-    face_material = np.array([offsets[p] + per_piece[p][0][f] for p, f in origin], np.int64)
-    state.material = {}
-    state.context["face_materials"] = (face_material, table, mesh.n_faces)
+    elif mesh.n_faces:
+        state.material = {}
 
 
 def _take(state, result) -> None:
@@ -144,26 +139,25 @@ def _take(state, result) -> None:
     state.label = result.label
     state.tags = dict(result.tags)
     state.trim = result.trim
-    state.context.pop("face_materials", None)
-    if "face_materials" in result.context:
-        state.context["face_materials"] = result.context["face_materials"]
 
 
 def _pieces(d, states):
-    """Meshes of the results that have faces; then either ``per_piece`` (for each, face →
-    material index and its [Material]) or, when they all share one material dict, ``shared``."""
+    """Meshes of the results that have faces, and the one material dict they all share, or
+    None; then every face carries its exported material (face column ``material``)."""
     keep = [s for s in states if s.geometry.n_faces]
-    meshes = [s.geometry for s in keep]
-    if all(s.material == keep[0].material and "face_materials" not in s.context for s in keep):
-        return meshes, None, dict(keep[0].material) if keep else {}
-    per_piece = []
+    if all(s.material == keep[0].material and s.geometry.column("material") is None for s in keep):
+        return [s.geometry for s in keep], dict(keep[0].material) if keep else {}
+    meshes = []
     for s in keep:
-        fm = s.context.get("face_materials")
-        if fm is not None and fm[2] == s.geometry.n_faces:
-            per_piece.append((np.asarray(fm[0]), [d.material(s, am) for am in fm[1]]))
-        else:
-            per_piece.append((np.zeros(s.geometry.n_faces, np.int64), [d.material(s)]))
-    return meshes, per_piece, None
+        own = s.geometry.column("material")
+        made: dict = {}
+        column = []
+        for am in (own if own is not None else [None] * s.geometry.n_faces):
+            if id(am) not in made:
+                made[id(am)] = d.material(s, am)
+            column.append(made[id(am)])
+        meshes.append(s.geometry.with_column("material", column))
+    return meshes, None
 
 
 def _agree(state, states) -> None:

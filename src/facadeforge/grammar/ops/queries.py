@@ -121,9 +121,12 @@ def _is_instanced(env, args):
 
 
 def _material_names(env) -> list[str]:
-    fm = env.state.context.get("face_materials")
-    if fm is not None and fm[2] == env.state.geometry.n_faces:
-        return [m.name for m in fm[1]]
+    own = env.state.geometry.column("material")
+    if own is not None:
+        names: dict = {}
+        for m in own:
+            names.setdefault(id(m), str(env.state.material.get("name", "")) if m is None else m.name)
+        return list(names.values())
     return [str(env.state.material.get("name", ""))]
 
 

@@ -41,7 +41,6 @@ def _roof(call, builder):
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
     st.geometry = Mesh.from_polygons(polys)
-    st.context.pop("face_kinds", None)
     align_scope_y(st, first_normal)
     st.fit_scope()
 

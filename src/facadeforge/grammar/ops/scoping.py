@@ -20,6 +20,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool
 from . import operation
 from .geometry import align_scope_y, asset_material_keys
+from .tagging import auto_tag
 
 PIVOT_KEY = "pivot"
 UV_SETS_KEY = "uv_sets"
@@ -263,7 +264,6 @@ def op_footprint(call):
     if not st.geometry.n_faces:
         return
     st.geometry = footprint_mesh(st)
-    st.context.pop("face_kinds", None)
     if st.geometry.n_faces:
         st.fit_scope()
 
@@ -319,8 +319,8 @@ def op_taper(call):
     normal = polygon_normal(base)
     if not normal.any():
         raise CGARuntimeError("taper: the first face is degenerate (no area); nothing to taper")
-    st.geometry = taper_mesh(base, normal, height)
-    st.context["face_kinds"] = ["bottom"] + ["side"] * len(base)
+    st.geometry = auto_tag(taper_mesh(base, normal, height).inherit(g, [0] * (len(base) + 1)),
+                           "taper", ["bottom"] + ["side"] * len(base))
     align_scope_y(st, normal)
     st.fit_scope()
     if height < 0:  # the scope starts at the base and reaches down: scope.sy < 0
@@ -349,7 +349,7 @@ def op_reset_material(call):
         raise CGARuntimeError(f"resetMaterial: target '{target}' is not one of shape, geometry, all")
     own = asset_material_keys(st)
     if target in ("geometry", "all"):
-        st.context.pop("face_materials", None)
+        st.geometry = st.geometry.without_columns("material")
         st.context.pop("asset_material", None)
         st.material = {k: v for k, v in st.material.items() if own.get(k, _NONE) != v}
         own = {}

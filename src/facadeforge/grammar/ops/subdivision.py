@@ -14,9 +14,14 @@ from ...model.scope import Scope
 from .. import ast as A
 from ..values import CGARuntimeError, Floating, Relative, to_float
 from . import operation
+from .tagging import TagQuery, tag_selector
 from .trimming import MeshEdges, comp_trim
 
 _AXES = {"x": 0, "y": 1, "z": 2}
+
+#: Face columns that describe the last ``offset`` (``inside``/``border`` and the border rings):
+#: its successors' splits and components no longer have them.
+OFFSET_COLUMNS = ("kind", "ring")
 
 
 # ---- split --------------------------------------------------------------------------------
@@ -178,8 +183,8 @@ def op_split(call):
             sz = size.copy()
             sz[axis] = width
             ps.scope = Scope.trusted(o @ rot.T + org, rot, sz)
+        ps.geometry = ps.geometry.without_columns(*OFFSET_COLUMNS)
         ctx = dict(st.context)
-        ctx.pop("face_kinds", None)
         ctx["split.index"] = i
         ctx["split.total"] = n
         ps.context = ctx
@@ -210,7 +215,7 @@ def _split_uv(call, k: int):
     n = len(pieces)
     for i, (branch, start, width) in enumerate(pieces):
         a, b = lo + start / scale, lo + (start + width) / scale
-        polys, uvs = [], []
+        polys, uvs, source = [], [], []
         for f in range(mesh.n_faces):
             c0, c1 = mesh.starts[f], mesh.starts[f + 1]
             pts = np.column_stack([uv[c0:c1], mesh.vertices[mesh.corners[c0:c1]]]).tolist()
@@ -222,13 +227,13 @@ def _split_uv(call, k: int):
                 arr = np.array(pts)
                 polys.append(arr[:, 2:5])
                 uvs.append(arr[:, 0:2])
+                source.append(f)
         if not polys:
             continue
         ps = st.child(i)
-        ps.geometry = Mesh.from_polygons(polys, uvs)
+        ps.geometry = Mesh.from_polygons(polys, uvs).inherit(mesh, source, drop=OFFSET_COLUMNS)
         ps.fit_scope()
         ctx = dict(st.context)
-        ctx.pop("face_kinds", None)
         ctx["split.index"], ctx["split.total"] = i, n
         ps.context = ctx
         out.append((ps, branch.ops, {"axis": "uv"[k], "index": i}))
@@ -339,6 +344,9 @@ SELECTOR_WORDS = frozenset({
 def _selector_key(call, branch) -> object:
     s = branch.selector
     env = call.env
+    query = tag_selector(s, env)
+    if query is not None:
+        return query
     if isinstance(s, A.Name) and (s.name in SELECTOR_WORDS or not (
             s.name in env.locals or env.module.attr(s.name) is not None
             or env.module.function(s.name, 0) is not None)):
@@ -438,11 +446,12 @@ def _part_faces(st, kind: str) -> list:
     n = st.geometry.n_faces
     if n == 0 or kind == "h":
         return []
-    fm = st.context.get("face_materials")
-    if kind == "m" and fm is not None and fm[2] == n:
-        ids = np.asarray(fm[0])
-        _, first = np.unique(ids, return_index=True)
-        return [np.flatnonzero(ids == ids[i]) for i in np.sort(first)]
+    materials = st.geometry.column("material")
+    if kind == "m" and materials is not None:
+        groups: dict = {}
+        for f, m in enumerate(materials):
+            groups.setdefault(id(m), []).append(f)
+        return [np.array(g) for g in groups.values()]
     return [np.arange(n)]
 
 
@@ -463,16 +472,18 @@ def _comp_parts(call, st, kind: str):
             else [parts[i] for i in idx]
         for j, faces in enumerate(groups):
             ps = st.child(len(out))
-            ps.geometry = st.geometry.subset(faces)
+            ps.geometry = st.geometry.subset(faces).without_columns(*OFFSET_COLUMNS)
             ps.fit_scope()
-            ps.context = {**_clean(st.context, faces, st.geometry.n_faces), "comp.index": j,
+            ps.context = {**st.context, "comp.index": j,
                           "comp.total": len(groups), "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "index": j,
                                          "components": faces.tolist()}))
     return out
 
 
-def _match(key, sel_table, n, extra=None) -> np.ndarray:
+def _match(key, sel_table, n, extra=None, mesh=None) -> np.ndarray:
+    if isinstance(key, TagQuery):
+        return key.faces(mesh) if mesh is not None else np.zeros(n, bool)
     if isinstance(key, bool):
         return np.full(n, key)
     if isinstance(key, int):
@@ -494,11 +505,9 @@ def _comp_faces(call, st):
         return []
     normals = mesh.face_normals()
     table = classify_faces(normals, st.scope.rotation, call.derivation.object_scope.rotation)
-    kinds = st.context.get("face_kinds")
-    extra = None
-    if kinds is not None and len(kinds) == n:
-        k = np.asarray(kinds, dtype=object)
-        extra = {"inside": k == "inside", "border": k == "border", "remainder": k == "remainder"}
+    kinds = mesh.column("kind")
+    if kinds is not None:
+        extra = {"inside": kinds == "inside", "border": kinds == "border"}
     else:
         extra = {"inside": np.zeros(n, bool), "border": np.zeros(n, bool)}
     taken = np.zeros(n, bool)
@@ -508,34 +517,33 @@ def _comp_faces(call, st):
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
         key = _selector_key(call, branch)
-        m = _match(key, table, n, extra) & ~taken
+        m = _match(key, table, n, extra, mesh) & ~taken
         idx = np.flatnonzero(m)
         taken |= m
         if len(idx) == 0:
             continue
         sel_name = key if isinstance(key, str) else str(key)
         if branch.mode == "=":
-            sub = mesh.subset(idx)
+            sub = mesh.subset(idx).without_columns(*OFFSET_COLUMNS)
             ps = st.child(len(out))
             ps.scope = face_scope(mesh.vertices[mesh.face(idx[0])], normals[idx[0]])
             ps.geometry = sub
             ps.fit_scope()
             ps.trim = comp_trim(st, edges, idx, ps.scope)
-            ps.context = {**_clean(st.context, idx, n), "comp.index": 0, "comp.total": 1,
-                          "comp.sel": sel_name}
+            ps.context = {**st.context, "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
-        groups = _components(idx, st.context.get("face_rings"), kinds, n)
+        groups = _components(idx, mesh.column("ring"))
         for j, group in enumerate(groups):
             f = group[0]
             ps = st.child(len(out))
             poly = mesh.vertices[mesh.face(f)]
             ps.scope = face_scope(poly, normals[f])
-            ps.geometry = mesh.subset(group)
+            ps.geometry = mesh.subset(group).without_columns(*OFFSET_COLUMNS)
             if len(group) > 1:
                 ps.fit_scope()
             ps.trim = comp_trim(st, edges, tuple(group), ps.scope)
-            ps.context = {**_clean(st.context, group, n), "comp.index": j,
+            ps.context = {**st.context, "comp.index": j,
                           "comp.total": len(groups), "comp.sel": sel_name}
             info = {"sel": sel_name, "index": j, "component": int(f)}
             if len(group) > 1:
@@ -544,15 +552,16 @@ def _comp_faces(call, st):
     return out
 
 
-def _components(idx: np.ndarray, rings, kinds, n: int) -> list[list[int]]:
+def _components(idx: np.ndarray, rings) -> list[list[int]]:
     """The components of ``comp(f)`` among the selected faces ``idx``: one per face, except the
-    pieces of one ``offset`` border ring, which are one face with a hole in CityEngine."""
-    if rings is None or kinds is None or len(rings) != n or len(kinds) != n:
+    pieces of one ``offset`` border ring (face column ``ring``), which are one face with a hole
+    in CityEngine."""
+    if rings is None:
         return [[int(f)] for f in idx]
     groups, ring_group = [], {}
     for f in idx:
         r = rings[f]
-        if r < 0:
+        if r is None:
             groups.append([int(f)])
         elif r in ring_group:
             ring_group[r].append(int(f))
@@ -560,16 +569,6 @@ def _components(idx: np.ndarray, rings, kinds, n: int) -> list[list[int]]:
             ring_group[r] = [int(f)]
             groups.append(ring_group[r])
     return groups
-
-
-def _clean(ctx: dict, faces=None, n_faces: int = 0) -> dict:
-    """The context a component inherits: no face kinds, and per-face materials (an asset's, an
-    inline's or a Boolean's) narrowed to the component's ``faces`` of the ``n_faces``."""
-    out = {k: v for k, v in ctx.items() if k not in ("face_kinds", "face_rings")}
-    fm = out.pop("face_materials", None)
-    if fm is not None and faces is not None and fm[2] == n_faces:
-        out["face_materials"] = (np.asarray(fm[0])[np.asarray(faces)], fm[1], len(faces))
-    return out
 
 
 def _comp_edges(call, st):
@@ -625,7 +624,7 @@ def _comp_edges(call, st):
                 y = np.array([0.0, 1.0, 0.0])
             ps.scope = Scope.from_axes(a, unit[e], y, (lengths[e], 0.0, 0.0))
             ps.geometry = Mesh()
-            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+            ps.context = {**st.context, "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(e)}))
     return out
@@ -676,7 +675,7 @@ def _comp_vertices(call, st):
             ps = st.child(len(out))
             ps.scope = Scope(pts[v], st.scope.rotation.copy(), np.zeros(3))
             ps.geometry = Mesh()
-            ps.context = {**_clean(st.context), "comp.index": j, "comp.total": len(idx),
+            ps.context = {**st.context, "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(v)}))
     return out

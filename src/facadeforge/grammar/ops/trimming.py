@@ -203,13 +203,13 @@ def _cut(mesh: Mesh, origin: np.ndarray, normal: np.ndarray) -> tuple[Mesh, np.n
             polys.append(q @ frame.T + origin)
             uvs.append(quv)
             src.append(f)
-    cut = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None)
+    cut = Mesh.from_polygons(polys, uvs if mesh.corner_uvs is not None else None).inherit(mesh, src)
     return Mesh.merge([mesh.subset(kept), cut]), np.concatenate([kept, src]).astype(np.int64)
 
 
 def apply_trim(st, fitted: bool = False) -> bool:
     """Cut the shape's geometry at its active trim planes (``i()``, primitives, ``trim()``);
-    per-face materials and ``offset`` face kinds follow their faces.  True if anything was cut.
+    the faces' data (materials, tags, ``offset`` kinds) follows them.  True if anything was cut.
     ``fitted``: the geometry was just fitted to the scope box, so planes clear of the box are
     skipped without looking at the vertices."""
     trim = st.trim
@@ -223,27 +223,11 @@ def apply_trim(st, fitted: bool = False) -> bool:
         if not reaching.any():
             return False
         active = (active[0][reaching], active[1][reaching])
-    out, source = trim_mesh(mesh, *active)
+    out, _ = trim_mesh(mesh, *active)
     if out is mesh:
         return False
     st.geometry = out
-    _follow_faces(st.context, source, mesh.n_faces)
     return True
-
-
-def _follow_faces(ctx: dict, source: np.ndarray, n_before: int) -> None:
-    kinds = ctx.get("face_kinds")
-    if kinds is not None:
-        if len(kinds) == n_before:
-            ctx["face_kinds"] = [kinds[i] for i in source]
-        else:
-            ctx.pop("face_kinds")
-    fm = ctx.get("face_materials")
-    if fm is not None:
-        if fm[2] == n_before:
-            ctx["face_materials"] = (np.asarray(fm[0])[source], fm[1], len(source))
-        else:
-            ctx.pop("face_materials")
 
 
 @operation("trim", 0, 0)
