@@ -11,8 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-import numpy as np
-
 from ...geometry import cleanup as kernel
 from ..values import CGARuntimeError
 from . import operation
