@@ -117,10 +117,11 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | 
         below, buv = _clip_py(pts, uvs, axis, c, keep_below=True)
         pts, uvs = _clip_py(pts, uvs, axis, c, keep_below=False)
         if len(below) >= 3:
-            out.append(Mesh(np.array(below), corners=np.arange(len(below)),
-                            starts=np.array([0, len(below)]),
-                            corner_uvs=None if buv is None else np.array(buv), closed=False,
-                            face_data=mesh.face_data))
+            piece = Mesh(np.array(below), corners=np.arange(len(below)),
+                         starts=np.array([0, len(below)]),
+                         corner_uvs=None if buv is None else np.array(buv), closed=False,
+                         face_data=mesh.face_data)
+            out.append(piece if mesh.corner_data is None else piece.inherit(mesh, [0]))
         else:
             out.append(Mesh())
     return out

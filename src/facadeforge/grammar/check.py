@@ -90,11 +90,11 @@ class _Checker:
             for row in node.rows:
                 for e in row:
                     self.expr(e, scope)
-        elif t is A.Unary:
-            self.expr(node.operand, scope)
+        elif t is A.Unary:  # a logical selector (``!inside``, ``left || right``) keeps its words
+            self.expr(node.operand, scope, selector_ok=selector_ok)
         elif t is A.Binary:
-            self.expr(node.left, scope)
-            self.expr(node.right, scope)
+            self.expr(node.left, scope, selector_ok=selector_ok)
+            self.expr(node.right, scope, selector_ok=selector_ok)
         elif t in (A.CaseExpr,):
             for c, v in node.branches:
                 self.expr(c, scope)

@@ -14,6 +14,7 @@ from dataclasses import replace
 from ...geometry import cleanup as kernel
 from ..values import CGARuntimeError
 from . import operation
+from .tagging import without_tags
 
 #: context entries that describe the current geometry: invalid once the geometry is replaced by
 #: the initial shape's
@@ -121,7 +122,7 @@ def op_reduce_geometry(call):
     if not st.geometry.n_faces or frac == 0:
         return
     mesh, source = kernel.reduce(st.geometry, frac)
-    st.geometry = mesh.inherit(st.geometry, source)
+    st.geometry = without_tags(mesh.inherit(st.geometry, source))  # CityEngine clears tags
 
 
 NORMAL_MODES = ("hard", "conform", "soft", "auto")

@@ -14,6 +14,7 @@ from ..values import CGARuntimeError
 from . import operation
 from .roofs import _roof
 from .subdivision import _AXES, OFFSET_COLUMNS, _selector_key, call_pieces
+from .tagging import without_tags
 
 # ---- innerRectangle -------------------------------------------------------------------------
 
@@ -354,7 +355,8 @@ def op_split_area(call):
         ps.geometry = mesh.with_vertices(st.scope.to_world(mesh.vertices))
         ps.scope = Scope.trusted(st.scope.origin, st.scope.rotation, st.scope.size)
         ps.fit_scope()
-        ps.geometry = ps.geometry.without_columns(*OFFSET_COLUMNS)
+        # CityEngine's splitArea does not support tags and clears them
+        ps.geometry = without_tags(ps.geometry.without_columns(*OFFSET_COLUMNS))
         ctx = dict(st.context)
         ctx["split.index"], ctx["split.total"] = i, n
         ps.context = ctx

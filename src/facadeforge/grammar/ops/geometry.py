@@ -7,54 +7,118 @@ import itertools
 import numpy as np
 
 from ...errors import InputError
-from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, polygon_normal, triangulate_polygon
+from ...geometry.mesh import (
+    EPS,
+    Mesh,
+    cross3,
+    plane_basis,
+    polygon_normal,
+    triangulate_polygon,
+    weld_ids,
+)
 from ...geometry.polygon import simple_pieces
 from ...geometry.primitives import PRIMITIVES, unit_ring
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
-from .tagging import auto_tag
+from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
 from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
 
 def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, list[str]]:
-    """Prism of every face: bottom (reversed), side quads, top.  Returns the mesh, whose faces
-    keep the face data of the face they rose from, and each face's part ("bottom", "side" or
-    "top").
+    """Prism of every face: bottom (reversed), side quads, top.  Returns the mesh and each face's
+    part: "bottom", "side.outer", "side.inner" (a side rising from a hole's edge) or "top".
+
+    Face data follows CityEngine's tag propagation: every face keeps the data of the face it
+    rose from, a side face also takes the tags of the edge it rose from, and the top's and
+    bottom's edges and vertices keep theirs (corner data).
 
     Where two faces share an edge and move the same way, their two side quads on it would be
     one wall seen from both sides, enclosing nothing: both are left out, so pieces that share
     edges (a face with a hole stored as triangles, a recomposed footprint) extrude to one
     volume without inner walls."""
-    polys, kinds, sides, source = [], [], [], []
+    polys, kinds, sides, source, from_edge = [], [], [], [], []
+    track = mesh.corner_data is not None
+    vsrc, esrc = [], []
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
+        base = int(mesh.starts[f])
         p = mesh.vertices[mesh.face(f)]
         d = direction_of_face(normals[f]) * distance
-        top = p + d
-        bottom = p[::-1]
-        faces = [bottom]
         k = len(p)
+        own = list(range(base, base + k))
+        faces = [p[::-1]]
+        corner_src = [(own, own, True)]  # (vertex sources, edge sources, reversed)
         for j in range(k):
             a, b = p[j], p[(j + 1) % k]
             if mesh.n_faces > 1:
                 sides.append((len(polys) + len(faces), a, b, d))
             faces.append(np.array([a, b, b + d, a + d]))
-        faces.append(top)
-        if distance < 0:
-            faces = [q[::-1] for q in faces]
-        polys.extend(faces)
-        kinds.extend(["bottom"] + ["side"] * k + ["top"])
+            nb = base + (j + 1) % k
+            corner_src.append(([base + j, nb, nb, base + j], [base + j, -1, base + j, -1], False))
+        faces.append(p + d)
+        corner_src.append((own, own, False))
+        flip = distance < 0
+        for q, (vs, es, rev) in zip(faces, corner_src):
+            polys.append(q[::-1] if flip else q)
+            if track:
+                for _ in range(int(rev) + int(flip)):  # reversing moves an edge's data along
+                    n = len(vs)
+                    vs, es = vs[::-1], [es[(n - 2 - i) % n] for i in range(n)]
+                vsrc.extend(vs)
+                esrc.extend(es)
+        kinds.extend(["bottom"] + ["side.outer"] * k + ["top"])
         source.extend([f] * (k + 2))
+        from_edge.extend([-1] + own + [-1])
     inner = _paired_walls(sides)
     if inner:
         keep = [i for i in range(len(polys)) if i not in inner]
-        polys, kinds, source = [polys[i] for i in keep], [kinds[i] for i in keep], [source[i] for i in keep]
-    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring"))
+        if track:
+            first = np.concatenate([[0], np.cumsum([len(q) for q in polys])])
+            cs = np.concatenate([np.arange(first[i], first[i + 1]) for i in keep])
+            vsrc, esrc = [vsrc[c] for c in cs], [esrc[c] for c in cs]
+        polys, kinds = [polys[i] for i in keep], [kinds[i] for i in keep]
+        source, from_edge = [source[i] for i in keep], [from_edge[i] for i in keep]
+    for i in _hole_walls(polys, kinds):
+        kinds[i] = "side.inner"
+    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring"),
+                                            corner_source=(vsrc, esrc) if track else None)
+    if mesh.corner_column(EDGE_TAGS) is not None:
+        edge_tags = corner_tags(mesh, EDGE_TAGS)
+        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
     out.closed = True if mesh.n_faces == 1 else None  # a single face's prism is closed
     return out, kinds
+
+
+def _hole_walls(polys: list, kinds: list) -> list[int]:
+    """The side walls standing on a hole's edge: their bottom edges form loops that turn
+    clockwise around the extrusion (an outline turns counter-clockwise)."""
+    walls = [i for i, k in enumerate(kinds) if k.startswith("side")]
+    if len(walls) < 3:
+        return []
+    pts = np.array([polys[i][:2] for i in walls]).reshape(-1, 3)
+    ids = weld_ids(pts).reshape(-1, 2)
+    up = np.array([polys[i][3] - polys[i][0] for i in walls])
+    nxt = {}
+    for w, (a, b) in enumerate(ids):
+        nxt.setdefault(a, []).append((b, w))
+    seen, out = set(), []
+    for start in range(len(walls)):
+        if start in seen:
+            continue
+        loop, w = [], start
+        while w not in seen:
+            seen.add(w)
+            loop.append(w)
+            cand = nxt.get(ids[w][1], [])
+            w = next((x for _, x in cand if x not in seen), start)
+        ring = pts.reshape(-1, 2, 3)[loop, 0]
+        turn = cross3(ring, np.roll(ring, -1, axis=0)).sum(axis=0)
+        if turn @ up[loop].sum(axis=0) < 0:
+            out.extend(walls[x] for x in loop)
+    return out
 
 
 def _paired_walls(sides: list) -> set:
@@ -293,21 +357,29 @@ def op_envelope(call):
     st = call.state
     max_h, base_h = call.num(1), call.num(2)
     angle = call.num(3, 45.0)
-    polys = []
-    for p in st.geometry.polygons():
+    polys, parts, source = [], [], []
+    mesh = st.geometry
+    for f in range(mesh.n_faces):
+        p = mesh.vertices[mesh.face(f)]
         n = polygon_normal(p)
         basis = plane_basis(n, p[1] - p[0])
         xy = (p - p[0]) @ basis[:, :2]
-        walls, _ = extrude_mesh(Mesh.from_polygons([p]), lambda nn: nn, base_h)
-        keep = [q for q in walls.polygons() if abs(polygon_normal(q) @ n) < 0.99 or
-                polygon_normal(q) @ n < 0]
-        polys.extend(keep)
+        walls, kinds = extrude_mesh(Mesh.from_polygons([p]), lambda nn: nn, base_h)
+        for q, kind in zip(walls.polygons(), kinds):
+            if kind != "top":
+                polys.append(q)
+                parts.append("side.base" if kind == "side.outer" else kind)
         faces = roof_hip(xy, angle).faces
         h_top = max_h - base_h
         for q in faces:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(np.minimum(q[:, 2], h_top) + base_h, n))
-    st.geometry = Mesh.from_polygons([q for q in polys if np.linalg.norm(cross3(q[1] - q[0], q[-1] - q[0])) > 0])
+            parts.append("top" if np.all(q[:, 2] >= h_top) else "side.slope")
+        source.extend([f] * (len(parts) - len(source)))
+    keep = [i for i, q in enumerate(polys) if np.linalg.norm(cross3(q[1] - q[0], q[-1] - q[0])) > 0]
+    out = Mesh.from_polygons([polys[i] for i in keep]).inherit(
+        mesh, [source[i] for i in keep], drop=("kind", "ring"))
+    st.geometry = auto_tag(out, "envelope", [parts[i] for i in keep])
     st.fit_scope()
 
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ..values import CGARuntimeError
+from .tagging import auto_tag
 
 #: Vertices closer than this are one vertex when ``recompose`` reconnects pieces (metres).
 WELD_TOLERANCE = 1e-6
@@ -108,6 +109,9 @@ def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
     n_a = sum(1 for s in a_states if s.geometry.n_faces)
     mesh, origin = boolean(meshes[:n_a], meshes[n_a:], kind, d)
     _set_geometry(state, mesh, origin, meshes, shared)
+    if len(origin):  # auto-tags: each face names the operand it came from
+        state.geometry = auto_tag(state.geometry, "bool",
+                                  np.where(origin[:, 0] < n_a, "A", "B").tolist())
 
 
 def _appended(meshes: list) -> np.ndarray:

@@ -7,11 +7,14 @@ import numpy as np
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
 from ..values import CGARuntimeError
 from . import operation
+from .tagging import auto_tag
 
 
 def _roof(call, builder):
     """Roof volume on every face: the roof planes (and gable/shed walls) plus the original face
-    as the bottom, as CityEngine builds it; the scope's y follows the first face normal.
+    as the bottom, as CityEngine builds it; the scope's y follows the first face normal.  Faces
+    keep their face's data and are auto-tagged ``roof.bottom``, ``roof.top`` (the planes) and
+    ``roof.side`` (gable walls; ``roof.side.outer`` for the other roofs' walls).
 
     ``builder(xy, basis, normal)`` gets each counter-clockwise face in its plane frame (``basis``
     columns u, v, normal) and returns roof faces as (k, 3) arrays of (u, v, height)."""
@@ -22,8 +25,9 @@ def _roof(call, builder):
     if not mesh.n_faces:
         return
     first_normal = mesh.face_normals()[0]
-    polys = []
-    for p in mesh.polygons():
+    polys, source, parts = [], [], []
+    side = "side" if call.name == "roofGable" else "side.outer"
+    for f, p in enumerate(mesh.polygons()):
         n = polygon_normal(p)
         if not n.any():
             continue
@@ -37,10 +41,15 @@ def _roof(call, builder):
         except ValueError as e:
             raise CGARuntimeError(f"{call.name}: {e}") from None
         polys.append(p[::-1])  # bottom
+        parts.append("bottom")
         for q in faces:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
-    st.geometry = Mesh.from_polygons(polys)
+            # a wall (gable, the shed's high side) stands upright on the face; planes slope
+            parts.append(side if abs(polygon_normal(polys[-1]) @ n) < 1e-6 else "top")
+        source.extend([f] * (len(faces) + 1))
+    st.geometry = auto_tag(Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring")),
+                           "roof", parts)
     align_scope_y(st, first_normal)
     st.fit_scope()
 

@@ -12,9 +12,16 @@ from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from .. import ast as A
-from ..values import CGARuntimeError, Floating, Relative, to_float
+from ..values import CGARuntimeError, Floating, Relative, to_bool, to_float
 from . import operation
-from .tagging import TagQuery, tag_selector
+from .tagging import (
+    EDGE_TAGS,
+    TagIndex,
+    auto_tag_edges,
+    component_env,
+    corner_tags,
+    with_corner_tags,
+)
 from .trimming import MeshEdges, comp_trim
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -341,12 +348,77 @@ SELECTOR_WORDS = frozenset({
     "noStreetSide", "eave", "ridge", "hip", "valley"})
 
 
+class LogicalSelector:
+    """A selector that is an expression over components: ``isTagged(…)``, or selector words
+    combined with ``!``, ``&&`` and ``||`` (CityEngine 2023.1, "logical selector expressions").
+    It is evaluated once per component with the words bound to that component's truth values;
+    other names and functions in it read the shape being split, not the component."""
+
+    __slots__ = ("expr", "env")
+
+    def __init__(self, expr, env):
+        self.expr, self.env = expr, env
+
+    @staticmethod
+    def wanted(expr) -> bool:
+        return (isinstance(expr, A.Call) and expr.name == "isTagged") or (
+            isinstance(expr, A.Unary) and expr.op == "!") or (
+            isinstance(expr, A.Binary) and expr.op in ("&&", "||"))
+
+    def _words(self, node, table: dict, out: dict) -> dict:
+        if isinstance(node, A.Name) and node.name in table:
+            out[node.name] = table[node.name]
+        for child in vars(node).values() if isinstance(node, A.Node) else ():
+            for c in child if isinstance(child, tuple) else (child,):
+                if isinstance(c, A.Node):
+                    self._words(c, table, out)
+        return out
+
+    def mask(self, table: dict, n: int, tags) -> np.ndarray:
+        """(n,) bool; ``tags(query, sub)`` gives the components a tag query selects."""
+        words = self._words(self.expr, table, {})
+        masks: dict = {}
+        index = tags if tags is not None else (lambda q, sub: np.zeros(n, bool))
+        return np.array([to_bool(component_env(self.env, i, words, masks, index)
+                                 .evaluator(self.expr)) for i in range(n)], bool)
+
+    def __str__(self) -> str:  # comp.sel
+        return _selector_text(self.expr)
+
+
+def _selector_text(node) -> str:
+    if isinstance(node, A.Name):
+        return node.name
+    if isinstance(node, A.Str):
+        return f'"{node.value}"'
+    if isinstance(node, A.Call):
+        return f"{node.name}({', '.join(_selector_text(a) for a in node.args)})"
+    if isinstance(node, A.Unary):
+        return node.op + _selector_text(node.operand)
+    if isinstance(node, A.Binary):
+        return f"{_selector_text(node.left)} {node.op} {_selector_text(node.right)}"
+    return "…"
+
+
+def _tag_masks(mesh, kind: str):
+    """``(query, sub) -> mask`` over ``mesh``'s components of ``kind`` (f, e, v, or p: the
+    edges of a single polygon in corner order), its tag index built on first use."""
+    built: list = []
+
+    def masks(query, sub):
+        if not built:
+            built.append(TagIndex(mesh))
+        ix = built[0]
+        return {"f": ix.faces, "e": ix.edges, "v": ix.vertices, "p": ix.polygon_edges}[kind](
+            query, sub)
+    return masks
+
+
 def _selector_key(call, branch) -> object:
     s = branch.selector
     env = call.env
-    query = tag_selector(s, env)
-    if query is not None:
-        return query
+    if LogicalSelector.wanted(s):
+        return LogicalSelector(s, env)
     if isinstance(s, A.Name) and (s.name in SELECTOR_WORDS or not (
             s.name in env.locals or env.module.attr(s.name) is not None
             or env.module.function(s.name, 0) is not None)):
@@ -481,9 +553,12 @@ def _comp_parts(call, st, kind: str):
     return out
 
 
-def _match(key, sel_table, n, extra=None, mesh=None) -> np.ndarray:
-    if isinstance(key, TagQuery):
-        return key.faces(mesh) if mesh is not None else np.zeros(n, bool)
+def _match(key, sel_table, n, extra=None, tags=None) -> np.ndarray:
+    """Components ``key`` selects: a word of ``sel_table`` or ``extra`` (arrays of n), an index,
+    a bool, or a :class:`LogicalSelector` (``tags``: ``(query, sub) -> mask`` for its
+    ``isTagged``)."""
+    if isinstance(key, LogicalSelector):
+        return key.mask({**sel_table, **(extra or {})}, n, tags)
     if isinstance(key, bool):
         return np.full(n, key)
     if isinstance(key, int):
@@ -513,11 +588,12 @@ def _comp_faces(call, st):
     taken = np.zeros(n, bool)
     out = []
     edges = MeshEdges(mesh)  # trim planes, worked out only if a successor needs them
+    tags = _tag_masks(mesh, "f")
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
         key = _selector_key(call, branch)
-        m = _match(key, table, n, extra, mesh) & ~taken
+        m = _match(key, table, n, extra, tags) & ~taken
         idx = np.flatnonzero(m)
         taken |= m
         if len(idx) == 0:
@@ -611,9 +687,10 @@ def _comp_edges(call, st):
     _add_street_selectors(table, outward, call.derivation.object_scope.rotation)
     taken = np.zeros(n, bool)
     out = []
+    tags = _tag_masks(mesh, "e")
     for branch in call.branches:
         k = _selector_key(call, branch)
-        idx = np.flatnonzero(_match(k, table, n) & ~taken)
+        idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
         taken[idx] = True
         for j, e in enumerate(idx):
             a, b, normal, _ = edges[e]
@@ -667,9 +744,10 @@ def _comp_vertices(call, st):
     table = {"all": np.ones(n, bool)}
     out = []
     taken = np.zeros(n, bool)
+    tags = _tag_masks(mesh, "v")
     for branch in call.branches:
         k = _selector_key(call, branch)
-        idx = np.flatnonzero(_match(k, table, n) & ~taken)
+        idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
         taken[idx] = True
         for j, v in enumerate(idx):
             ps = st.child(len(out))
@@ -707,6 +785,57 @@ class _PlanarEdges:
         t["all"] = np.ones(k, bool)
         _add_street_selectors(t, outward3, object_rot)
         self.table = t
+        self.tags = _tag_masks(mesh, "p")
+
+    def setback_tags(self, face: Mesh, mesh: Mesh, selected, remainder: bool) -> Mesh:
+        """Setback auto-tags on the edges of ``mesh``, a piece of the single face ``face``
+        (reference, setback "Component tags"): on an original edge, ``setback.front`` if that
+        edge was selected, else ``setback.side`` (``setback.remainder`` on every original edge
+        of the remainder); elsewhere ``setback.back``, the new setback edges, which also take
+        the tags of the selected edge they run along.  Edges between two pieces of the same
+        shape (a holed piece stored as pieces) get none."""
+        a = self.xy
+        b = np.roll(a, -1, axis=0)
+        d = b - a
+        dd = np.maximum((d * d).sum(axis=1), EPS)
+        unit = d / np.sqrt(dd)[:, None]
+        own = corner_tags(face, EDGE_TAGS) if face.corner_column(EDGE_TAGS) is not None else None
+        local = self.sc.to_local(mesh.vertices[mesh.corners])[:, :2]
+        nxt = mesh.next_corners()
+        ends = [tuple(np.round(np.concatenate([local[c], local[nxt[c]]]), 7)) for c in range(len(local))]
+        twins = {(e[2], e[3], e[0], e[1]) for e in ends}
+        parts, copied = [], []
+        for c, (q, r) in enumerate(zip(local, local[nxt])):
+            tq = ((q - a) * d).sum(axis=1) / dd
+            tr = ((r - a) * d).sum(axis=1) / dd
+            on = (np.abs(a + tq[:, None] * d - q).max(axis=1) <= 1e-6) & \
+                (np.abs(a + tr[:, None] * d - r).max(axis=1) <= 1e-6) & \
+                (np.minimum(tq, tr) >= -1e-9) & (np.maximum(tq, tr) <= 1 + 1e-9)
+            k = np.flatnonzero(on)
+            extra = ()
+            if len(k):
+                part = "remainder" if remainder else "front" if selected[k[0]] else "side"
+            elif ends[c] in twins:
+                part = ""
+            else:
+                part = "back"
+                e = (r - q) / max(np.linalg.norm(r - q), EPS)
+                along = np.flatnonzero(selected & (np.abs(unit @ e) > 1 - 1e-6))
+                if own is not None and len(along):  # the nearest selected edge it runs along
+                    dist = np.abs(np.cross(unit[along], q - a[along]))
+                    extra = own[self.corner_index(face, along[np.argmin(dist)])]
+            parts.append(part)
+            copied.append(extra)
+        mesh = auto_tag_edges(mesh, "setback", parts)
+        if any(copied):
+            mesh = with_corner_tags(mesh, EDGE_TAGS, [
+                t + tuple(x for x in e if x not in t)
+                for t, e in zip(corner_tags(mesh, EDGE_TAGS), copied)])
+        return mesh
+
+    @staticmethod
+    def corner_index(face: Mesh, k: int) -> int:
+        return int(face.starts[0] + k)
 
     def band(self, edges, width):
         """Strip inside the polygon along the given edges, ``width`` wide (a number, or an array
@@ -725,8 +854,11 @@ class _PlanarEdges:
                                                a - t * 1e3 + inward]))
         return band
 
-    def shapes(self, st, pieces) -> list:
-        """``[(branch, shapely geometry)]`` → successor states on this face's plane."""
+    def shapes(self, st, pieces, selected=None, remainder=None) -> list:
+        """``[(branch, shapely geometry)]`` → successor states on this face's plane.  The pieces
+        keep the face's data and the tags of the edges they keep; with ``selected`` (the
+        original edges the bands run along) their edges get the setback family's auto-tags,
+        those of the ``remainder`` branch's piece as a remainder."""
         result = []
         for i, (branch, geom) in enumerate(pieces):
             faces = []
@@ -738,7 +870,11 @@ class _PlanarEdges:
             if not faces:
                 continue
             ps = st.child(i)
-            ps.geometry = Mesh.from_polygons(faces)
+            mesh = Mesh.from_polygons(faces).inherit(st.geometry, [0] * len(faces),
+                                                     drop=OFFSET_COLUMNS)
+            if selected is not None:
+                mesh = self.setback_tags(st.geometry, mesh, selected, branch is remainder)
+            ps.geometry = mesh
             ps.scope = face_scope(faces[0], self.normal)
             ps.fit_scope()
             result.append((ps, branch.ops, {"index": i}))
@@ -755,12 +891,13 @@ def op_setback(call):
     """
     st = call.state
     pe = _PlanarEdges(st, "setback", call.derivation.object_scope.rotation)
-    return pe.shapes(st, _setback_pieces(call, pe, _edge_widths(call, pe.k)))
+    return pe.shapes(st, *_setback_pieces(call, pe, _edge_widths(call, pe.k)))
 
 
-def _setback_pieces(call, pe, widths) -> list:
+def _setback_pieces(call, pe, widths) -> tuple:
     """``[(branch, shapely geometry)]`` of a setback with ``widths`` (a number or one per
-    edge): each branch takes the band along its still untaken edges, ``remainder`` the rest."""
+    edge): each branch takes the band along its still untaken edges, ``remainder`` the rest;
+    then the selected edges and the remainder branch."""
     remaining, out, remainder_branch = pe.shape, [], None
     taken = np.zeros(pe.k, bool)
     for branch in call.branches:
@@ -768,7 +905,7 @@ def _setback_pieces(call, pe, widths) -> list:
         if key == "remainder":
             remainder_branch = branch
             continue
-        idx = np.flatnonzero(_match(key, pe.table, pe.k) & ~taken)
+        idx = np.flatnonzero(_match(key, pe.table, pe.k, None, pe.tags) & ~taken)
         taken[idx] = True
         band = pe.band(idx, widths)
         piece = remaining.intersection(band)
@@ -777,7 +914,7 @@ def _setback_pieces(call, pe, widths) -> list:
             out.append((branch, piece))
     if remainder_branch is not None and remaining.area > EPS:
         out.append((remainder_branch, remaining))
-    return out
+    return out, taken, remainder_branch
 
 
 @operation("setbackPerEdge", 1, 2, body=True)
@@ -819,7 +956,7 @@ def op_setback_to_area(call):
     for branch in call.branches:
         key = _selector_key(call, branch)
         if key != "remainder":
-            selected |= _match(key, pe.table, pe.k)
+            selected |= _match(key, pe.table, pe.k, None, pe.tags)
     edges = np.flatnonzero(selected)
 
     def widths(offset: float) -> np.ndarray:
@@ -839,7 +976,7 @@ def op_setback_to_area(call):
             break
         mid = (a + b) / 2
         a, b = (mid, b) if remainder(mid) > target else (a, mid)
-    return pe.shapes(st, _setback_pieces(call, pe, widths((a + b) / 2)))
+    return pe.shapes(st, *_setback_pieces(call, pe, widths((a + b) / 2)))
 
 
 def _edge_widths(call, k: int):
@@ -868,15 +1005,20 @@ def _shape_letter(sides: tuple[str, ...]):
                 shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), w))
         shape = pe.shape.intersection(shape)
         remainder = pe.shape.difference(shape)
-        out = []
+        selected = np.zeros(pe.k, bool)
+        for k, side in enumerate(sides):
+            if call.num(k) > 0:
+                selected |= pe.table[side]
+        out, rest = [], None
         for branch in call.branches:
             key = _selector_key(call, branch)
             geom = shape if key == "shape" else remainder if key == "remainder" else None
             if geom is None:
                 raise CGARuntimeError(f"{call.name} selectors are shape and remainder, not '{key}'")
+            rest = branch if key == "remainder" else rest
             if geom.area > EPS:
                 out.append((branch, geom))
-        return pe.shapes(st, out)
+        return pe.shapes(st, out, selected, rest)
     return op
 
 

@@ -1,20 +1,28 @@
-"""Geometry tags (CityEngine 2023.0+): strings stored on a geometry's faces that name its parts.
+"""Geometry tags (CityEngine 2023.1+): strings stored on a geometry's faces, edges and vertices
+that name its parts.
 
 Reference: "Geometry Tagging: Essential Knowledge"
 (https://esri.github.io/cityengine-sdk/html/cgaref/cgareference/cga_componentTags.html) and the
-``tag``, ``deleteTags``, ``geometry.hasTags`` and ``geometry.tags`` pages.
+``tag``, ``deleteTags``, ``comp`` (``isTagged``), ``geometry.hasTags`` and ``geometry.tags`` pages.
 
 * A tag is a string; ``.`` groups it into subtags (``"Facade.Front"``).  A *tag query* may use
   ``?`` for exactly one subtag and ``*`` for one or more, and matches a tag when it matches the
-  tag's leading subtags: ``"Facade"`` matches ``"Facade.Front"`` (:func:`matches`).
-* Tags live in the mesh's face column ``tags`` (a tuple of strings per face), so every operation
-  that keeps, cuts or copies faces carries them the way it carries the faces' materials: a split
-  piece keeps its face's tags, a new cap face has none, a face built from a face (an extrusion's
-  sides and top) takes its face's.
-* Auto-tags: ``extrude``, ``taper``, ``envelope``, the roof operations and the Boolean
-  operations name the parts they build (``"extrude.top"``, ``"roof.…"``); calling the operation
-  again replaces its earlier auto-tags (:func:`auto_tag`).
-* ``comp(f) { isTagged("extrude.top") : Top | … }`` selects the faces with a matching tag.
+  tag's leading subtags: ``"Facade"`` matches ``"Facade.Front"``, not ``"Front.Facade"``
+  (:func:`matches`).  Matching is case-sensitive.
+* Tags live in the mesh: face column ``tags`` and corner columns ``edge_tags`` (the edge from a
+  corner to the next) and ``vertex_tags`` (tuples of strings), so every operation that keeps,
+  cuts or copies faces carries them as it carries materials (``Mesh.inherit``): a split piece
+  keeps its face's tags and those of the edges it keeps, a new cap face or cut edge has none, a
+  face built on a face (an extrusion's top) takes that face's tags, a face rising from an edge
+  (an extrusion's side) that edge's.
+* Auto-tags: ``extrude``, ``taper``, ``envelope``, the roofs and the Boolean operations name the
+  faces they build (``"extrude.top"``, ``"roof.side"``, ``"bool.A"``), the setback family the
+  edges (``"setback.front"``); calling such an operation again replaces its earlier auto-tags
+  (:func:`auto_tag`).
+* ``isTagged(query)`` (and ``isTagged(query, e|v)``) is a selector of ``comp`` and the setback
+  operations, alone or in a logical selector (``isTagged("A") && side``).  Edges also count as
+  tagged when a face next to them is, vertices when an edge or face next to them is
+  (:class:`TagIndex`).
 """
 
 from __future__ import annotations
@@ -24,11 +32,11 @@ from functools import lru_cache
 
 import numpy as np
 
-from .. import ast as A
+from ...geometry.mesh import Mesh, weld_ids
 from ..values import CGARuntimeError, to_str
 from . import operation, shape_function
 
-TAGS = "tags"  # the face column
+TAGS, EDGE_TAGS, VERTEX_TAGS = "tags", "edge_tags", "vertex_tags"
 
 
 def clean_tag(name: str) -> str:
@@ -48,85 +56,217 @@ def _query_regex(query: str) -> re.Pattern:
 
 
 def matches(query: str, tag: str) -> bool:
-    """Whether tag ``query`` matches ``tag``: subtag by subtag (``?`` one subtag, ``*`` one or
-    more), the tag may go on with more subtags; the empty query matches every tag."""
+    """Whether tag ``query`` matches ``tag``: subtag by subtag from the start (``?`` one subtag,
+    ``*`` one or more), the tag may go on with more subtags; the empty query matches every
+    tag."""
     return _query_regex(query).match(tag) is not None
 
 
-def face_tags(mesh) -> np.ndarray:
-    """(F,) object array: each face's tags as a tuple (``()`` when it has none)."""
-    col = mesh.column(TAGS)
-    out = np.empty(mesh.n_faces, dtype=object)
-    out[:] = [()] * mesh.n_faces if col is None else [t or () for t in col]
-    return out
+def _any_match(rx: re.Pattern, tags) -> bool:
+    return bool(tags) and any(rx.match(t) for t in tags)
 
 
-def tagged_faces(mesh, query: str) -> np.ndarray:
-    """(F,) bool: faces with at least one tag matched by ``query``."""
-    col = mesh.column(TAGS)
-    if col is None:
-        return np.zeros(mesh.n_faces, bool)
-    rx = _query_regex(query)
-    return np.array([any(rx.match(t) for t in (ts or ())) for ts in col], dtype=bool)
+# ---- tags on a mesh ----------------------------------------------------------------------------
+
+def _tuples(col, n: int) -> list:
+    return [()] * n if col is None else [t or () for t in col]
 
 
-def with_tags(mesh, tags) -> object:
-    """``mesh`` with the per-face tag tuples ``tags`` (no column when no face has a tag)."""
-    if not any(tags):
-        return mesh.without_columns(TAGS)
-    return mesh.with_column(TAGS, [tuple(t) if t else None for t in tags])
+def face_tags(mesh: Mesh) -> list:
+    """Each face's tags as a tuple (``()`` when it has none)."""
+    return _tuples(mesh.column(TAGS), mesh.n_faces)
 
 
-def add_tag(mesh, name: str, faces=None):
-    """``mesh`` with tag ``name`` added to ``faces`` (a bool mask; all when None)."""
-    old = face_tags(mesh)
-    pick = np.ones(mesh.n_faces, bool) if faces is None else faces
-    return with_tags(mesh, [t + (name,) if p and name not in t else t for t, p in zip(old, pick)])
+def corner_tags(mesh: Mesh, name: str) -> list:
+    """Each corner's edge (``EDGE_TAGS``) or vertex (``VERTEX_TAGS``) tags as a tuple."""
+    return _tuples(mesh.corner_column(name), len(mesh.corners))
 
 
-def auto_tag(mesh, op: str, parts) -> object:
-    """``mesh`` after operation ``op`` built it: each face's earlier ``op`` auto-tags are
-    replaced by ``op + "." + part`` (``parts`` per face; an empty part adds none)."""
-    old = face_tags(mesh)
+def _column(tags) -> list | None:
+    """A tag column from tuples: None when nothing is tagged (the column is then dropped)."""
+    return [tuple(t) if t else None for t in tags] if any(tags) else None
+
+
+def with_face_tags(mesh: Mesh, tags) -> Mesh:
+    return mesh.with_column(TAGS, _column(tags))
+
+
+def with_corner_tags(mesh: Mesh, name: str, tags) -> Mesh:
+    return mesh.with_corner_column(name, _column(tags))
+
+
+def without_tags(mesh: Mesh) -> Mesh:
+    """``mesh`` with no face, edge or vertex tags (operations that do not support tags clear
+    them, as ``reduceGeometry`` and ``splitArea`` do in CityEngine)."""
+    return (mesh.without_columns(TAGS).with_corner_column(EDGE_TAGS, None)
+            .with_corner_column(VERTEX_TAGS, None))
+
+
+def _added(tags: tuple, extra) -> tuple:
+    return tags + tuple(t for t in extra if t not in tags)
+
+
+def auto_tag(mesh: Mesh, op: str, parts) -> Mesh:
+    """``mesh`` after operation ``op`` built it: every earlier ``op`` auto-tag (faces, edges and
+    vertices) is removed, then face ``i`` gets ``op + "." + parts[i]`` (none for an empty
+    part)."""
     rx = _query_regex(op)
-    new = []
-    for t, part in zip(old, parts):
-        kept = tuple(x for x in t if not rx.match(x))
-        new.append(kept + (f"{op}.{part}",) if part else kept)
-    return with_tags(mesh, new)
+    new = [tuple(x for x in t if not rx.match(x)) + ((f"{op}.{part}",) if part else ())
+           for t, part in zip(face_tags(mesh), parts)]
+    mesh = with_face_tags(mesh, new)
+    for name in (EDGE_TAGS, VERTEX_TAGS):
+        if mesh.corner_column(name) is not None:
+            mesh = with_corner_tags(mesh, name, [tuple(x for x in t if not rx.match(x))
+                                                 for t in corner_tags(mesh, name)])
+    return mesh
 
 
-# ---- the comp selector ---------------------------------------------------------------------
-
-class TagQuery:
-    """The comp selector ``isTagged(query)``."""
-
-    __slots__ = ("query",)
-
-    def __init__(self, query: str):
-        self.query = query
-
-    def faces(self, mesh) -> np.ndarray:
-        return tagged_faces(mesh, self.query)
-
-    def __str__(self) -> str:  # comp.sel
-        return f'isTagged("{self.query}")'
+def auto_tag_edges(mesh: Mesh, op: str, parts) -> Mesh:
+    """Edge auto-tags: earlier ``op`` tags removed everywhere, corner ``c``'s edge tagged
+    ``op + "." + parts[c]`` (none for an empty part)."""
+    mesh = auto_tag(mesh, op, [""] * mesh.n_faces)
+    return with_corner_tags(mesh, EDGE_TAGS, [
+        _added(t, (f"{op}.{part}",)) if part else t
+        for t, part in zip(corner_tags(mesh, EDGE_TAGS), parts)])
 
 
-def tag_selector(expr, env) -> TagQuery | None:
-    """The :class:`TagQuery` of a comp selector written ``isTagged(query)``, else None."""
-    if isinstance(expr, A.Call) and expr.name == "isTagged":
-        if len(expr.args) != 1:
-            raise CGARuntimeError(f"isTagged takes one tag query, got {len(expr.args)} arguments; "
-                                  'e.g. comp(f) { isTagged("extrude.top") : Top }')
-        return TagQuery(to_str(env.evaluator(expr.args[0])))
-    return None
+def faces_from_edges(mesh: Mesh, edge_tags) -> Mesh:
+    """Faces rising from edges take those edges' tags: face ``i`` adds ``edge_tags[i]``."""
+    if not any(edge_tags):
+        return mesh
+    return with_face_tags(mesh, [_added(t, e) for t, e in zip(face_tags(mesh), edge_tags)])
+
+
+# ---- which components a query selects -----------------------------------------------------
+
+class TagIndex:
+    """What ``isTagged`` sees on a mesh: its faces, its edges in ``comp(e)`` order (coincident
+    vertices welded) and its used vertices in ``comp(v)`` order, with their own tags and their
+    neighbours'."""
+
+    def __init__(self, mesh: Mesh):
+        self.mesh = mesh
+        n_c = len(mesh.corners)
+        self.ftags = face_tags(mesh)
+        self.etags = corner_tags(mesh, EDGE_TAGS)
+        self.vtags = corner_tags(mesh, VERTEX_TAGS)
+        self.face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+        w = weld_ids(mesh.vertices)[mesh.corners] if n_c else np.zeros(0, np.int64)
+        nxt = mesh.next_corners() if n_c else np.zeros(0, np.int64)
+        self.weld = w
+        self.edge_of = np.full(n_c, -1, np.int64)
+        self.edge_corners: list[list[int]] = []
+        seen: dict = {}
+        for c in range(n_c):
+            k = (min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]]))
+            if k[0] == k[1]:
+                continue
+            e = seen.setdefault(k, len(self.edge_corners))
+            if e == len(self.edge_corners):
+                self.edge_corners.append([])
+            self.edge_corners[e].append(c)
+            self.edge_of[c] = e
+        self.edge_ends = [(w[cs[0]], w[nxt[cs[0]]]) for cs in self.edge_corners]
+
+    def _faces_own(self, rx) -> np.ndarray:
+        return np.array([_any_match(rx, t) for t in self.ftags], bool)
+
+    def _edges_rule(self, rx) -> np.ndarray:
+        """Edge rule: its own tags or a neighbouring face's."""
+        face_ok = self._faces_own(rx)
+        return np.array([any(_any_match(rx, self.etags[c]) or face_ok[self.face_of[c]]
+                             for c in cs) for cs in self.edge_corners], bool)
+
+    def _welded_vertex_rule(self, rx) -> dict:
+        """Vertex rule per welded vertex: its own tags or a neighbouring edge's or face's."""
+        ok: dict = {}
+        face_ok = self._faces_own(rx)
+        edge_own = [any(_any_match(rx, self.etags[c]) for c in cs) for cs in self.edge_corners]
+        for c, u in enumerate(self.weld):
+            if _any_match(rx, self.vtags[c]) or face_ok[self.face_of[c]]:
+                ok[u] = True
+        for e, (a, b) in enumerate(self.edge_ends):
+            if edge_own[e]:
+                ok[a] = ok[b] = True
+        return ok
+
+    def faces(self, query: str, sub: str | None = None) -> np.ndarray:
+        rx = _query_regex(query)
+        if sub is None:
+            return self._faces_own(rx)
+        out = np.zeros(self.mesh.n_faces, bool)
+        if sub == "e":
+            edge_ok = self._edges_rule(rx)
+            for c, e in enumerate(self.edge_of):
+                if e >= 0 and edge_ok[e]:
+                    out[self.face_of[c]] = True
+        else:
+            ok = self._welded_vertex_rule(rx)
+            for c, u in enumerate(self.weld):
+                if ok.get(u):
+                    out[self.face_of[c]] = True
+        return out
+
+    def edges(self, query: str, sub: str | None = None) -> np.ndarray:
+        rx = _query_regex(query)
+        if sub is None:
+            return self._edges_rule(rx)
+        ok = self._welded_vertex_rule(rx)
+        return np.array([bool(ok.get(a) or ok.get(b)) for a, b in self.edge_ends], bool)
+
+    def vertices(self, query: str, sub: str | None = None) -> np.ndarray:
+        """Used vertices in ``comp(v)`` order (``Mesh.used_vertices``)."""
+        ok = self._welded_vertex_rule(_query_regex(query))
+        used, first = np.unique(self.mesh.corners, return_index=True)
+        return np.array([bool(ok.get(self.weld[c])) for c in first], bool)
+
+    def polygon_edges(self, query: str, sub: str | None = None) -> np.ndarray:
+        """The edges of a single-face shape in corner order (the setback operations')."""
+        edge_ok = self.edges(query, sub)
+        return np.array([e >= 0 and edge_ok[e] for e in self.edge_of], bool)
+
+
+# ---- the selector --------------------------------------------------------------------------
+
+#: The local through which a selector's ``isTagged`` call reaches its component.
+_COMPONENT = "\0component"
+
+
+@shape_function("isTagged")
+def _is_tagged(env, args):
+    """``isTagged(query)``, ``isTagged(query, e|v)``: a selector of ``comp``, ``setback``,
+    ``setbackToArea`` and ``setbackPerEdge`` (and the comp function)."""
+    hit = env.locals.get(_COMPONENT)
+    if hit is None:
+        raise CGARuntimeError("isTagged(…) selects components in comp and setback; elsewhere "
+                              'ask geometry.hasTags(…), e.g. case geometry.hasTags("roof") : …')
+    if not 1 <= len(args) <= 2:
+        raise CGARuntimeError(f"isTagged takes a tag query and optionally e or v, got "
+                              f"{len(args)} arguments")
+    sub = to_str(args[1]) if len(args) == 2 else None
+    if sub not in (None, "e", "v"):
+        raise CGARuntimeError(f"isTagged: the subcomponent is e or v, not '{sub}'")
+    masks, index, i = hit
+    key = (to_str(args[0]), sub)
+    if key not in masks:
+        masks[key] = index(*key)
+    return bool(masks[key][i])
+
+
+def component_env(env, i: int, words: dict, masks: dict, index) -> object:
+    """``env`` for evaluating a logical selector on component ``i``: selector words bound to
+    the component's truth values, ``isTagged`` to ``index`` (``(query, sub) -> mask``)."""
+    from ..interpreter import Env
+
+    local = dict(env.locals)
+    local.update({w: bool(m[i]) for w, m in words.items()})
+    local.setdefault("e", "e")
+    local.setdefault("v", "v")
+    local[_COMPONENT] = (masks, index, i)
+    return Env(env.derivation, env.module, local, env.state, env.rule, env.call_depth)
 
 
 # ---- operations ------------------------------------------------------------------------------
-
-_COMPONENTS = ("auto", "faces", "edges", "vertices", "all")
-
 
 def _components(call, i: int, default: str, allowed) -> str:
     comp = call.sel(i, default)
@@ -139,56 +279,79 @@ def _components(call, i: int, default: str, allowed) -> str:
 @operation("tag", 1, 2, selectors=(1,))
 def op_tag(call):
     """``tag(name)``, ``tag(name, auto|faces|edges|vertices)``: add tag ``name`` (wildcards
-    filtered out) to every face.  Tags are kept on faces only: ``auto`` and ``faces`` tag the
-    faces; edge and vertex tags are not stored, so ``edges`` and ``vertices`` are a warning."""
-    comp = _components(call, 1, "auto", _COMPONENTS[:4])
+    filtered out) to every face (``auto``: the faces, the highest-dimensional components), edge
+    or vertex."""
+    comp = _components(call, 1, "auto", ("auto", "faces", "edges", "vertices"))
     name = clean_tag(call.text(0))
     st = call.state
-    if not name or not st.geometry.n_faces:
+    g = st.geometry
+    if not name or not g.n_faces:
         return
-    if comp in ("edges", "vertices"):
-        raise CGARuntimeError(f"tag: {comp} tags are not supported (faces only); "
-                              "the shape is left unchanged")
-    st.geometry = add_tag(st.geometry, name)
+    if comp in ("auto", "faces"):
+        st.geometry = with_face_tags(g, [_added(t, (name,)) for t in face_tags(g)])
+    else:
+        col = EDGE_TAGS if comp == "edges" else VERTEX_TAGS
+        st.geometry = with_corner_tags(g, col, [_added(t, (name,)) for t in corner_tags(g, col)])
+
+
+_DELETE_COMPONENTS = ("all", "faces", "edges", "vertices")
+
+
+def _columns_of(comp: str) -> tuple:
+    return {"all": (TAGS, EDGE_TAGS, VERTEX_TAGS), "faces": (TAGS,), "edges": (EDGE_TAGS,),
+            "vertices": (VERTEX_TAGS,)}[comp]
 
 
 @operation("deleteTags", 0, 2, selectors=(1,))
 def op_delete_tags(call):
     """``deleteTags()``, ``deleteTags(query)``, ``deleteTags(query, all|faces|edges|vertices)``:
-    remove the tags ``query`` matches (all tags without a query)."""
-    comp = _components(call, 1, "all", ("all", "faces", "edges", "vertices"))
-    query = call.text(0, "")
+    remove the tags ``query`` matches (all tags without a query) from those components."""
+    comp = _components(call, 1, "all", _DELETE_COMPONENTS)
+    rx = _query_regex(call.text(0, ""))
     st = call.state
-    if comp in ("edges", "vertices") or st.geometry.column(TAGS) is None:
-        return  # no edge or vertex tags are stored
-    rx = _query_regex(query)
-    st.geometry = with_tags(st.geometry, [tuple(t for t in ts if not rx.match(t))
-                                          for ts in face_tags(st.geometry)])
+    g = st.geometry
+    for col in _columns_of(comp):
+        if col == TAGS and g.column(TAGS) is not None:
+            g = with_face_tags(g, [tuple(t for t in ts if not rx.match(t)) for ts in face_tags(g)])
+        elif col != TAGS and g.corner_column(col) is not None:
+            g = with_corner_tags(g, col, [tuple(t for t in ts if not rx.match(t))
+                                          for ts in corner_tags(g, col)])
+    st.geometry = g
+
+
+def _stored(mesh: Mesh, comp: str):
+    """Every tag stored on the ``comp`` components, one tuple per component."""
+    for col in _columns_of(comp):
+        yield from (face_tags(mesh) if col == TAGS else corner_tags(mesh, col))
 
 
 # ---- functions -------------------------------------------------------------------------------
 
-def _query_arg(args, name: str) -> str:
-    if len(args) > 1:
-        raise CGARuntimeError(f"{name} takes at most one tag query, got {len(args)} arguments")
-    return to_str(args[0]) if args else ""
+def _query_args(args, name: str) -> tuple[str, str]:
+    if len(args) > 2:
+        raise CGARuntimeError(f"{name} takes a tag query and optionally the components, got "
+                              f"{len(args)} arguments")
+    comp = to_str(args[1]) if len(args) == 2 else "all"
+    if comp not in _DELETE_COMPONENTS:
+        raise CGARuntimeError(f"{name}: components must be one of {', '.join(_DELETE_COMPONENTS)}"
+                              f", not '{comp}'")
+    return (to_str(args[0]) if args else ""), comp
 
 
 @shape_function("geometry.hasTags")
 def _has_tags(env, args):
-    """``geometry.hasTags()``, ``geometry.hasTags(query)``: whether any face has a tag (one the
-    query matches)."""
-    return bool(tagged_faces(env.state.geometry, _query_arg(args, "geometry.hasTags")).any())
+    """``geometry.hasTags([query[, components]])``: whether a face, edge or vertex of the
+    geometry itself has a tag (one the query matches); neighbours' tags do not count."""
+    query, comp = _query_args(args, "geometry.hasTags")
+    rx = _query_regex(query)
+    return any(_any_match(rx, t) for t in _stored(env.state.geometry, comp))
 
 
 @shape_function("geometry.tags")
 def _tags(env, args):
-    """``geometry.tags()``, ``geometry.tags(query)``: the distinct tags on the geometry (those
-    the query matches), in order of first appearance over the faces."""
-    rx = _query_regex(_query_arg(args, "geometry.tags"))
-    seen: dict = {}
-    for ts in face_tags(env.state.geometry):
-        for t in ts:
-            if rx.match(t):
-                seen.setdefault(t, None)
-    return np.array(list(seen), dtype=object)
+    """``geometry.tags([query[, components]])``: the distinct tags on the geometry's faces,
+    edges and vertices (those the query matches), sorted alphabetically."""
+    query, comp = _query_args(args, "geometry.tags")
+    rx = _query_regex(query)
+    found = {t for ts in _stored(env.state.geometry, comp) for t in ts if rx.match(t)}
+    return np.array(sorted(found), dtype=object)

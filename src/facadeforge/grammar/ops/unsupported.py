@@ -28,7 +28,7 @@ for _name in ("union", "subtract", "intersect"):  # the Boolean forms are syntax
     if _name not in OPERATIONS:
         operation(_name, 0, 16, selectors=tuple(range(16)))(_boolean_form(_name))
 
-# geometry tags: not yet (docs/cga-dialect.md)
-for _name in ("tag", "deleteTags", "setTagsFromEdgeAttrs"):
+# edge attributes of initial shapes are not read (docs/cga-dialect.md)
+for _name in ("setTagsFromEdgeAttrs",):
     if _name not in OPERATIONS:
         operation(_name, 0, 16, selectors=tuple(range(16)))(_unsupported(_name))
