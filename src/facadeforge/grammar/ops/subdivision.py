@@ -822,7 +822,8 @@ class _PlanarEdges:
                 e = (r - q) / max(np.linalg.norm(r - q), EPS)
                 along = np.flatnonzero(selected & (np.abs(unit @ e) > 1 - 1e-6))
                 if own is not None and len(along):  # the nearest selected edge it runs along
-                    dist = np.abs(np.cross(unit[along], q - a[along]))
+                    w = q - a[along]
+                    dist = np.abs(unit[along, 0] * w[:, 1] - unit[along, 1] * w[:, 0])
                     extra = own[self.corner_index(face, along[np.argmin(dist)])]
             parts.append(part)
             copied.append(extra)
