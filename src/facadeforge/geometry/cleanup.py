@@ -67,15 +67,22 @@ def weld(vertices: np.ndarray, distance: float) -> np.ndarray:
 def to_polys(mesh: Mesh, remap: np.ndarray | None = None) -> list[Poly]:
     """The faces as :class:`Poly`, vertex ids through ``remap``; corners that repeat the previous
     one (an edge welded to a point) are dropped."""
-    polys = []
-    uvs = mesh.uvs if mesh.corner_uvs is not None else [None] * mesh.n_faces
-    for f, (face, uv) in enumerate(zip(mesh.faces, uvs)):
-        ids = face if remap is None else remap[face]
-        keep = ids != np.roll(ids, 1)
-        if len(ids) and not keep.any():
-            keep[0] = True
-        polys.append(Poly(ids[keep].tolist(), None if uv is None else uv[keep], f))
-    return polys
+    ids = mesh.corners if remap is None else remap[mesh.corners]
+    sizes, starts = mesh.face_sizes, mesh.starts
+    full = sizes > 0
+    prev = np.arange(-1, len(ids) - 1)
+    prev[starts[:-1][full]] = starts[1:][full] - 1
+    keep = ids != ids[prev]
+    face_of = np.repeat(np.arange(mesh.n_faces), sizes)
+    kept = np.bincount(face_of, weights=keep, minlength=mesh.n_faces)
+    keep[starts[:-1][full & (kept == 0)]] = True  # welded to one point: one corner stays
+    corners = np.flatnonzero(keep)
+    verts = ids[corners].tolist()
+    uvs = None if mesh.corner_uvs is None else mesh.corner_uvs[corners]
+    per_face = np.bincount(face_of[corners], minlength=mesh.n_faces)
+    bounds = np.concatenate([[0], np.cumsum(per_face)]).tolist()
+    return [Poly(verts[a:b], None if uvs is None else uvs[a:b], f)
+            for f, (a, b) in enumerate(zip(bounds, bounds[1:]))]
 
 
 def to_mesh(vertices: np.ndarray, polys: list[Poly], has_uvs: bool) -> tuple[Mesh, np.ndarray]:
@@ -105,7 +112,8 @@ def drop_degenerate(vertices, polys: list[Poly], max_area: float) -> list[Poly]:
 def _rotation_key(p: Poly, group) -> tuple:
     k = int(np.argmin(p.verts))
     verts = tuple(p.verts[k:] + p.verts[:k])
-    uv = () if p.uvs is None else tuple(np.round(np.roll(p.uvs, -k, axis=0) / UV_EPS).astype(np.int64).ravel())
+    uv = () if p.uvs is None else tuple(
+        np.round(np.concatenate([p.uvs[k:], p.uvs[:k]]) / UV_EPS).astype(np.int64).ravel())
     return group, verts, uv
 
 
@@ -213,13 +221,71 @@ def _loop(out: dict, first) -> tuple[list, list]:
     return verts, uvs
 
 
+def _grow(outline: dict, p: Poly) -> dict | None:
+    """The outline with face ``p`` added, or ``None`` when it is not one simple loop: the same
+    dict (entries in the same order) as ``_outline(.., [p], _edges_of(outline))`` checked with
+    :func:`_one_loop`, but in time proportional to ``p``'s size, not the outline's.
+
+    ``outline`` must be one simple loop; when ``p`` is accepted it is updated in place.  For a
+    face with distinct corners and no edge along the outline in the same direction, the edges
+    it shares with the outline (run the other way) decide:
+
+    * none: ``p`` only touches the loop at corners, or not at all (two loops, or a vertex
+      starting two edges);
+    * one unbroken run of them: the loop loses the run and gains the rest of ``p``'s edges; the
+      result is one simple loop unless a corner of ``p`` off the run is already on the loop;
+    * two runs: they cut the loop into two loops (``p`` closes a ring around a hole);
+    * all of them: nothing is left.
+
+    Anything else (repeated corners, overlapping edges, three or more runs) is rare and goes
+    the general way."""
+    v, n = p.verts, len(p.verts)
+    if n < 3 or len(outline) < 3 or len(set(v)) < n:
+        return _grow_general(outline, p)
+    shared = []
+    for k in range(n):
+        a, b = v[k], v[(k + 1) % n]
+        if outline.get(a, (None,))[0] == b:
+            return _grow_general(outline, p)  # an edge on top of the outline's, same direction
+        shared.append(outline.get(b, (None,))[0] == a)
+    runs = sum(shared[k] and not shared[k - 1] for k in range(n))
+    if runs >= 3:
+        return _grow_general(outline, p)
+    if runs != 1:  # no shared edge, two runs, or every edge shared
+        return None
+    m = sum(shared)
+    start = next(k for k in range(n) if shared[k] and not shared[k - 1])
+    off_run = [v[(start + m + j) % n] for j in range(1, n - m)]  # corners strictly after the run
+    if any(w in outline for w in off_run):
+        return None
+    for k in range(n):
+        if shared[k]:
+            del outline[v[(k + 1) % n]]
+    for k in range(n):
+        if not shared[k]:
+            outline[v[k]] = (v[(k + 1) % n], None if p.uvs is None else p.uvs[k])
+    return outline
+
+
+def _grow_general(outline: dict, p: Poly) -> dict | None:
+    """:func:`_grow` by rebuilding the whole outline (time proportional to its size)."""
+    grown = _outline([p], [0], _edges_of(outline))
+    return grown if grown is not None and _one_loop(grown) else None
+
+
 def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> list[Poly]:
     """Merge faces across shared edges into one polygon while their normals stay within
     ``max_angle`` of the first face's (at least :data:`ANGLE_EPS`), they are in the same group,
     their texture coordinates are one affine map, and the merged outline is one simple loop (no
-    holes, no vertex twice).  The merged face starts at its first face's first vertex."""
+    holes, no vertex twice).  The merged face starts at its first face's first vertex.
+
+    Regions grow from each face not merged yet (in face order), depth first through manifold
+    edges; a neighbour that fails a test stays out for now and is tried again when another of
+    its neighbours joins.  The outline is kept up to date face by face (:func:`_grow`), so a
+    region of F faces costs O(F), not O(F²)."""
     limit = max(max_angle, ANGLE_EPS)
     normals = _faces(vertices, polys).face_normals()
+    flat = ~normals.any(axis=1)  # no normal (degenerate): never merged
     edges = _edge_faces(polys)
     taken = [False] * len(polys)
     out = []
@@ -228,20 +294,21 @@ def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> lis
             continue
         taken[seed] = True
         uv_map = None if p.uvs is None else _affine_uv(vertices, p)
-        if len(set(p.verts)) < len(p.verts) or not normals[seed].any() or (
+        if len(set(p.verts)) < len(p.verts) or flat[seed] or (
                 p.uvs is not None and uv_map is None):
             out.append(p)
             continue
-        outline, queue, merged = _outline(polys, [seed]), _neighbours(polys, edges, seed), False
+        outline = _outline(polys, [seed])
+        queue, merged = _neighbours(polys, edges, seed), False
         while queue:  # only an accepted face (once each) pushes its neighbours: bounded
             q = queue.pop()
             cand = polys[q]
-            if taken[q] or groups[cand.src] != groups[p.src] or not normals[q].any() \
+            if taken[q] or groups[cand.src] != groups[p.src] or flat[q] \
                     or _angle(normals[q], normals[seed]) > limit \
                     or (uv_map is not None and not _uv_fits(vertices, cand, uv_map)):
                 continue
-            grown = _outline(polys, [q], _edges_of(outline))
-            if grown is None or not _one_loop(grown):
+            grown = _grow(outline, cand)
+            if grown is None:
                 continue
             outline, taken[q], merged = grown, True, True
             queue.extend(_neighbours(polys, edges, q))
