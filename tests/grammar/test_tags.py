@@ -83,6 +83,15 @@ def test_boolean_auto_tags_and_operand_tags_survive():
     assert a["A"] == pytest.approx(80 - 16 + 2 * 4 * (10 + 8))
 
 
+def test_boolean_cut_edges_and_tagged_materials():
+    out = prints('Lot --> subtract { extrude(4) | t(2,-1,2) s(4,6,4) primitiveCube } '
+                 'comp(e){ isTagged("bool.cut") : print("cut") }')
+    assert out == ["cut"] * 8            # the hole's rims, where B's walls meet A's faces
+    a = areas(run('Lot --> subtract { extrude(4) color(1,0,0) | t(2,-1,2) s(4,6,4) primitiveCube '
+                  'color(0,0,1) } comp(m){ isTagged("bool.B") : B. | all : A. }'))
+    assert a["B"] == pytest.approx(64)
+
+
 def test_roof_auto_tags():
     a = areas(run('Lot --> roofGable(30) comp(f){ isTagged("roof.side") : S. '
                   '| isTagged("roof.top") : T. | isTagged("roof.bottom") : B. }'))

@@ -30,7 +30,7 @@ import numpy as np
 
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ..values import CGARuntimeError
-from .tagging import auto_tag
+from .tagging import auto_tag, auto_tag_edges
 
 #: Vertices closer than this are one vertex when ``recompose`` reconnects pieces (metres).
 WELD_TOLERANCE = 1e-6
@@ -110,8 +110,28 @@ def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
     mesh, origin = boolean(meshes[:n_a], meshes[n_a:], kind, d)
     _set_geometry(state, mesh, origin, meshes, shared)
     if len(origin):  # auto-tags: each face names the operand it came from
-        state.geometry = auto_tag(state.geometry, "bool",
-                                  np.where(origin[:, 0] < n_a, "A", "B").tolist())
+        from_a = origin[:, 0] < n_a
+        state.geometry = _cut_edges(auto_tag(state.geometry, "bool",
+                                             np.where(from_a, "A", "B").tolist()), from_a)
+
+
+def _cut_edges(mesh: Mesh, from_a: np.ndarray) -> Mesh:
+    """``bool.cut`` on the intersection edges: those where a face of operand A meets one of
+    operand B (CityEngine, Boolean 3D "Component tags")."""
+    w = weld_ids(mesh.vertices)[mesh.corners]
+    nxt = mesh.next_corners()
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    key = np.sort(np.stack([w, w[nxt]], axis=1), axis=1)
+    _, edge = np.unique(key, axis=0, return_inverse=True)
+    edge = edge.reshape(-1)
+    has_a = np.zeros(edge.max() + 1 if len(edge) else 0, bool)
+    has_b = np.zeros_like(has_a)
+    np.logical_or.at(has_a, edge, from_a[face_of])
+    np.logical_or.at(has_b, edge, ~from_a[face_of])
+    cut = has_a[edge] & has_b[edge] & (key[:, 0] != key[:, 1])
+    if not cut.any():
+        return mesh
+    return auto_tag_edges(mesh, "bool", np.where(cut, "cut", "").tolist(), replace=False)
 
 
 def _appended(meshes: list) -> np.ndarray:

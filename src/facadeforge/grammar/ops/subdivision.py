@@ -532,11 +532,17 @@ def _comp_parts(call, st, kind: str):
     fitted to the component."""
     parts = _part_faces(st, kind)
     out, taken = [], np.zeros(len(parts), bool)
+    faces = _tag_masks(st.geometry, "f")
+
+    def tags(query, sub):  # a group or material is tagged when one of its faces is
+        hit = faces(query, sub)
+        return np.array([hit[p].any() for p in parts], bool)
+
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
         key = _selector_key(call, branch)
-        m = _match(key, {"all": np.ones(len(parts), bool)}, len(parts)) & ~taken
+        m = _match(key, {"all": np.ones(len(parts), bool)}, len(parts), None, tags) & ~taken
         taken |= m
         idx = np.flatnonzero(m)
         sel_name = key if isinstance(key, str) else str(key)

@@ -121,10 +121,12 @@ def auto_tag(mesh: Mesh, op: str, parts) -> Mesh:
     return mesh
 
 
-def auto_tag_edges(mesh: Mesh, op: str, parts) -> Mesh:
-    """Edge auto-tags: earlier ``op`` tags removed everywhere, corner ``c``'s edge tagged
-    ``op + "." + parts[c]`` (none for an empty part)."""
-    mesh = auto_tag(mesh, op, [""] * mesh.n_faces)
+def auto_tag_edges(mesh: Mesh, op: str, parts, replace: bool = True) -> Mesh:
+    """Edge auto-tags: earlier ``op`` tags removed everywhere (unless ``replace`` is False: the
+    operation has just tagged the faces), corner ``c``'s edge tagged ``op + "." + parts[c]``
+    (none for an empty part)."""
+    if replace:
+        mesh = auto_tag(mesh, op, [""] * mesh.n_faces)
     return with_corner_tags(mesh, EDGE_TAGS, [
         _added(t, (f"{op}.{part}",)) if part else t
         for t, part in zip(corner_tags(mesh, EDGE_TAGS), parts)])
