@@ -13,7 +13,7 @@ import numpy as np
 from .errors import InputError, RuleError
 from .geometry.assets import AssetResolver
 from .geometry.footprints import Footprint, load_footprints, lot
-from .geometry.mesh import Mesh, polygon_normal
+from .geometry.mesh import Mesh, plane_basis, polygon_normal
 from .grammar.interpreter import Derivation, Limits
 from .grammar.module import RuleSet, link
 from .grammar.state import ShapeState
@@ -121,14 +121,15 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
 
 
 def initial_state(fp: Footprint) -> ShapeState:
-    """Initial shape: scope x along the first edge, y along the polygon normal (up)."""
+    """Initial shape: scope x along the first edge, y along the polygon normal (up).  A
+    footprint with holes is one face with holes: simple pieces sharing an id (``geometry.holed``)."""
     poly = np.asarray(fp.polygon, float)
     n = polygon_normal(poly)
     if not n.any():
         raise InputError(f"footprint '{fp.name}' has no area")
     if n[1] < 0:  # initial shapes face up, whatever the winding they were given in
         poly, n = poly[::-1], -n
-    mesh = Mesh.from_polygons([poly])
+    mesh = Mesh.from_polygons([poly]) if not fp.holes else _holed_face(fp, poly, n)
     x = None
     for k in range(len(poly)):
         e = poly[(k + 1) % len(poly)] - poly[k]
@@ -141,6 +142,27 @@ def initial_state(fp: Footprint) -> ShapeState:
     scope = Scope(poly[0], np.column_stack([x, n, z]), np.zeros(3))
     scope.fit_to(poly)
     return ShapeState(scope, mesh)
+
+
+def _holed_face(fp: Footprint, poly: np.ndarray, n: np.ndarray) -> Mesh:
+    """The footprint minus its holes as pieces of one face (the outline's first corner
+    first)."""
+    import shapely
+
+    from .geometry.holed import HOLED, fresh_ids, rings
+    from .geometry.polygon import simple_pieces
+
+    basis = plane_basis(n, poly[1] - poly[0])
+    flat = [((np.asarray(r, float) - poly[0]) @ basis[:, :2]) for r in [poly, *fp.holes]]
+    shape = shapely.Polygon(flat[0]).buffer(0)
+    for h in flat[1:]:
+        shape = shape.difference(shapely.Polygon(h).buffer(0))
+    pieces = [(k, q) for k, (outer, holes) in enumerate(rings(shape))
+              for q in simple_pieces(shapely.Polygon(outer, holes))]
+    if not pieces:
+        raise InputError(f"footprint '{fp.name}': its holes cover it")
+    lifted = [poly[0] + q @ basis[:, :2].T for _, q in pieces]
+    return Mesh.from_polygons(lifted).with_column(HOLED, fresh_ids([k for k, _ in pieces]))
 
 
 def facade_state(width: float, height: float) -> ShapeState:

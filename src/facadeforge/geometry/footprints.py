@@ -21,11 +21,13 @@ MAX_FOOTPRINTS = 1_000_000
 
 @dataclass
 class Footprint:
-    """One initial shape: a planar polygon (k, 3) in CGA coordinates and its attributes."""
+    """One initial shape: a planar polygon (k, 3) in CGA coordinates, its holes (courtyards,
+    each (m, 3)) and its attributes."""
 
     name: str
     polygon: np.ndarray
     attributes: dict = field(default_factory=dict)
+    holes: list = field(default_factory=list)
 
 
 def _clean_ring(ring: np.ndarray) -> np.ndarray:
@@ -117,8 +119,17 @@ def _geojson(p: Path) -> list[Footprint]:
                 poly = _upward(poly)
             except InputError:
                 continue
+            holes = []
+            for h in rings[1:]:  # GeoJSON's inner rings: courtyards
+                try:
+                    hr = _clean_ring(np.asarray(h, float)[:, :2])
+                except (ValueError, IndexError, TypeError):
+                    raise InputError(f"'{p}': feature {i} has a malformed hole") from None
+                if len(hr) >= 3:
+                    holes.append(np.column_stack([hr[:, 0], np.zeros(len(hr)), -hr[:, 1]]))
             out.append(Footprint(name if len(polys) == 1 else f"{name}_{k}", poly,
-                                 {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))}))
+                                 {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))},
+                                 holes))
     if not out:
         raise InputError(f"'{p}' holds no usable polygon")
     _center_far_coordinates(out)
@@ -135,6 +146,7 @@ def _center_far_coordinates(fps: list[Footprint]) -> None:
     shift = np.round(first, 0)
     for f in fps:
         f.polygon = f.polygon - shift
+        f.holes = [h - shift for h in f.holes]
         f.attributes["_origin_offset"] = shift.tolist()
 
 

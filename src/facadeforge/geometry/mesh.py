@@ -29,8 +29,10 @@ FACE_COLUMNS = {
                 "under the shape's material attributes",
     "tags": "the face's geometry tags, a tuple of strings (CGA ``tag``, auto-tags)",
     "kind": "which part of an ``offset`` the face is: 'inside' or 'border'",
-    "ring": "the border ring an ``offset`` piece belongs to (pieces of one ring are one face "
-            "with a hole in CityEngine)",
+    "holed": "the face with holes a piece belongs to: faces here are simple polygons, so "
+             "CityEngine's face with holes (a courtyard footprint, an ``offset`` border) is pieces "
+             "sharing one id, which ``comp(f)``, the roofs, ``offset`` and ``setback`` take as "
+             "one face",
 }
 
 

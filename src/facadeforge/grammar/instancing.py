@@ -270,13 +270,13 @@ def _hashable(v):
 
 def _face_data_key(g) -> tuple:
     """The geometry's face columns as a key: tags and offset kinds as they are, materials by
-    identity, border rings by which faces share one (not by their ids)."""
+    identity, faces with holes by which pieces share one (not by their ids)."""
     if g.face_data is None:
         return ()
     out = []
     for k in sorted(g.face_data):
         col = g.face_data[k]
-        if k == "ring":
+        if k == "holed":
             ids: dict = {}
             out.append((k, tuple(None if r is None else ids.setdefault(r, len(ids)) for r in col)))
         elif k == "material":

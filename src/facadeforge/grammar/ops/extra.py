@@ -280,7 +280,7 @@ def op_roof_ridge(call):
         raise CGARuntimeError(f"roofRidge: the ridge height must be positive, not {value}")
     rot = call.state.scope.rotation
 
-    def build(xy, basis, n):
+    def build(xy, basis, n, holes):
         # the ridge runs along the scope's x projected into the face (its z when x is normal)
         u = _in_plane(rot[:, 0], n)
         if u is None:

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 
 from ...errors import InputError
+from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ...geometry.mesh import (
     EPS,
     Mesh,
@@ -83,8 +82,13 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         source, from_edge = [source[i] for i in keep], [from_edge[i] for i in keep]
     for i in _hole_walls(polys, kinds):
         kinds[i] = "side.inner"
-    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring"),
+    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED),
                                             corner_source=(vsrc, esrc) if track else None)
+    holed = mesh.column(HOLED)
+    if holed is not None:  # a face with holes has one bottom and one top, each pieces
+        out = out.with_column(HOLED, fresh_ids(
+            None if holed[f] is None or k.startswith("side") else (holed[f], k)
+            for f, k in zip(source, kinds)))
     if mesh.corner_column(EDGE_TAGS) is not None:
         edge_tags = corner_tags(mesh, EDGE_TAGS)
         out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
@@ -175,16 +179,6 @@ def align_scope_y(st, y_axis: np.ndarray) -> None:
 
 # ---- offset -----------------------------------------------------------------------------------
 
-_RING_IDS = itertools.count()
-
-
-def new_ring_ids(rings) -> list:
-    """Fresh ids for the border rings of an ``offset`` (per piece: its face's index, -1 for
-    no ring): ids unique in the process, so rings stay apart when meshes are merged."""
-    ids = {}
-    return [None if r < 0 else ids.setdefault(r, next(_RING_IDS)) for r in rings]
-
-
 def _offset_ring(xy: np.ndarray, d: float) -> np.ndarray | None:
     """Mitre offset of a CCW ring by ``d`` (negative = inward), vertex for vertex; None if invalid."""
     k = len(xy)
@@ -228,57 +222,54 @@ def op_offset(call):
     if mode not in ("all", "inside", "border"):
         raise CGARuntimeError(f"offset mode must be all, inside or border, not '{mode}'")
     mesh = st.geometry
-    polys, kinds, rings, source = [], [], [], []
+    polys, kinds, keys, source = [], [], [], []
     normals = mesh.face_normals()
-    for f in range(mesh.n_faces):
+
+    def add(ring, kind, key):
+        polys.append(lift(ring))
+        kinds.append(kind)
+        keys.append(key)
+
+    for group in face_groups(mesh):
+        f = group[0]
         p = mesh.vertices[mesh.face(f)]
         n = normals[f]
         if not n.any():
             continue
         before = len(polys)
         basis = plane_basis(n, p[1] - p[0])
-        xy = (p - p[0]) @ basis[:, :2]
         lift = lambda q, p0=p[0], b=basis: p0 + q @ b[:, :2].T  # noqa: E731
-        inner = _offset_ring(xy, d)
-        if inner is not None:
+        inner = None
+        if len(group) == 1:
+            xy = (p - p[0]) @ basis[:, :2]
+            inner = _offset_ring(xy, d)
+        if inner is not None:  # the exact mitre offset, vertex for vertex
             if mode in ("all", "inside"):
-                polys.append(lift(inner))
-                kinds.append("inside")
+                add(inner, "inside", None)
             if mode in ("all", "border"):
                 k = len(xy)
                 outer_ring, inner_ring = (xy, inner) if d < 0 else (inner, xy)
                 for j in range(k):
                     jn = (j + 1) % k
-                    quad = np.array([outer_ring[j], outer_ring[jn], inner_ring[jn], inner_ring[j]])
-                    polys.append(lift(quad))
-                    kinds.append("border")
-            rings.extend(f if k == "border" else -1 for k in kinds[before:])
-            source.extend([f] * (len(polys) - before))
-            continue
-        # large offsets: shapely's mitre buffer, border triangulated
-        base = shapely.Polygon(xy).buffer(0)
-        off = base.buffer(d, join_style="mitre", mitre_limit=10.0)
-        if mode in ("all", "inside"):
-            for g in getattr(off, "geoms", [off]):
-                if g.geom_type == "Polygon" and g.area > EPS:
-                    ring = np.asarray(g.exterior.coords)[:-1]
-                    polys.append(lift(ring if g.exterior.is_ccw else ring[::-1]))
-                    kinds.append("inside")
-        if mode in ("all", "border"):
-            ring_geom = base.difference(off) if d < 0 else off.difference(base)
-            for g in getattr(ring_geom, "geoms", [ring_geom]):
-                if g.geom_type != "Polygon" or g.area <= EPS:
-                    continue
-                for tri in simple_pieces(g):
-                    polys.append(lift(tri))
-                    kinds.append("border")
-        rings.extend(f if k == "border" else -1 for k in kinds[before:])
+                    add(np.array([outer_ring[j], outer_ring[jn], inner_ring[jn], inner_ring[j]]),
+                        "border", (f, "border"))
+        else:  # large offsets and faces with holes: shapely's mitre buffer, holed parts in pieces
+            base = (shapely.Polygon(xy).buffer(0) if len(group) == 1
+                    else plane_polygon(mesh, group, p[0], basis))
+            off = base.buffer(d, join_style="mitre", mitre_limit=10.0)
+            if mode in ("all", "inside"):
+                for i, (outer, holes) in enumerate(rings(off)):
+                    for q in simple_pieces(shapely.Polygon(outer, holes)):
+                        add(q, "inside", (f, "inside", i) if holes else None)
+            if mode in ("all", "border"):
+                for outer, holes in rings(base.difference(off) if d < 0 else off.difference(base)):
+                    for q in simple_pieces(shapely.Polygon(outer, holes)):
+                        add(q, "border", (f, "border"))
         source.extend([f] * (len(polys) - before))
-    # CityEngine's border is one face with a hole; here it is pieces, remembered per ring so
-    # that comp(f){ border : … } makes one shape of each ring, as CityEngine does
-    ring_ids = new_ring_ids(rings)
-    st.geometry = (Mesh.from_polygons(polys).inherit(mesh, source)
-                   .with_column("kind", kinds).with_column("ring", ring_ids))
+    # CityEngine's border is one face with a hole; here it is pieces sharing an id, so that
+    # comp(f){ border : … } makes one shape of each, as CityEngine does
+    st.geometry = (Mesh.from_polygons(polys).inherit(mesh, source, drop=(HOLED,))
+                   .with_column("kind", kinds).with_column(HOLED, fresh_ids(keys)))
     if st.geometry.n_faces:
         st.fit_scope()
 

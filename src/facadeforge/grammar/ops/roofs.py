@@ -4,20 +4,24 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
 from ..values import CGARuntimeError
 from . import operation
 from .tagging import auto_tag
 
 
-def _roof(call, builder):
+def _roof(call, builder, holes_ok: bool = False):
     """Roof volume on every face: the roof planes (and gable/shed walls) plus the original face
     as the bottom, as CityEngine builds it; the scope's y follows the first face normal.  Faces
     keep their face's data and are auto-tagged ``roof.bottom``, ``roof.top`` (the planes) and
     ``roof.side`` (gable walls; ``roof.side.outer`` for the other roofs' walls).
 
-    ``builder(xy, basis, normal)`` gets each counter-clockwise face in its plane frame (``basis``
-    columns u, v, normal) and returns roof faces as (k, 3) arrays of (u, v, height)."""
+    ``builder(xy, basis, normal, holes)`` gets each counter-clockwise face in its plane frame
+    (``basis`` columns u, v, normal), with its holes (clockwise rings; a face with holes is pieces
+    sharing an id, see ``geometry.holed``), and returns roof faces as (k, 3) arrays of (u, v,
+    height).  Builders that cannot take holes (``holes_ok`` False) get none: a face with holes
+    is then an error naming the roofs that can."""
     from .geometry import align_scope_y
 
     st = call.state
@@ -25,31 +29,50 @@ def _roof(call, builder):
     if not mesh.n_faces:
         return
     first_normal = mesh.face_normals()[0]
-    polys, source, parts = [], [], []
+    polys, source, parts, keys = [], [], [], []
     side = "side" if call.name == "roofGable" else "side.outer"
-    for f, p in enumerate(mesh.polygons()):
+    holed = mesh.column(HOLED)
+    for group in face_groups(mesh):
+        f = group[0]
+        p = mesh.vertices[mesh.face(f)]
         n = polygon_normal(p)
         if not n.any():
             continue
         basis = plane_basis(n, p[1] - p[0])
-        xy = (p - p[0]) @ basis[:, :2]
-        x, y = xy[:, 0], xy[:, 1]
-        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
+        if len(group) == 1:
+            outlines = [((p - p[0]) @ basis[:, :2], [])]
+        else:
+            outlines = rings(plane_polygon(mesh, group, p[0], basis))
+        roofs = []
+        for xy, holes in outlines:
+            x, y = xy[:, 0], xy[:, 1]
+            if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
+                continue
+            if holes and not holes_ok:
+                raise CGARuntimeError(f"{call.name}: the face has holes (a courtyard); roofHip and "
+                                      "roofGable roof faces with holes, or deleteHoles() first")
+            try:
+                roofs.extend(builder(xy, basis, n, holes))
+            except ValueError as e:
+                raise CGARuntimeError(f"{call.name}: {e}") from None
+        if not roofs:
             continue
-        try:
-            faces = builder(xy, basis, n)
-        except ValueError as e:
-            raise CGARuntimeError(f"{call.name}: {e}") from None
-        polys.append(p[::-1])  # bottom
-        parts.append("bottom")
-        for q in faces:
+        for g in group:  # the bottom: the face itself, turned over
+            polys.append(mesh.vertices[mesh.face(g)][::-1])
+            parts.append("bottom")
+            source.append(g)
+            keys.append(None if holed is None else holed[g])
+        for q in roofs:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
             # a wall (gable, the shed's high side) stands upright on the face; planes slope
             parts.append(side if abs(polygon_normal(polys[-1]) @ n) < 1e-6 else "top")
-        source.extend([f] * (len(faces) + 1))
-    st.geometry = auto_tag(Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", "ring")),
-                           "roof", parts)
+            source.append(f)
+            keys.append(None)
+    out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED))
+    if holed is not None:
+        out = out.with_column(HOLED, fresh_ids(keys))
+    st.geometry = auto_tag(out, "roof", parts)
     align_scope_y(st, first_normal)
     st.fit_scope()
 
@@ -67,7 +90,8 @@ def op_roof_hip(call):
 
     angle = _angle(call)
     overhang = call.num(1, 0.0)
-    _roof(call, lambda xy, basis, n: roof_hip(xy, angle, overhang).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_hip(xy, angle, overhang, holes=holes).faces,
+          holes_ok=True)
 
 
 @operation("roofGable", 1, 5, selectors=(0,))
@@ -78,7 +102,9 @@ def op_roof_gable(call):
     ox = call.num(1, 0.0)
     oy = call.num(2, ox)  # CityEngine: the y overhang defaults to the x overhang
     even = bool(call.args[3]) if len(call.args) > 3 else False
-    _roof(call, lambda xy, basis, n: roof_gable(xy, angle, ox, oy, even).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_gable(xy, angle, ox, oy, even,
+                                                             holes=holes).faces,
+          holes_ok=True)
 
 
 @operation("roofPyramid", 1, 2, selectors=(0,))
@@ -86,7 +112,7 @@ def op_roof_pyramid(call):
     from ...geometry.roofs import roof_pyramid
 
     angle = _angle(call)
-    _roof(call, lambda xy, basis, n: roof_pyramid(xy, angle).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_pyramid(xy, angle).faces)
 
 
 @operation("roofShed", 1, 2, selectors=(0,))
@@ -95,4 +121,4 @@ def op_roof_shed(call):
 
     angle = _angle(call)
     edge = int(call.num(1, 0.0))
-    _roof(call, lambda xy, basis, n: roof_shed(xy, angle, edge).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_shed(xy, angle, edge).faces)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
+from ...geometry.holed import face_groups, plane_polygon, rings
 from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -26,9 +27,9 @@ from .trimming import MeshEdges, comp_trim
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
-#: Face columns that describe the last ``offset`` (``inside``/``border`` and the border rings):
-#: its successors' splits and components no longer have them.
-OFFSET_COLUMNS = ("kind", "ring")
+#: Face columns that describe the last ``offset`` (its ``inside``/``border`` parts): its
+#: successors' splits and components no longer have them.
+OFFSET_COLUMNS = ("kind",)
 
 
 # ---- split --------------------------------------------------------------------------------
@@ -615,7 +616,7 @@ def _comp_faces(call, st):
             ps.context = {**st.context, "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
-        groups = _components(idx, mesh.column("ring"))
+        groups = _components(idx, mesh.column("holed"))
         for j, group in enumerate(groups):
             f = group[0]
             ps = st.child(len(out))
@@ -636,8 +637,8 @@ def _comp_faces(call, st):
 
 def _components(idx: np.ndarray, rings) -> list[list[int]]:
     """The components of ``comp(f)`` among the selected faces ``idx``: one per face, except the
-    pieces of one ``offset`` border ring (face column ``ring``), which are one face with a hole
-    in CityEngine."""
+    pieces of one face with holes (face column ``holed``: an ``offset`` border ring, a courtyard),
+    which are one face in CityEngine."""
     if rings is None:
         return [[int(f)] for f in idx]
     groups, ring_group = [], {}
@@ -768,22 +769,40 @@ def _comp_vertices(call, st):
 # ---- setback ------------------------------------------------------------------------------
 
 class _PlanarEdges:
-    """The single planar face of a shape, in its own 2D frame, with edge directions classified
-    like ``comp(e)`` selectors (front/back/left/right/side/all) relative to the shape's scope."""
+    """The single planar face of a shape (a face with holes included: pieces sharing a
+    ``holed`` id), in its own 2D frame, with edge directions classified like ``comp(e)``
+    selectors (front/back/left/right/side/all) relative to the shape's scope.  Edges are the
+    outline's, then each hole's (``seg_a`` → ``seg_b``, the face on their left)."""
 
     def __init__(self, st, opname: str, object_rot=None):
         import shapely
 
         mesh = st.geometry
-        if mesh.n_faces != 1:
+        groups = face_groups(mesh)
+        if len(groups) != 1:
             raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
         poly = mesh.vertices[mesh.face(0)]
         self.normal = mesh.face_normals()[0]
         self.sc = face_scope(poly, self.normal)
-        self.xy = self.sc.to_local(poly)[:, :2]
-        self.shape = shapely.Polygon(self.xy).buffer(0)
-        k = self.k = len(self.xy)
-        e = np.roll(self.xy, -1, axis=0) - self.xy
+        self.holes: list = []
+        if len(groups[0]) == 1:
+            self.xy = self.sc.to_local(poly)[:, :2]
+            self.shape = shapely.Polygon(self.xy).buffer(0)
+        else:
+            outlines = rings(plane_polygon(mesh, groups[0], self.sc.origin, self.sc.rotation))
+            if len(outlines) != 1:
+                raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
+            self.xy, self.holes = outlines[0]
+            self.shape = shapely.Polygon(self.xy, self.holes)
+        ring_list = [self.xy, *self.holes]
+        self.seg_a = np.concatenate(ring_list)
+        self.seg_b = np.concatenate([np.roll(r, -1, axis=0) for r in ring_list])
+        first = np.cumsum([0] + [len(r) for r in ring_list])
+        idx = [np.arange(a, b) for a, b in zip(first[:-1], first[1:])]
+        self.prev = np.concatenate([np.roll(i, 1) for i in idx])   # the edge before, same ring
+        self.next = np.concatenate([np.roll(i, -1) for i in idx])
+        k = self.k = len(self.seg_a)
+        e = self.seg_b - self.seg_a
         outward3 = cross3(np.column_stack([e, np.zeros(k)]) @ self.sc.rotation.T, self.normal)
         d_idx = _direction_index(outward3 @ st.scope.rotation)
         t = {name: d_idx == i for i, name in enumerate(_DIRS)}
@@ -791,7 +810,13 @@ class _PlanarEdges:
         t["all"] = np.ones(k, bool)
         _add_street_selectors(t, outward3, object_rot)
         self.table = t
-        self.tags = _tag_masks(mesh, "p")
+        self.tags = _tag_masks(mesh, "p") if not self.holes else self._holed_tags(mesh)
+
+    def _holed_tags(self, mesh):
+        """``isTagged`` on a face with holes: its edges match through the face's own tags (the
+        pieces' edge tags are not mapped onto the outline's edges)."""
+        faces = _tag_masks(mesh, "f")
+        return lambda query, sub: np.full(self.k, bool(faces(query, sub).any()))
 
     def setback_tags(self, face: Mesh, mesh: Mesh, selected, remainder: bool) -> Mesh:
         """Setback auto-tags on the edges of ``mesh``, a piece of the single face ``face``
@@ -800,12 +825,12 @@ class _PlanarEdges:
         of the remainder); elsewhere ``setback.back``, the new setback edges, which also take
         the tags of the selected edge they run along.  Edges between two pieces of the same
         shape (a holed piece stored as pieces) get none."""
-        a = self.xy
-        b = np.roll(a, -1, axis=0)
+        a, b = self.seg_a, self.seg_b
         d = b - a
         dd = np.maximum((d * d).sum(axis=1), EPS)
         unit = d / np.sqrt(dd)[:, None]
-        own = corner_tags(face, EDGE_TAGS) if face.corner_column(EDGE_TAGS) is not None else None
+        own = (corner_tags(face, EDGE_TAGS) if face.corner_column(EDGE_TAGS) is not None
+               and not self.holes else None)
         local = self.sc.to_local(mesh.vertices[mesh.corners])[:, :2]
         nxt = mesh.next_corners()
         ends = [tuple(np.round(np.concatenate([local[c], local[nxt[c]]]), 7)) for c in range(len(local))]
@@ -845,21 +870,44 @@ class _PlanarEdges:
         return int(face.starts[0] + k)
 
     def band(self, edges, width):
-        """Strip inside the polygon along the given edges, ``width`` wide (a number, or an array
-        with one width per edge of the polygon)."""
+        """Strip inside the face along the given edges, ``width`` wide (a number, or an array
+        with one width per edge): the area between each edge and its offset line, as a
+        setback with the other edges held still would sweep it.  At a convex corner the strip
+        runs on to the neighbouring edge (the face's outline clips it there); at a reflex corner
+        it stops at the corner, unless the neighbour is in the strip too, when the two offset
+        lines meet in a mitre.  Strips never run past a corner into other parts of the face
+        (a courtyard's far side, the other wing of a U)."""
         import shapely
 
         widths = np.broadcast_to(np.asarray(width, float), (self.k,))
-        band = shapely.Polygon()
-        for i in edges:
-            if widths[i] <= 0:
-                continue
-            a, b = self.xy[i], self.xy[(i + 1) % self.k]
-            t = (b - a) / max(np.linalg.norm(b - a), EPS)
-            inward = np.array([-t[1], t[0]]) * widths[i]
-            band = band.union(shapely.Polygon([a - t * 1e3, b + t * 1e3, b + t * 1e3 + inward,
-                                               a - t * 1e3 + inward]))
-        return band
+        chosen = np.zeros(self.k, bool)
+        chosen[np.asarray(list(edges), int)] = True
+        chosen &= widths > 0
+        d = self.seg_b - self.seg_a
+        length = np.maximum(np.linalg.norm(d, axis=1), EPS)
+        t = d / length[:, None]
+        inward = np.column_stack([-t[:, 1], t[:, 0]])
+        parts = []
+        for i in np.flatnonzero(chosen):
+            a, b, w = self.seg_a[i], self.seg_b[i], widths[i]
+            ext = []
+            for j, at_start in ((self.prev[i], True), (self.next[i], False)):
+                e1, e2 = (t[j], t[i]) if at_start else (t[i], t[j])
+                convex = e1[0] * e2[1] - e1[1] * e2[0] > EPS
+                ext.append(length[j] + w if convex and not chosen[j] else 0.0)
+            parts.append(shapely.Polygon([a - t[i] * ext[0], b + t[i] * ext[1],
+                                          b + t[i] * ext[1] + inward[i] * w,
+                                          a - t[i] * ext[0] + inward[i] * w]))
+            j = self.next[i]  # a reflex corner between two chosen edges: the mitre
+            if chosen[j] and t[i][0] * t[j][1] - t[i][1] * t[j][0] < -EPS:
+                p1, p2 = b + inward[i] * w, b + inward[j] * widths[j]
+                den = t[i][0] * t[j][1] - t[i][1] * t[j][0]
+                q = p2 - p1
+                m = p1 + t[i] * ((q[0] * t[j][1] - q[1] * t[j][0]) / den)
+                parts.append(shapely.Polygon([b, p1, m, p2]).buffer(0))
+        if not parts:
+            return shapely.Polygon()
+        return shapely.union_all([p for p in parts if p.is_valid and p.area > 0])
 
     def shapes(self, st, pieces, selected=None, remainder=None) -> list:
         """``[(branch, shapely geometry)]`` → successor states on this face's plane.  The pieces
