@@ -1,0 +1,92 @@
+"""Faces with holes (courtyard footprints) and setback bands on concave faces."""
+
+import json
+
+import numpy as np
+import pytest
+import shapely
+from cga_helpers import areas, by_symbol, run
+
+from facadeforge import derive, load_rules
+from facadeforge.geometry.footprints import load_footprints
+
+# a 30 x 20 block around a 10 x 10 courtyard (GeoJSON: outer ring, then the hole)
+BLOCK = {"type": "Polygon", "coordinates": [
+    [[0, 0], [30, 0], [30, 20], [0, 20], [0, 0]],
+    [[10, 5], [20, 5], [20, 15], [10, 15], [10, 5]]]}
+
+
+@pytest.fixture
+def block(tmp_path):
+    p = tmp_path / "block.geojson"
+    p.write_text(json.dumps(BLOCK))
+    return load_footprints(p)
+
+
+def derive_on(src, footprints):
+    m = derive(load_rules(src), footprints)[0]
+    assert not m.warnings, m.warnings
+    return m
+
+
+def test_geojson_holes_are_courtyards(block):
+    assert len(block) == 1 and len(block[0].holes) == 1
+    m = derive_on("Lot --> print(geometry.nHoles) print(geometry.area) X.", block)
+    assert m.attributes["prints"] == ["1", "500"]
+
+
+def test_a_courtyard_extrudes_to_outer_and_inner_walls(block):
+    m = derive_on('Lot --> extrude(10) comp(f){ isTagged("extrude.side.inner") : I. '
+                  '| side : O. | top : T. | bottom : B. }', block)
+    parts = by_symbol(m)
+    assert len(parts["I"]) == 4 and sum(p.mesh.area() for p in parts["I"]) == pytest.approx(400)
+    assert sum(p.mesh.area() for p in parts["O"]) == pytest.approx(1000)
+    # the top is one face with a hole, so one shape (pieces inside), as in CityEngine
+    assert len(parts["T"]) == 1 and parts["T"][0].mesh.area() == pytest.approx(500)
+
+
+def test_a_hip_roof_runs_round_the_courtyard(block):
+    m = derive_on("Lot --> extrude(10) comp(f){ top = roofHip(30) comp(f){ "
+                  'isTagged("roof.top") : R. | all : B. } }', block)
+    a = areas(m)
+    assert a["B"] == pytest.approx(500)                       # the roof's bottom: the block
+    assert a["R"] == pytest.approx(500 / np.cos(np.radians(30)))  # planes over it, none over the yard
+    top = max(p.mesh.bounds()[1][1] for p in m.parts)
+    # the ring is 10 m wide beside the courtyard and 5 m in front of and behind it: the
+    # ridge peaks over the wide sides, 5 m from either eave
+    assert top == pytest.approx(10 + 5 * np.tan(np.radians(30)))
+
+
+def test_roofs_that_cannot_take_holes_say_so(block):
+    m = derive(load_rules("Lot --> roofPyramid(30) X."), block)[0]
+    assert any("has holes" in w and "deleteHoles" in w for w in m.warnings)
+
+
+def test_offset_and_setback_of_a_face_with_holes(block):
+    a = areas(derive_on("Lot --> offset(-1) comp(f){ inside : I. | border : B. }", block))
+    assert a["I"] == pytest.approx(28 * 18 - 12 * 12)
+    assert a["B"] == pytest.approx(500 - (28 * 18 - 12 * 12))
+    parts = by_symbol(derive_on("Lot --> offset(-1) comp(f){ border : B. }", block))
+    assert len(parts["B"]) == 1                          # the border is one face
+    # the band along the front edges: the street front and the courtyard's side facing it,
+    # which stops at the courtyard's corners
+    a = areas(derive_on("Lot --> setback(2){ front : F. | remainder : R. }", block))
+    assert a["F"] == pytest.approx(30 * 2 + 10 * 2) and a["R"] == pytest.approx(500 - 80)
+
+
+def test_setback_bands_match_a_mitred_offset_on_a_concave_face():
+    ell = np.array([[0, 0, -20], [8, 0, -20], [8, 0, -8], [20, 0, -8], [20, 0, 0], [0, 0, 0]],
+                   float)
+    poly = shapely.Polygon(ell[:, [0, 2]])
+    band = poly.area - poly.buffer(-2, join_style="mitre").area
+    assert areas(run("Lot --> setback(2){ all : B. | remainder : R. }", poly=ell))["B"] \
+        == pytest.approx(band)
+
+
+def test_a_setback_band_stops_at_reflex_corners():
+    # a U whose notch's far edge faces the same way as the prongs' ends: each band is its own
+    # edge's, not a strip across the whole U
+    u = np.array([[0, 0, 0], [30, 0, 0], [30, 0, -20], [20, 0, -20], [20, 0, -8], [10, 0, -8],
+                  [10, 0, -20], [0, 0, -20]], float)[::-1]
+    a = areas(run("Lot --> setback(3){ back : B. | remainder : R. }", poly=u))
+    assert a["B"] == pytest.approx(3 * 3 * 10)
