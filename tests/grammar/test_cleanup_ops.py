@@ -197,12 +197,3 @@ def test_shading_normals_are_accepted_and_leave_faces(call):
     assert not m.warnings
     mesh = part(m).mesh
     assert mesh.n_faces == 6 and mesh.volume() == pytest.approx(320)
-
-
-# -- modify (not implemented: loads and warns) ---------------------------------------------------
-
-def test_modify_loads_and_warns_instead_of_failing_to_load():
-    m = run("Lot --> extrude(4) modify(f) { top : t(0, 2, 0) } X.")
-    assert any("modify() is not supported yet" in w for w in m.warnings)
-    lo, hi = part(m).mesh.bounds()
-    assert hi == pytest.approx([10, 4, 8])

@@ -543,6 +543,8 @@ class _RunContext:
                     if spec is None or not spec.body:
                         raise CGARuntimeError(f"'{op.name}' takes no {{ … }} body")
                     pieces = self.call_op(spec, op, state, env, op.branches)
+                    if spec.keeps_shape:  # modify: the shape goes on with its edited geometry
+                        continue
                     own = self.d.add_occluder(state) if pieces else None
                     for piece_state, piece_ops, info in pieces or ():
                         piece_state.mark_pivot()

@@ -24,6 +24,7 @@ class OpSpec:
     body: bool = False
     names: frozenset = field(default_factory=frozenset)  # positions taking a bare name (set)
     selector_min_args: int = 0  # selectors only when called with at least this many arguments
+    keeps_shape: bool = False  # a body operation whose shape goes on (``modify``), not a split
 
     def selector_positions(self, n_args: int) -> frozenset:
         return self.selectors if n_args >= self.selector_min_args else self.names
@@ -62,11 +63,11 @@ def shape_function(name: str):
 
 
 def operation(name: str, min_args: int = 0, max_args: int | None = None, selectors=(),
-              body: bool = False, names=(), selector_min_args: int = 0):
+              body: bool = False, names=(), selector_min_args: int = 0, keeps_shape: bool = False):
     def deco(fn):
         OPERATIONS[name] = OpSpec(name, fn, min_args, min_args if max_args is None else max_args,
                                   frozenset(selectors) | frozenset(names), body,
-                                  frozenset(names), selector_min_args)
+                                  frozenset(names), selector_min_args, keeps_shape)
         return fn
     return deco
 
@@ -128,6 +129,7 @@ def load_all() -> dict[str, OpSpec]:
         geometry,
         inlining,
         meta,
+        modifying,
         occlusion,
         perimeter,
         queries,

@@ -161,18 +161,3 @@ def op_soften_normals(call):
     if not 0.0 <= angle <= 180.0:
         raise CGARuntimeError(f"softenNormals: the angle must be between 0 and 180 degrees, "
                               f"not {angle:g}; e.g. softenNormals(30)")
-
-
-@operation("modify", 1, 2, selectors=(0, 1), body=True)
-def op_modify(call):
-    """``modify(component[, scopeAlignment]) { selector operator operations | … }``: not done
-    yet.  Registered with its ``{ … }`` body so that rules using it load and derive (the shape
-    goes on unchanged, with a warning) instead of failing to load.
-
-    Reference: https://doc.arcgis.com/en/cityengine/latest/cga/cga-modify-operation.htm.  What it
-    needs: branch operations run on each component's shape with no successor, then the edited
-    components recomposed with the untouched geometry (``inline(recompose) comp(f)``), and, for
-    ``modify(e|v)``, edge and vertex shapes whose moves reach every face sharing them (welded
-    topology, as ``geometry.cleanup.weld`` builds).
-    """
-    raise CGARuntimeError("modify() is not supported yet; the shape is left unchanged")

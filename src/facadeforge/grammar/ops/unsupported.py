@@ -2,7 +2,7 @@
 
 Loaded after every other op module (a name is registered here only if no module implements it).
 Rules using these still load and derive; each use is a warning (see docs/cga-dialect.md, "Not yet
-supported").  ``modify`` is registered by ops/cleanup.py, which knows its body syntax.
+supported").
 """
 
 from __future__ import annotations
