@@ -37,6 +37,15 @@ class Asset:
     material: AssetMaterial = field(default_factory=AssetMaterial)
     materials: list = field(default_factory=list)
     face_material: np.ndarray | None = None
+    _column: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    def material_column(self) -> np.ndarray:
+        """(F,) object array: each face's material (made once; meshes share it, unchanged)."""
+        if self._column is None:
+            col = np.empty(len(self.face_material), dtype=object)
+            col[:] = [self.materials[k] for k in self.face_material]
+            self._column = col
+        return self._column
 
 
 class AssetResolver:

@@ -71,6 +71,8 @@ def _set_column(data: dict | None, name: str, values, n: int) -> dict | None:
     out = dict(data or {})
     if values is None:
         out.pop(name, None)
+    elif isinstance(values, np.ndarray) and values.dtype == object and len(values) == n:
+        out[name] = values  # columns are never changed in place: shared as is
     else:
         out[name] = _column(values, n)
     return out or None
@@ -254,7 +256,9 @@ class Mesh:
 
     def without_columns(self, *names: str) -> Mesh:
         """Same mesh without the face columns ``names`` (itself when it has none of them)."""
-        if self.face_data is None or not any(k in self.face_data for k in names):
+        data = self.face_data
+        if data is None or (len(names) == 1 and names[0] not in data) or not any(
+                k in data for k in names):
             return self
         data = {k: v for k, v in self.face_data.items() if k not in names}
         return self._like(face_data=data or None)
@@ -304,10 +308,12 @@ class Mesh:
 
     def with_vertices(self, vertices: np.ndarray) -> Mesh:
         """Same faces on moved vertices (topology, hence closedness, is kept)."""
-        return self._like(vertices=vertices)
+        return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs,
+                    closed=self.closed, face_data=self.face_data, corner_data=self.corner_data)
 
     def with_uvs(self, corner_uvs: np.ndarray | None) -> Mesh:
-        return self._like(corner_uvs=corner_uvs)
+        return Mesh(self.vertices, corners=self.corners, starts=self.starts, corner_uvs=corner_uvs,
+                    closed=self.closed, face_data=self.face_data, corner_data=self.corner_data)
 
     def transformed(self, matrix: np.ndarray, offset: np.ndarray | None = None) -> Mesh:
         """Apply ``v @ matrix.T + offset``; faces are reversed when the map mirrors."""

@@ -239,6 +239,7 @@ class Derivation:
         self.parts: list[Part] = []
         self._attr_cache: dict = {}
         self._materials: dict = {}
+        self._column_groups: dict = {}
         self._attr_busy: set = set()
         self.shape_count = 0
         self._deadline = 0.0
@@ -433,14 +434,26 @@ class Derivation:
             self.add_occluder(state)
         own = state.geometry.column("material")
         if own is not None:  # faces with their own material: one part per material
-            groups: dict = {}
-            for f, am in enumerate(own):
-                groups.setdefault(id(am), (am, []))[1].append(f)
-            for am, faces in groups.values():
+            for am, faces in self._material_groups(own):
                 mat = node.material if am is None else self.material(state, am)
                 self.parts.append(Part(state.geometry.subset(faces), label, mat, symbol, node.id))
             return
         self.parts.append(Part(state.geometry, label, node.material, symbol, node.id))
+
+    def _material_groups(self, column: np.ndarray) -> list:
+        """``[(material, face indices)]`` of a face column, in order of first use; an inserted
+        asset's column is shared by its copies, so it is grouped once."""
+        hit = self._column_groups.get(id(column))
+        if hit is not None and hit[0] is column:
+            return hit[1]
+        groups: dict = {}
+        for f, am in enumerate(column):
+            groups.setdefault(id(am), (am, []))[1].append(f)
+        out = [(am, np.array(faces)) for am, faces in groups.values()]
+        if len(self._column_groups) > 4096:
+            self._column_groups.clear()
+        self._column_groups[id(column)] = (column, out)  # the column kept: its id stays its own
+        return out
 
     def material(self, state: ShapeState, asset_material=None) -> Material:
         """Exported material: the shape's material attributes over an asset's own material."""

@@ -80,7 +80,7 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
             vsrc, esrc = [vsrc[c] for c in cs], [esrc[c] for c in cs]
         polys, kinds = [polys[i] for i in keep], [kinds[i] for i in keep]
         source, from_edge = [source[i] for i in keep], [from_edge[i] for i in keep]
-    for i in _hole_walls(polys, kinds):
+    for i in _hole_walls(polys, kinds) if mesh.n_faces > 1 else ():  # one face has no hole
         kinds[i] = "side.inner"
     out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED),
                                             corner_source=(vsrc, esrc) if track else None)
@@ -445,8 +445,10 @@ def apply_asset_material(st, asset, face_material) -> None:
     of ``st.geometry``, or None) keeps several materials per face until an operation changes
     the faces; a single material gives its texture and colour where the shape has none."""
     if face_material is not None:
-        table = asset.materials
-        st.geometry = st.geometry.with_column("material", [table[k] for k in face_material])
+        whole = face_material is asset.face_material
+        st.geometry = st.geometry.with_column(
+            "material", asset.material_column() if whole
+            else [asset.materials[k] for k in face_material])
         return
     own = {}
     if asset.material.texture:
