@@ -79,3 +79,22 @@ def test_render_and_demo(tmp_path, capsys):
     from PIL import Image
 
     assert Image.open(png).size == (320, 240)
+
+
+def test_render_views_from_above(tmp_path):
+    """--elevation moves the camera (another picture of the same model); a bad angle is a usage
+    error."""
+    from pathlib import Path
+
+    import numpy as np
+    from PIL import Image
+
+    glb = tmp_path / "b.glb"
+    rules = Path(__file__).resolve().parents[1] / "examples" / "grammars" / "building.cga"
+    assert main(["derive", str(rules), "--lot", "24x14", "-o", str(glb)]) == 0
+    low, high = tmp_path / "low.png", tmp_path / "high.png"
+    assert main(["render", str(glb), "-o", str(low), "--size", "200x150"]) == 0
+    assert main(["render", str(glb), "-o", str(high), "--size", "200x150", "--elevation", "80"]) == 0
+    assert not np.array_equal(np.asarray(Image.open(low)), np.asarray(Image.open(high)))
+    with pytest.raises(SystemExit):
+        main(["render", str(glb), "-o", str(high), "--elevation", "up"])

@@ -20,7 +20,8 @@ EXAMPLES = {
   facadeforge derive package.rpk --rule rules/main.cga --footprint lots.geojson -o out.obj""",
     "render": """examples:
   facadeforge render building.glb -o preview.png
-  facadeforge render building.obj -o preview.png --size 1600x1200""",
+  facadeforge render building.obj -o preview.png --size 1600x1200
+  facadeforge render blocks.glb -o top.png --elevation 60 --azimuth 20""",
     "reconstruct": """examples:
   facadeforge reconstruct photo.jpg -o out/
   facadeforge reconstruct facade.png --rectified --width-m 18.5 -o out/
@@ -44,6 +45,16 @@ def _size(text: str) -> tuple[int, int]:
         return int(w), int(h)
     except ValueError:
         raise argparse.ArgumentTypeError(f"--size '{text}' must be WIDTHxHEIGHT, e.g. 1200x900") from None
+
+
+def _angle(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not an angle in degrees, e.g. 30") from None
+    if not -360.0 <= value <= 360.0:
+        raise argparse.ArgumentTypeError(f"{value:g}° is out of range; give -360 to 360 degrees")
+    return value
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -74,6 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("model")
     r.add_argument("-o", "--output", required=True, help="PNG file")
     r.add_argument("--size", type=_size, default=(1200, 900), help="WIDTHxHEIGHT (default 1200x900)")
+    r.add_argument("--azimuth", type=_angle, default=-35.0,
+                   help="camera direction round the vertical, degrees from the front (+z) towards "
+                        "+x (default -35)")
+    r.add_argument("--elevation", type=_angle, default=25.0,
+                   help="camera height, degrees above the horizon, -89 to 89 (default 25)")
 
     c = sub.add_parser("reconstruct", help="photo → shape tree, CGA rules and a textured 3D model",
                        epilog=EXAMPLES["reconstruct"],
@@ -158,7 +174,8 @@ def cmd_derive(args) -> int:
 def cmd_render(args) -> int:
     from . import render
 
-    render(args.model, args.output, size=args.size)
+    render(args.model, args.output, size=args.size, azimuth=args.azimuth,
+           elevation=args.elevation)
     print(f"rendered {args.model} → {args.output}")
     return 0
 

@@ -90,3 +90,22 @@ def test_a_setback_band_stops_at_reflex_corners():
                   [10, 0, -20], [0, 0, -20]], float)[::-1]
     a = areas(run("Lot --> setback(3){ back : B. | remainder : R. }", poly=u))
     assert a["B"] == pytest.approx(3 * 3 * 10)
+
+
+def test_the_courtyard_example():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    models = derive(load_rules(root / "examples/grammars/courtyard.cga"),
+                    root / "examples/footprints/courtyards.geojson", workers=1)
+    assert [m.warnings for m in models] == [[], []]
+    for m in models:
+        court = [p for p in m.parts if p.symbol in ("Plaster", "CourtTile")]
+        street = [p for p in m.parts if p.symbol in ("Stone", "Tile", "Shop")]
+        assert court and street
+        # courtyard facades stand on the hole's edges: all inside the outline's bounds
+        lo, hi = np.min([p.mesh.bounds()[0] for p in street], axis=0), \
+            np.max([p.mesh.bounds()[1] for p in street], axis=0)
+        for p in court:
+            b = p.mesh.bounds()
+            assert np.all(b[0][[0, 2]] > lo[[0, 2]] + 1) and np.all(b[1][[0, 2]] < hi[[0, 2]] - 1)
