@@ -49,3 +49,17 @@ def test_comp_faces_keep_the_per_face_materials_of_an_inline():
         colours[key] = colours.get(key, 0.0) + p.mesh.area()
     # two 5 x 8 x 1 boxes: 106 m² each, red and blue, through the component split
     assert colours == {(1.0, 0.0, 0.0): pytest.approx(106), (0.0, 0.0, 1.0): pytest.approx(106)}
+
+
+def test_comp_groups_of_an_inserted_asset(tmp_path):
+    (tmp_path / "tree.obj").write_text(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\n"
+        "g trunk\nf 1 2 3 4\ng crown\nf 1 2 6 5\nf 2 7 6\n")
+    m = derive(load_rules('Lot --> s(2, 2, 2) i("tree.obj") split(x){ ~1 : P }*\n'
+                          'P --> comp(g){ 0 : T. | 1 : C. }', assets=tmp_path),
+               None, lot_size="10x8")[0]
+    assert not m.warnings
+    parts = by_symbol(m)
+    # split pieces keep their faces' groups; the trunk is one quad, the crown a quad and a triangle
+    assert sum(p.mesh.area() for p in parts["T"]) == pytest.approx(4)
+    assert sum(p.mesh.area() for p in parts["C"]) == pytest.approx(4 + 2)

@@ -157,6 +157,7 @@ def load_obj(path: Path) -> Asset:
         raise InputError(f"asset {path} is larger than {MAX_ASSET_BYTES >> 20} MiB")
     verts, uvs, faces, face_uv = [], [], [], []
     mtllibs, first_mtl, current_mtl, face_mtl = [], None, None, []
+    group, face_group = None, []
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             if not line or line[0] == "#":
@@ -183,6 +184,9 @@ def load_obj(path: Path) -> Asset:
                         faces.append(vi)
                         face_uv.append(ti if len(ti) == len(vi) else None)
                         face_mtl.append(current_mtl)
+                        face_group.append(group)
+                elif tag in ("g", "o"):
+                    group = " ".join(parts[1:]) or None
                 elif tag == "mtllib":
                     mtllibs.append(" ".join(parts[1:]))
                 elif tag == "usemtl":
@@ -200,6 +204,10 @@ def load_obj(path: Path) -> Asset:
     if uvs and all(t is not None for t in face_uv):
         corner_uvs = [uv_arr[t] for t in face_uv]
     mesh = Mesh(v, faces, corner_uvs)
+    order = list(dict.fromkeys(g for g in face_group if g is not None))
+    if len(order) > 1:  # comp(g): one component per group, in the file's order
+        rank = {g: k for k, g in enumerate(order)}
+        mesh = mesh.with_column("group", [None if g is None else (rank[g], g) for g in face_group])
     mats: dict[str, AssetMaterial] = {}
     for lib in mtllibs:
         mp = (path.parent / lib).resolve()

@@ -29,6 +29,8 @@ FACE_COLUMNS = {
                 "under the shape's material attributes",
     "tags": "the face's geometry tags, a tuple of strings (CGA ``tag``, auto-tags)",
     "kind": "which part of an ``offset`` the face is: 'inside' or 'border'",
+    "group": "the OBJ group (``g``/``o``) of an inserted asset's face, as (its rank in the "
+             "file, its name) (``comp(g)``)",
     "holed": "the face with holes a piece belongs to: faces here are simple polygons, so "
              "CityEngine's face with holes (a courtyard footprint, an ``offset`` border) is pieces "
              "sharing one id, which ``comp(f)``, the roofs, ``offset`` and ``setback`` take as "

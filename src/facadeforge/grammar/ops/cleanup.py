@@ -34,7 +34,7 @@ def _face_groups(mesh) -> list | None:
     geometry tags (face columns, see ``geometry.mesh.FACE_COLUMNS``)."""
     if mesh.face_data is None:
         return None
-    cols = [mesh.face_data.get(k) for k in ("material", "kind", "tags")]
+    cols = [mesh.face_data.get(k) for k in ("material", "kind", "tags", "group")]
     return [tuple(None if c is None else (id(c[f]) if k == 0 else c[f]) for k, c in enumerate(cols))
             for f in range(mesh.n_faces)]
 

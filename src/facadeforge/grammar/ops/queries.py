@@ -141,7 +141,12 @@ def _geometry_materials(env, args):
 def _geometry_groups(env, args):
     """``geometry.groups()``: group names in component-split order (func_geometry.html#groups):
     the OBJ groups of an unaltered inserted asset; any other geometry is one group named after
-    the initial shape, as CityEngine names initial-shape geometry."""
+    the initial shape, as CityEngine names initial-shape geometry.  Faces that keep their
+    asset's groups (face column ``group``) name them, in the order ``comp(g)`` takes them."""
+    column = env.state.geometry.column("group")
+    if column is not None:
+        return np.array([name for _, name in sorted({g for g in column if g is not None})],
+                        dtype=object)
     name = _inserted(env)
     if name is not None and not name.startswith("builtin:"):
         return np.array(_obj_groups(env, name), dtype=object)

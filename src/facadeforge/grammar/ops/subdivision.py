@@ -512,19 +512,20 @@ def _part_faces(st, kind: str) -> list:
     """Face index arrays of the components of ``comp(m|g|h)``.
 
     ``m``: one component per material, in order of first use (an inserted asset's own materials
-    count; a shape without per-face materials is one component).  ``g``: one per asset group;
-    inserted assets keep no group structure here, so the geometry is one group, as an asset
-    without groups is in CityEngine.  ``h``: the faces' holes; faces here never have holes
-    (Boolean results with holes are triangulated), so there are none."""
+    count; a shape without per-face materials is one component).  ``g``: one per OBJ group of
+    an inserted asset (face column ``group``), in the file's order; geometry without groups is
+    one group, as in CityEngine.  ``h``: the faces' holes; a face with holes is kept as
+    pieces here, so there are none to give."""
     n = st.geometry.n_faces
     if n == 0 or kind == "h":
         return []
-    materials = st.geometry.column("material")
-    if kind == "m" and materials is not None:
+    column = st.geometry.column("material" if kind == "m" else "group")
+    if column is not None:
         groups: dict = {}
-        for f, m in enumerate(materials):
-            groups.setdefault(id(m), []).append(f)
-        return [np.array(g) for g in groups.values()]
+        for f, m in enumerate(column):
+            groups.setdefault(id(m) if kind == "m" else m, []).append(f)
+        keys = list(groups) if kind == "m" else sorted(groups, key=lambda g: (g is None, g))
+        return [np.array(groups[k]) for k in keys]
     return [np.arange(n)]
 
 
