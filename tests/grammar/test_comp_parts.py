@@ -63,3 +63,11 @@ def test_comp_groups_of_an_inserted_asset(tmp_path):
     # split pieces keep their faces' groups; the trunk is one quad, the crown a quad and a triangle
     assert sum(p.mesh.area() for p in parts["T"]) == pytest.approx(4)
     assert sum(p.mesh.area() for p in parts["C"]) == pytest.approx(4 + 2)
+
+
+def test_comp_face_edges_are_every_face_s_own():
+    out = run('Lot --> extrude(2) print(size(comp(fe){ all : 1 })) print(size(comp(e){ all : 1 })) '
+              'comp(fe){ isTagged("extrude.top") : print("top edge") } X.').attributes["prints"]
+    # a box: 6 quads have 24 face edges, 12 edges; 4 edges touch the top face, but as face
+    # edges each is seen twice (from the top and from its wall), so 8 face edges
+    assert out[:2] == ["24", "12"] and out.count("top edge") == 8

@@ -95,7 +95,7 @@ class Env:
         state = self.state.copy()
         call = OpCall("comp", [kind], state, self.derivation, self, node.branches, False)
         pieces = op_comp(call) or []
-        n = component_count(state, "e" if kind == "fe" else kind)
+        n = component_count(state, kind)
         values: list = [None] * n
         for piece_state, expr, info in pieces:
             v = self.with_state(piece_state).evaluator(expr)

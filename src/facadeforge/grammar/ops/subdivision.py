@@ -486,7 +486,7 @@ def op_comp(call):
     if kind == "f":
         pieces = _comp_faces(call, st)
     elif kind in ("e", "fe"):
-        pieces = _comp_edges(call, st)
+        pieces = _comp_edges(call, st, per_face=kind == "fe")
     elif kind in ("v", "fv"):
         pieces = _comp_vertices(call, st)
     elif kind in ("m", "g", "h"):
@@ -655,17 +655,22 @@ def _components(idx: np.ndarray, rings) -> list[list[int]]:
     return groups
 
 
-def _comp_edges(call, st):
+def _comp_edges(call, st, per_face: bool = False):
+    """``comp(e)``: the edges, coincident vertices welded, each once; ``comp(fe)``
+    (``per_face``): every face's edges, so an edge two faces share is two components, each
+    seen from its own face."""
     mesh = st.geometry
     if mesh.n_faces == 0:
         return []
     weld = weld_ids(mesh.vertices)
     edges, seen, edge_faces = [], {}, []
     normals = mesh.face_normals()
+    corner_edge = []
     for f in range(mesh.n_faces):
         face = mesh.face(f)
         for a, b in zip(face, np.roll(face, -1)):
             k = (min(weld[a], weld[b]), max(weld[a], weld[b]))
+            corner_edge.append((a, b, f, seen.get(k, len(edges)) if k[0] != k[1] else -1))
             if k[0] == k[1]:
                 continue
             if k in seen:
@@ -675,6 +680,12 @@ def _comp_edges(call, st):
             seen[k] = len(edges)
             edges.append([mesh.vertices[a], mesh.vertices[b], normals[f], 1])
             edge_faces.append([f])
+    welded_of = None
+    if per_face:  # one component per corner, with its welded edge's neighbours
+        welded_of = np.array([e for *_, e in corner_edge], np.int64)
+        edges = [[mesh.vertices[a], mesh.vertices[b], normals[f], edges[e][3] if e >= 0 else 1]
+                 for a, b, f, e in corner_edge]
+        edge_faces = [edge_faces[e] if e >= 0 else [f] for _, _, f, e in corner_edge]
     n = len(edges)
     dirs = np.array([e[1] - e[0] for e in edges])
     lengths = np.linalg.norm(dirs, axis=1)
@@ -696,6 +707,12 @@ def _comp_edges(call, st):
     taken = np.zeros(n, bool)
     out = []
     tags = _tag_masks(mesh, "e")
+    if welded_of is not None:
+        welded = tags
+
+        def tags(query, sub):  # noqa: F811 -- a face edge is tagged as its edge is
+            hit = welded(query, sub)
+            return np.where(welded_of >= 0, hit[np.maximum(welded_of, 0)], False)
     for branch in call.branches:
         k = _selector_key(call, branch)
         idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
