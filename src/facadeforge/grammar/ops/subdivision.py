@@ -617,7 +617,7 @@ def _comp_faces(call, st):
             ps.context = {**st.context, "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
-        groups = _components(idx, mesh.column("holed"))
+        groups = face_groups(mesh, idx)  # the pieces of a face with holes are one component
         for j, group in enumerate(groups):
             f = group[0]
             ps = st.child(len(out))
@@ -634,25 +634,6 @@ def _comp_faces(call, st):
                 info["components"] = [int(g) for g in group]
             out.append((ps, branch.ops, info))
     return out
-
-
-def _components(idx: np.ndarray, rings) -> list[list[int]]:
-    """The components of ``comp(f)`` among the selected faces ``idx``: one per face, except the
-    pieces of one face with holes (face column ``holed``: an ``offset`` border ring, a courtyard),
-    which are one face in CityEngine."""
-    if rings is None:
-        return [[int(f)] for f in idx]
-    groups, ring_group = [], {}
-    for f in idx:
-        r = rings[f]
-        if r is None:
-            groups.append([int(f)])
-        elif r in ring_group:
-            ring_group[r].append(int(f))
-        else:
-            ring_group[r] = [int(f)]
-            groups.append(ring_group[r])
-    return groups
 
 
 def _comp_edges(call, st, per_face: bool = False):
