@@ -62,6 +62,11 @@ def assert_same_parts(a, b):
     (TEXTURED, "23.7x11.3", None),
     (ROOT / "src" / "facadeforge" / "data" / "building.cga", "24x14", None),
     (ROOT / "benchmarks" / "grammars" / "detailed.cga", "30x16", ROOT / "examples" / "assets"),
+    (ROOT / "examples" / "grammars" / "courtyard.cga", "42x30", None),   # geometry tags
+    # tiles alike but for a tag: each must see its own tags, not a replay of the other's
+    ("Lot --> extrude(6) comp(f){ side : F }\n"
+     "F --> split(x){ ~3 : tag(\"odd\") T | ~3 : T }*\n"
+     "T --> split(y){ ~3 : comp(f){ isTagged(\"odd\") : A. | all : B. } }*", "24x12", None),
 ])
 def test_instanced_derivation_equals_plain(grammar, lot, assets):
     rules = load_rules(grammar, assets=assets)
