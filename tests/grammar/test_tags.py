@@ -195,3 +195,10 @@ def test_the_comp_function_sees_tags():
 def test_tag_misuse_is_a_warning_naming_the_fix(src, message):
     m = run(src)
     assert any(message in w for w in m.warnings), m.warnings
+
+
+def test_logical_selectors_read_the_component_s_own_shape():
+    a = areas(run("Lot --> extrude(6) comp(f){ side && scope.sx > 9 : Long. | side : Short. }"))
+    assert a == pytest.approx({"Long": 2 * 60, "Short": 2 * 48})
+    out = prints('Lot --> extrude(6) comp(e){ horizontal && scope.sx > 9 : print("long") } X.')
+    assert out == ["long"] * 4

@@ -353,7 +353,9 @@ class LogicalSelector:
     """A selector that is an expression over components: ``isTagged(…)``, or selector words
     combined with ``!``, ``&&`` and ``||`` (CityEngine 2023.1, "logical selector expressions").
     It is evaluated once per component with the words bound to that component's truth values;
-    other names and functions in it read the shape being split, not the component."""
+    other names and functions in it (``scope.sy``, ``geometry.area``, a user function) read
+    the component's shape where the operation provides one (``comp(f)``, ``comp(e)``), else
+    the shape being split."""
 
     __slots__ = ("expr", "env")
 
@@ -375,12 +377,26 @@ class LogicalSelector:
                     self._words(c, table, out)
         return out
 
-    def mask(self, table: dict, n: int, tags) -> np.ndarray:
-        """(n,) bool; ``tags(query, sub)`` gives the components a tag query selects."""
+    def _reads_shape(self, node, table: dict) -> bool:
+        """Whether the expression reads anything but selector words, ``isTagged`` and
+        literals (then each component needs its own shape)."""
+        if isinstance(node, A.Name):
+            return node.name not in table and node.name not in ("e", "v")
+        if isinstance(node, A.Call) and node.name != "isTagged":
+            return True
+        return any(self._reads_shape(c, table) for child in vars(node).values()
+                   for c in (child if isinstance(child, tuple) else (child,))
+                   if isinstance(c, A.Node))
+
+    def mask(self, table: dict, n: int, tags, states=None) -> np.ndarray:
+        """(n,) bool; ``tags(query, sub)`` gives the components a tag query selects,
+        ``states(i)`` component ``i``'s shape."""
         words = self._words(self.expr, table, {})
         masks: dict = {}
         index = tags if tags is not None else (lambda q, sub: np.zeros(n, bool))
-        return np.array([to_bool(component_env(self.env, i, words, masks, index)
+        own = states is not None and self._reads_shape(self.expr, table)
+        return np.array([to_bool(component_env(self.env, i, words, masks, index,
+                                               states(i) if own else None)
                                  .evaluator(self.expr)) for i in range(n)], bool)
 
     def __str__(self) -> str:  # comp.sel
@@ -561,12 +577,12 @@ def _comp_parts(call, st, kind: str):
     return out
 
 
-def _match(key, sel_table, n, extra=None, tags=None) -> np.ndarray:
+def _match(key, sel_table, n, extra=None, tags=None, states=None) -> np.ndarray:
     """Components ``key`` selects: a word of ``sel_table`` or ``extra`` (arrays of n), an index,
     a bool, or a :class:`LogicalSelector` (``tags``: ``(query, sub) -> mask`` for its
-    ``isTagged``)."""
+    ``isTagged``, ``states(i)``: component ``i``'s shape for the rest of it)."""
     if isinstance(key, LogicalSelector):
-        return key.mask({**sel_table, **(extra or {})}, n, tags)
+        return key.mask({**sel_table, **(extra or {})}, n, tags, states)
     if isinstance(key, bool):
         return np.full(n, key)
     if isinstance(key, int):
@@ -597,11 +613,18 @@ def _comp_faces(call, st):
     out = []
     edges = MeshEdges(mesh)  # trim planes, worked out only if a successor needs them
     tags = _tag_masks(mesh, "f")
+
+    def face_state(f):  # a face's own shape, for logical selectors that read it
+        ps = st.copy()
+        ps.geometry = mesh.subset([f])
+        ps.scope = face_scope(mesh.vertices[mesh.face(f)], normals[f])
+        return ps
+
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
         key = _selector_key(call, branch)
-        m = _match(key, table, n, extra, tags) & ~taken
+        m = _match(key, table, n, extra, tags, face_state) & ~taken
         idx = np.flatnonzero(m)
         taken |= m
         if len(idx) == 0:
@@ -694,18 +717,28 @@ def _comp_edges(call, st, per_face: bool = False):
         def tags(query, sub):  # noqa: F811 -- a face edge is tagged as its edge is
             hit = welded(query, sub)
             return np.where(welded_of >= 0, hit[np.maximum(welded_of, 0)], False)
+
+    def edge_scope(e):
+        """An edge shape's scope: x along the edge, y towards its face's normal."""
+        a, _, normal, _ = edges[e]
+        up = normal if abs(unit[e] @ normal) < 0.99 else st.scope.rotation[:, 1]
+        y = up - unit[e] * (up @ unit[e])
+        if np.linalg.norm(y) < EPS:
+            y = np.array([0.0, 1.0, 0.0])
+        return Scope.from_axes(a, unit[e], y, (lengths[e], 0.0, 0.0))
+
+    def edge_state(e):  # an edge's own shape, for logical selectors that read it
+        ps = st.copy()
+        ps.scope, ps.geometry = edge_scope(e), Mesh()
+        return ps
+
     for branch in call.branches:
         k = _selector_key(call, branch)
-        idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
+        idx = np.flatnonzero(_match(k, table, n, None, tags, edge_state) & ~taken)
         taken[idx] = True
         for j, e in enumerate(idx):
-            a, b, normal, _ = edges[e]
             ps = st.child(len(out))
-            up = normal if abs(unit[e] @ normal) < 0.99 else st.scope.rotation[:, 1]
-            y = up - unit[e] * (up @ unit[e])
-            if np.linalg.norm(y) < EPS:
-                y = np.array([0.0, 1.0, 0.0])
-            ps.scope = Scope.from_axes(a, unit[e], y, (lengths[e], 0.0, 0.0))
+            ps.scope = edge_scope(e)
             ps.geometry = Mesh()
             ps.context = {**st.context, "comp.index": j, "comp.total": len(idx),
                           "comp.sel": str(k)}

@@ -255,9 +255,10 @@ def _is_tagged(env, args):
     return bool(masks[key][i])
 
 
-def component_env(env, i: int, words: dict, masks: dict, index) -> object:
+def component_env(env, i: int, words: dict, masks: dict, index, state=None) -> object:
     """``env`` for evaluating a logical selector on component ``i``: selector words bound to
-    the component's truth values, ``isTagged`` to ``index`` (``(query, sub) -> mask``)."""
+    the component's truth values, ``isTagged`` to ``index`` (``(query, sub) -> mask``), other
+    names and functions reading ``state`` (the component's shape; default the env's)."""
     from ..interpreter import Env
 
     local = dict(env.locals)
@@ -265,7 +266,8 @@ def component_env(env, i: int, words: dict, masks: dict, index) -> object:
     local.setdefault("e", "e")
     local.setdefault("v", "v")
     local[_COMPONENT] = (masks, index, i)
-    return Env(env.derivation, env.module, local, env.state, env.rule, env.call_depth)
+    return Env(env.derivation, env.module, local, env.state if state is None else state,
+               env.rule, env.call_depth)
 
 
 # ---- operations ------------------------------------------------------------------------------
