@@ -156,3 +156,32 @@ def test_read_back(tmp_path: Path, house: Model):
     wall = next(p for p in back.parts if p.label == "wall")
     assert Path(wall.material.texture) == tmp_path / "textures" / "brick.png"
     assert np.allclose(back.mesh().bounds(), house.mesh().bounds(), atol=1e-3)
+
+
+def test_faces_with_holes_are_surfaces_with_inner_rings(tmp_path: Path, validator):
+    """A courtyard block's top and bottom are one surface each, outline and hole, the hole
+    turning the other way; read back they are again pieces of one face with a hole."""
+    from facadeforge import derive, load_rules
+    from facadeforge.geometry.footprints import load_footprints
+    from facadeforge.geometry.mesh import polygon_normal
+
+    geo = tmp_path / "block.geojson"
+    geo.write_text(json.dumps({"type": "Polygon", "coordinates": [
+        [[0, 0], [30, 0], [30, 20], [0, 20], [0, 0]],
+        [[10, 5], [10, 15], [20, 15], [20, 5], [10, 5]]]}))
+    (model,) = derive(load_rules("Lot --> extrude(10) color(0.8, 0.7, 0.6) X."),
+                      load_footprints(geo))
+    doc = _export(tmp_path, model)
+    assert _errors(validator, doc) == []
+    surfaces = next(iter(doc["CityObjects"].values()))["geometry"][0]["boundaries"]
+    holed = [s for s in surfaces if len(s) > 1]
+    assert len(surfaces) == 10 and len(holed) == 2       # 8 walls, the top and the bottom
+    verts = _real_vertices(doc)
+    for outer, hole in holed:
+        n_outer, n_hole = polygon_normal(verts[outer]), polygon_normal(verts[hole])
+        assert n_outer @ n_hole == pytest.approx(-1)      # the hole turns the other way
+    (back,) = load(tmp_path / "out.city.json")
+    assert back.mesh().area() == pytest.approx(model.mesh().area(), abs=1e-3)
+    assert back.mesh().area() == pytest.approx(2 * (600 - 100) + 10 * (100 + 40))
+    (part,) = back.parts
+    assert len({h for h in part.mesh.column("holed") if h is not None}) == 2  # top, bottom

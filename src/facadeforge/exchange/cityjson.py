@@ -2,7 +2,10 @@
 
 Each :class:`~facadeforge.model.Model` becomes one ``Building`` City Object (id ``model.name``,
 ``attributes`` the scalar entries of ``model.attributes``) with one ``MultiSurface`` geometry of
-level of detail ``"3"``: every polygon of every part is one surface ``[[ring]]``.
+level of detail ``"3"``: every polygon of every part is one surface ``[[ring]]``, and a face with
+holes (pieces sharing a ``holed`` id, see ``geometry.holed``) is one surface ``[[outer], [hole],
+…]``, holes turning the other way, as CityJSON wants; the reader turns such surfaces back into
+pieces of one face.
 
 Coordinates
     CGA (x, y up, z) maps to CityJSON (x, −z, y): z is up and the map is a rotation, so outward
@@ -32,7 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry.mesh import Mesh
+from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
+from ..geometry.mesh import Mesh, plane_basis, polygon_normal
 from ..model.labels import Labels, label_for_name
 from ..model.model import Material, Model, Part
 from ._common import (
@@ -170,24 +174,55 @@ def _crs_url(crs: str | int) -> str:
 
 
 class _Faces:
-    """Every face of a model flattened: corners in CityJSON axes and per-face records."""
+    """Every surface of a model flattened into rings: corners in CityJSON axes, per-ring
+    records (``offsets``, ``has_uv``, ``surface_of``) and per-surface owners (``part_of``)."""
 
     def __init__(self, model: Model, origin: np.ndarray) -> None:
-        pts, uvs, has, offsets, owner = [], [], [], [0], []
+        pts, uvs, has, offsets, surface_of, owner = [], [], [], [0], [], []
         self.parts = [p for p in model.parts if p.mesh.n_faces]
         for index, part in enumerate(self.parts):
-            corners, starts = face_corners(part.mesh)
-            uv, has_uv = corner_uvs(part.mesh)
-            pts.append(part.mesh.vertices[corners] @ _TO_CJ.T + origin)
-            uvs.append(uv)
-            has.append(np.full(len(starts) - 1, has_uv))
-            offsets.extend((starts[1:] + offsets[-1]).tolist())
-            owner.append(np.full(len(starts) - 1, index))
+            for ring_pts, ring_uvs, has_uv, surface in _surface_rings(part.mesh):
+                pts.append(ring_pts @ _TO_CJ.T + origin)
+                uvs.append(ring_uvs)
+                has.append(has_uv)
+                offsets.append(offsets[-1] + len(ring_pts))
+                surface_of.append(len(owner) if surface == 0 else len(owner) - 1)
+                if surface == 0:
+                    owner.append(index)
         self.points = np.concatenate(pts) if pts else np.zeros((0, 3))
         self.uv = np.concatenate(uvs) if uvs else np.zeros((0, 2))
-        self.has_uv = np.concatenate(has) if has else np.zeros(0, bool)
+        self.has_uv = np.asarray(has, bool)
         self.offsets = np.asarray(offsets, np.int64)
-        self.part_of = np.concatenate(owner) if owner else np.zeros(0, np.int64)
+        self.surface_of = np.asarray(surface_of, np.int64)
+        self.part_of = np.asarray(owner, np.int64)
+
+
+def _surface_rings(mesh: Mesh):
+    """``(points, uvs, has_uv, k)`` for every ring of every surface of ``mesh``, ``k`` 0 for a
+    surface's outer ring and 1, 2… for its holes: each face alone, the pieces of a face with
+    holes as one outline with its holes (corner uvs looked up where the pieces have them)."""
+    corners, starts = face_corners(mesh)
+    uv, has_uv = corner_uvs(mesh)
+    normals = mesh.face_normals()
+    for group in face_groups(mesh):
+        f = group[0]
+        if len(group) == 1 or not normals[f].any():
+            for g in group:
+                a, b = starts[g], starts[g + 1]
+                yield mesh.vertices[corners[a:b]], uv[a:b], has_uv, 0
+            continue
+        p0 = mesh.vertices[corners[starts[f]]]
+        basis = plane_basis(normals[f], mesh.vertices[corners[starts[f] + 1]] - p0)
+        at = {}
+        for g in group:
+            for c in range(starts[g], starts[g + 1]):
+                at.setdefault(tuple(np.round(mesh.vertices[corners[c]], 6)), uv[c])
+        for outer, holes in rings(plane_polygon(mesh, group, p0, basis)):
+            for k, ring in enumerate([outer, *holes]):
+                pts = p0 + ring @ basis[:, :2].T
+                ring_uv = [at.get(tuple(np.round(q, 6))) for q in pts]
+                found = has_uv and all(u is not None for u in ring_uv)
+                yield pts, (np.array(ring_uv) if found else np.zeros((len(pts), 2))), found, k
 
 
 class _CityJsonWriter:
@@ -236,39 +271,53 @@ class _CityJsonWriter:
 
     def _geometry(self, f: _Faces, vids: np.ndarray) -> dict:
         keep, valid = _clean_rings(vids, f.offsets)
-        face_of = np.repeat(np.arange(len(f.offsets) - 1), np.diff(f.offsets))
-        sizes = np.bincount(face_of[keep], minlength=len(f.offsets) - 1)[valid]
+        ring_of = np.repeat(np.arange(len(f.offsets) - 1), np.diff(f.offsets))
+        sizes = np.bincount(ring_of[keep], minlength=len(f.offsets) - 1)
         bounds = np.concatenate([[0], np.cumsum(sizes)]).tolist()
         flat = vids[keep].tolist()
-        rings = [[flat[a:b]] for a, b in zip(bounds[:-1], bounds[1:])]
-        owner = f.part_of[valid].tolist()
+        uv_kept = f.uv[keep]
+        # a surface is kept when its outer ring is; its holes when they are
+        first = np.r_[True, f.surface_of[1:] != f.surface_of[:-1]]
+        outer_ok = np.zeros(len(f.part_of), bool)
+        outer_ok[f.surface_of[first & valid]] = True
+        surfaces_rings: list[list[int]] = []
+        for r in np.flatnonzero(valid & outer_ok[f.surface_of]):
+            if first[r]:
+                surfaces_rings.append([])
+            surfaces_rings[-1].append(int(r))
+        boundaries = [[flat[bounds[r]:bounds[r + 1]] for r in rs] for rs in surfaces_rings]
+        owner = [int(f.part_of[f.surface_of[rs[0]]]) for rs in surfaces_rings]
         surfaces: dict[tuple, int] = {}
         sem = [self._surface(p, surfaces) for p in f.parts]
         mat = [self._material(p.material) for p in f.parts]
-        geometry = {"type": "MultiSurface", "lod": self.lod, "boundaries": rings,
+        geometry = {"type": "MultiSurface", "lod": self.lod, "boundaries": boundaries,
                     "semantics": {"surfaces": [dict(s) for s in surfaces],
                                   "values": [sem[p] for p in owner]},
                     "material": {THEME: {"values": [mat[p] for p in owner]}}}
-        textures = self._texture_values(f, owner, f.has_uv[valid], f.uv[keep], bounds)
+        textures = self._texture_values(f, owner, surfaces_rings, uv_kept, bounds)
         if textures is not None:
             geometry["texture"] = {THEME: {"values": textures}}
         return geometry
 
-    def _texture_values(self, f: _Faces, owner: list[int], has_uv: np.ndarray,
+    def _texture_values(self, f: _Faces, owner: list[int], surfaces_rings: list[list[int]],
                         uv: np.ndarray, bounds: list[int]) -> list | None:
-        """Per-surface texture references ``[[tex, uv...]]`` (``[[None]]`` without texture)."""
+        """Per-surface texture references, a ``[tex, uv…]`` per ring (``[[None]]`` without
+        texture)."""
         tex = [self._texture_index(p.material.texture) for p in f.parts]
         if all(t is None for t in tex):
             return None
         values = []
-        for i, (p, has) in enumerate(zip(owner, has_uv.tolist())):
-            if tex[p] is None or not has:
+        for p, rs in zip(owner, surfaces_rings):
+            if tex[p] is None or not all(f.has_uv[r] for r in rs):
                 values.append([[None]])
                 continue
-            a, b = bounds[i], bounds[i + 1]
-            self.uv_list.append(uv[a:b])
-            values.append([[tex[p], *range(self.uv_count, self.uv_count + b - a)]])
-            self.uv_count += b - a
+            refs = []
+            for r in rs:
+                a, b = bounds[r], bounds[r + 1]
+                self.uv_list.append(uv[a:b])
+                refs.append([tex[p], *range(self.uv_count, self.uv_count + b - a)])
+                self.uv_count += b - a
+            values.append(refs)
         return values
 
     def _surface(self, part: Part, surfaces: dict[tuple, int]) -> int | None:
@@ -405,12 +454,38 @@ class _CityJsonReader:
         for i, key in enumerate(self._face_keys(geom, sem, mats, texs)):
             runs.setdefault(key, []).append(i)
         for (label, symbol, mat_index, tex_index), idx in runs.items():
-            polys = [self.vertices[surfaces[i]] for i in idx]
-            uvs = [self._face_uv(texs[i]) for i in idx]
-            model.parts.append(Part(Mesh.from_polygons(polys, uvs), label=label,
+            meshes = [self._surface_mesh(surfaces[i], texs[i]) for i in idx]
+            model.parts.append(Part(Mesh.merge(meshes), label=label,
                                     material=self._material(mat_index, tex_index),
                                     symbol=symbol))
         return model
+
+    def _surface_mesh(self, ring_ids: list, refs: list) -> Mesh:
+        """One surface: a polygon, or, with holes, the pieces of one face with holes."""
+        pts = [self.vertices[r] for r in ring_ids]
+        uvs = [self._face_uv(refs[k] if k < len(refs) else None) for k in range(len(pts))]
+        if len(pts) == 1:
+            return Mesh.from_polygons(pts, uvs)
+        import shapely
+
+        from ..geometry.polygon import simple_pieces
+
+        n = polygon_normal(pts[0])
+        basis = plane_basis(n, pts[0][1] - pts[0][0])
+        flat = [(q - pts[0][0]) @ basis[:, :2] for q in pts]
+        shape = shapely.Polygon(flat[0], flat[1:]).buffer(0)
+        pieces = [q for outer, holes in rings(shape)
+                  for q in simple_pieces(shapely.Polygon(outer, holes))]
+        lifted = [pts[0][0] + q @ basis[:, :2].T for q in pieces]
+        piece_uvs = None
+        if all(u is not None for u in uvs):
+            at = {tuple(np.round(p, 6)): u for ring, ring_uv in zip(pts, uvs)
+                  for p, u in zip(ring, ring_uv)}
+            found = [[at.get(tuple(np.round(p, 6))) for p in q] for q in lifted]
+            if all(u is not None for q in found for u in q):
+                piece_uvs = [np.array(q) for q in found]
+        return Mesh.from_polygons(lifted, piece_uvs).with_column(
+            HOLED, fresh_ids([0] * len(lifted)))
 
     @staticmethod
     def _face_keys(geom: dict, sem: list, mats: list, texs: list) -> list[tuple]:
@@ -422,7 +497,7 @@ class _CityJsonReader:
             if label is None:
                 guess = label_for_name(str(surface.get("type", "")).replace("Surface", ""))
                 label = guess.value if guess else ""
-            tex = t[0] if t else None
+            tex = t[0][0] if t and t[0] else None
             keys.append((label, surface.get("facadeforge_symbol", ""), m, tex))
         return keys
 
@@ -445,7 +520,8 @@ class _CityJsonReader:
 
 
 def _flatten_geometry(geom: dict) -> tuple[list, list, list, list]:
-    """Outer rings, semantic values, material values and texture refs, one entry per surface."""
+    """Rings (outer first), semantic values, material values and texture refs (one per ring),
+    one entry per surface."""
     kind = geom["type"]
     boundaries = geom.get("boundaries", [])
     sem = (geom.get("semantics") or {}).get("values")
@@ -456,7 +532,7 @@ def _flatten_geometry(geom: dict) -> tuple[list, list, list, list]:
         sem = None if sem is None else [v for shell in sem for v in (shell or [])]
         tex = None if tex is None else [v for shell in tex for v in shell]
     n = len(boundaries)
-    rings = [np.asarray(surface[0], np.int64) for surface in boundaries]
+    surfaces = [[np.asarray(r, np.int64) for r in surface] for surface in boundaries]
     sem = list(sem) if sem is not None else [None] * n
     if "value" in mat:
         mats = [mat["value"]] * n
@@ -464,5 +540,5 @@ def _flatten_geometry(geom: dict) -> tuple[list, list, list, list]:
         mats = list(mat.get("values") or [None] * n)
         if kind == "Solid" and mats and isinstance(mats[0], list):
             mats = [v for shell in mats for v in shell]
-    texs = [None if t is None else t[0] for t in tex] if tex is not None else [None] * n
-    return rings, sem, mats, texs
+    texs = [[] if t is None else list(t) for t in tex] if tex is not None else [[]] * n
+    return surfaces, sem, mats, texs
