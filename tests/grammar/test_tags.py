@@ -202,3 +202,11 @@ def test_logical_selectors_read_the_component_s_own_shape():
     assert a == pytest.approx({"Long": 2 * 60, "Short": 2 * 48})
     out = prints('Lot --> extrude(6) comp(e){ horizontal && scope.sx > 9 : print("long") } X.')
     assert out == ["long"] * 4
+
+
+def test_edges_rising_from_tagged_vertices_take_their_tags():
+    out = prints('Lot --> tag("corner", vertices) extrude(3) '
+                 'comp(e){ vertical && isTagged("corner") : print("v") } X.')
+    assert out == ["v"] * 4
+    out = prints('Lot --> extrude(3) comp(e){ vertical && isTagged("corner") : print("v") } X.')
+    assert out == []

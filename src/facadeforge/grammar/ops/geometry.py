@@ -21,7 +21,14 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope
-from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
+from .tagging import (
+    EDGE_TAGS,
+    VERTEX_TAGS,
+    auto_tag,
+    corner_tags,
+    faces_from_edges,
+    with_corner_tags,
+)
 from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
@@ -31,8 +38,9 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     part: "bottom", "side.outer", "side.inner" (a side rising from a hole's edge) or "top".
 
     Face data follows CityEngine's tag propagation: every face keeps the data of the face it
-    rose from, a side face also takes the tags of the edge it rose from, and the top's and
-    bottom's edges and vertices keep theirs (corner data).
+    rose from, a side face also takes the tags of the edge it rose from, the top's and
+    bottom's edges and vertices keep theirs (corner data), and an edge rising from a vertex
+    takes that vertex's tags.
 
     Where two faces share an edge and move the same way, their two side quads on it would be
     one wall seen from both sides, enclosing nothing: both are left out, so pieces that share
@@ -40,7 +48,7 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     volume without inner walls."""
     polys, kinds, sides, source, from_edge = [], [], [], [], []
     track = mesh.corner_data is not None
-    vsrc, esrc = [], []
+    vsrc, esrc, rise = [], [], []  # rise: the vertex a vertical edge rises from
     normals = mesh.face_normals()
     for f in range(mesh.n_faces):
         base = int(mesh.starts[f])
@@ -49,25 +57,29 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         k = len(p)
         own = list(range(base, base + k))
         faces = [p[::-1]]
-        corner_src = [(own, own, True)]  # (vertex sources, edge sources, reversed)
+        none = [-1] * k
+        corner_src = [(own, own, none, True)]  # (vertex, edge, rising-edge sources, reversed)
         for j in range(k):
             a, b = p[j], p[(j + 1) % k]
             if mesh.n_faces > 1:
                 sides.append((len(polys) + len(faces), a, b, d))
             faces.append(np.array([a, b, b + d, a + d]))
             nb = base + (j + 1) % k
-            corner_src.append(([base + j, nb, nb, base + j], [base + j, -1, base + j, -1], False))
+            corner_src.append(([base + j, nb, nb, base + j], [base + j, -1, base + j, -1],
+                               [-1, nb, -1, base + j], False))
         faces.append(p + d)
-        corner_src.append((own, own, False))
+        corner_src.append((own, own, none, False))
         flip = distance < 0
-        for q, (vs, es, rev) in zip(faces, corner_src):
+        for q, (vs, es, rs, rev) in zip(faces, corner_src):
             polys.append(q[::-1] if flip else q)
             if track:
                 for _ in range(int(rev) + int(flip)):  # reversing moves an edge's data along
                     n = len(vs)
-                    vs, es = vs[::-1], [es[(n - 2 - i) % n] for i in range(n)]
+                    vs = vs[::-1]
+                    es, rs = ([x[(n - 2 - i) % n] for i in range(n)] for x in (es, rs))
                 vsrc.extend(vs)
                 esrc.extend(es)
+                rise.extend(rs)
         kinds.extend(["bottom"] + ["side.outer"] * k + ["top"])
         source.extend([f] * (k + 2))
         from_edge.extend([-1] + own + [-1])
@@ -77,7 +89,7 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         if track:
             first = np.concatenate([[0], np.cumsum([len(q) for q in polys])])
             cs = np.concatenate([np.arange(first[i], first[i + 1]) for i in keep])
-            vsrc, esrc = [vsrc[c] for c in cs], [esrc[c] for c in cs]
+            vsrc, esrc, rise = ([x[c] for c in cs] for x in (vsrc, esrc, rise))
         polys, kinds = [polys[i] for i in keep], [kinds[i] for i in keep]
         source, from_edge = [source[i] for i in keep], [from_edge[i] for i in keep]
     for i in _hole_walls(polys, kinds) if mesh.n_faces > 1 else ():  # one face has no hole
@@ -92,6 +104,11 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
     if mesh.corner_column(EDGE_TAGS) is not None:
         edge_tags = corner_tags(mesh, EDGE_TAGS)
         out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
+    if mesh.corner_column(VERTEX_TAGS) is not None:
+        vertex_tags = corner_tags(mesh, VERTEX_TAGS)
+        out = with_corner_tags(out, EDGE_TAGS, [
+            t + tuple(x for x in vertex_tags[r] if x not in t) if r >= 0 else t
+            for t, r in zip(corner_tags(out, EDGE_TAGS), rise)])
     out.closed = True if mesh.n_faces == 1 else None  # a single face's prism is closed
     return out, kinds
 
