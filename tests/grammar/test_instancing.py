@@ -67,6 +67,10 @@ def assert_same_parts(a, b):
     ("Lot --> extrude(6) comp(f){ side : F }\n"
      "F --> split(x){ ~3 : tag(\"odd\") T | ~3 : T }*\n"
      "T --> split(y){ ~3 : comp(f){ isTagged(\"odd\") : A. | all : B. } }*", "24x12", None),
+    # tiles alike but for their edges' tags: an end tile keeps the facade's tagged side edge
+    ("Lot --> extrude(6) comp(f){ side : F }\n"
+     "F --> tag(\"rim\", edges) split(x){ ~3 : T }*\n"
+     "T --> extrude(0.2) comp(f){ isTagged(\"rim\") : A. | all : B. }", "24x12", None),
 ])
 def test_instanced_derivation_equals_plain(grammar, lot, assets):
     rules = load_rules(grammar, assets=assets)

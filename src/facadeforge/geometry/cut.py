@@ -106,22 +106,28 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray) -> list[Mesh] | 
     if len(pts) == 4 and not _convex_quad(pts):
         return None
     uvs = uv.tolist() if uv is not None else None
+    # edge and vertex data (tags) follow the clipping exactly when the face has any
+    labels = [(c, c) for c in range(len(pts))] if mesh.corner_data is not None else None
     lo = float(cuts[0])
-    pts, uvs = _clip_py(pts, uvs, axis, lo, keep_below=False)
+    pts, uvs, *rest = _clip_py(pts, uvs, axis, lo, False, labels)
+    labels = rest[0] if rest else None
     out: list[Mesh] = []
     for c in cuts[1:]:
         c = float(c)
         if len(pts) < 3:
             out.append(Mesh())
             continue
-        below, buv = _clip_py(pts, uvs, axis, c, keep_below=True)
-        pts, uvs = _clip_py(pts, uvs, axis, c, keep_below=False)
+        below, buv, *blab = _clip_py(pts, uvs, axis, c, True, labels)
+        pts, uvs, *rest = _clip_py(pts, uvs, axis, c, False, labels)
+        labels = rest[0] if rest else None
         if len(below) >= 3:
             piece = Mesh(np.array(below), corners=np.arange(len(below)),
                          starts=np.array([0, len(below)]),
                          corner_uvs=None if buv is None else np.array(buv), closed=False,
                          face_data=mesh.face_data)
-            out.append(piece if mesh.corner_data is None else piece.inherit(mesh, [0]))
+            if blab:
+                piece = piece.inherit(mesh, [0], corner_source=np.array(blab[0]).T)
+            out.append(piece)
         else:
             out.append(Mesh())
     return out
@@ -138,18 +144,25 @@ def _convex_quad(q) -> bool:
     return all(t[0] * n[0] + t[1] * n[1] + t[2] * n[2] >= -EPS for t in turns)
 
 
-def _clip_py(pts, uvs, axis, value, keep_below):
-    """Sutherland–Hodgman on Python lists: keep ``coord <= value`` (or ``>=``)."""
+def _clip_py(pts, uvs, axis, value, keep_below, labels=None):
+    """Sutherland–Hodgman on Python lists: keep ``coord <= value`` (or ``>=``).
+
+    ``labels`` (optional, one ``(vertex, edge)`` pair per point: the parent corner the point
+    is, and the parent corner whose edge runs from it to the next point; -1 for none) are
+    carried along and returned third: a point kept keeps its vertex, a cut point has none; an
+    edge kept or shortened keeps its parent edge, an edge along the cut has none."""
     k = len(pts)
     if k == 0:
-        return pts, uvs
+        return (pts, uvs) if labels is None else (pts, uvs, labels)
     sign = 1.0 if keep_below else -1.0
     d = [(q[axis] - value) * sign for q in pts]
     if max(d) <= EPS:
-        return pts, uvs
+        return (pts, uvs) if labels is None else (pts, uvs, labels)
     if min(d) > EPS:
-        return [], (None if uvs is None else [])
+        empty = (None if uvs is None else [])
+        return ([], empty) if labels is None else ([], empty, [])
     out, out_uv = [], ([] if uvs is not None else None)
+    out_lab = [] if labels is not None else None
     for j in range(k):
         jn = j + 1 if j + 1 < k else 0
         da, db = d[j], d[jn]
@@ -158,6 +171,9 @@ def _clip_py(pts, uvs, axis, value, keep_below):
             out.append(a if abs(da) > EPS else _snap(a, axis, value))
             if uvs is not None:
                 out_uv.append(uvs[j])
+            if labels is not None:  # on to b, or to the cut point on this edge: the same edge
+                vid, eid = labels[j]
+                out_lab.append((vid, eid if db <= EPS or da < -EPS else -1))
         if (da < -EPS and db > EPS) or (da > EPS and db < -EPS):
             t = da / (da - db)
             b = pts[jn]
@@ -167,7 +183,9 @@ def _clip_py(pts, uvs, axis, value, keep_below):
             if uvs is not None:
                 ua, ub = uvs[j], uvs[jn]
                 out_uv.append([ua[0] + t * (ub[0] - ua[0]), ua[1] + t * (ub[1] - ua[1])])
-    return out, out_uv
+            if labels is not None:  # leaving: the cut runs on; entering: this edge runs on
+                out_lab.append((-1, -1 if da < -EPS else labels[j][1]))
+    return (out, out_uv) if labels is None else (out, out_uv, out_lab)
 
 
 def _snap(a, axis, value):

@@ -94,35 +94,37 @@ def _corner_sources(mesh: Mesh, parent: Mesh, source: np.ndarray, tol: float = 1
     """For each corner of ``mesh``, the corner of its face's source face in ``parent`` whose
     data it keeps (-1 none): for vertex columns the parent corner at the same place, for edge
     columns the parent edge the corner's edge lies on.  Returns (2, C): vertex and edge
-    sources."""
-    out = np.full((2, len(mesh.corners)), -1, np.int64)
-    nxt = mesh.next_corners()
+    sources.  Every corner is tested against every corner of its source face at once."""
+    n = len(mesh.corners)
+    out = np.full((2, n), -1, np.int64)
+    if not n:
+        return out
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    src = np.asarray(source, np.int64)[face_of]
+    cs = np.flatnonzero(src >= 0)
+    if not len(cs):
+        return out
+    k = parent.face_sizes[src[cs]]
+    c = np.repeat(cs, k)                                   # (P,) new corner of each pair
+    first = np.repeat(np.cumsum(k) - k, k)
+    pc = np.repeat(parent.starts[src[cs]], k) + np.arange(len(c)) - first  # its parent corner
     p = mesh.vertices[mesh.corners]
-    for f in range(mesh.n_faces):
-        s = source[f]
-        if s < 0:
-            continue
-        a0, a1 = parent.starts[s], parent.starts[s + 1]
-        a = parent.vertices[parent.corners[a0:a1]]
-        b = np.roll(a, -1, axis=0)
-        d = b - a
-        dd = np.maximum(np.einsum("ij,ij->i", d, d), tol * tol)
-        for c in range(mesh.starts[f], mesh.starts[f + 1]):
-            q, r = p[c], p[nxt[c]]
-            near = np.flatnonzero(np.abs(a - q).max(axis=1) <= tol)
-            if len(near):
-                out[0, c] = a0 + near[0]
-            # the edge q→r lies on parent edge k when both ends are on segment k
-            tq = ((q - a) * d).sum(axis=1) / dd
-            tr = ((r - a) * d).sum(axis=1) / dd
-            on_q = np.abs(a + tq[:, None] * d - q).max(axis=1) <= tol
-            on_r = np.abs(a + tr[:, None] * d - r).max(axis=1) <= tol
-            ok = on_q & on_r & (tq >= -tol) & (tq <= 1 + tol) & (tr >= -tol) & (tr <= 1 + tol)
-            hit = np.flatnonzero(ok)
-            if len(hit):
-                out[1, c] = a0 + hit[0]
+    q, r = p[c], p[mesh.next_corners()[c]]
+    a = parent.vertices[parent.corners[pc]]
+    d = parent.vertices[parent.corners[parent.next_corners()[pc]]] - a
+    dd = np.maximum(np.einsum("ij,ij->i", d, d), tol * tol)
+    at_vertex = np.abs(a - q).max(axis=1) <= tol
+    tq = np.einsum("ij,ij->i", q - a, d) / dd
+    tr = np.einsum("ij,ij->i", r - a, d) / dd
+    on_edge = ((np.abs(a + tq[:, None] * d - q).max(axis=1) <= tol)
+               & (np.abs(a + tr[:, None] * d - r).max(axis=1) <= tol)
+               & (tq >= -tol) & (tq <= 1 + tol) & (tr >= -tol) & (tr <= 1 + tol))
+    for row, hit in ((0, at_vertex), (1, on_edge)):
+        hc, hp = c[hit], pc[hit]
+        if len(hc):  # the first matching parent corner of each new corner
+            _, at = np.unique(hc, return_index=True)
+            out[row, hc[at]] = hp[at]
     return out
-
 
 class Mesh:
     """Polygon mesh.

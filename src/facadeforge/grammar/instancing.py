@@ -269,11 +269,13 @@ def _hashable(v):
 
 
 def _face_data_key(g) -> tuple:
-    """The geometry's face columns as a key: tags and offset kinds as they are, materials by
-    identity, faces with holes by which pieces share one (not by their ids)."""
-    if g.face_data is None:
+    """The geometry's face and corner columns as a key: tags and offset kinds as they are,
+    materials by identity, faces with holes by which pieces share one (not by their ids)."""
+    if g.face_data is None and g.corner_data is None:
         return ()
-    out = []
+    out = [(k, tuple(v)) for k, v in sorted((g.corner_data or {}).items())]
+    if g.face_data is None:
+        return tuple(out)
     for k in sorted(g.face_data):
         col = g.face_data[k]
         if k == "holed":
