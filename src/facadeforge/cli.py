@@ -52,8 +52,14 @@ def _angle(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not an angle in degrees, e.g. 30") from None
-    if not -360.0 <= value <= 360.0:
-        raise argparse.ArgumentTypeError(f"{value:g}° is out of range; give -360 to 360 degrees")
+    return value
+
+
+def _elevation(text: str) -> float:
+    value = _angle(text)
+    if not -89.0 <= value <= 89.0:
+        raise argparse.ArgumentTypeError(f"--elevation {value:g}° is out of range; give -89 to "
+                                         "89 degrees above the horizon")
     return value
 
 
@@ -88,7 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--azimuth", type=_angle, default=-35.0,
                    help="camera direction round the vertical, degrees from the front (+z) towards "
                         "+x (default -35)")
-    r.add_argument("--elevation", type=_angle, default=25.0,
+    r.add_argument("--elevation", type=_elevation, default=25.0,
                    help="camera height, degrees above the horizon, -89 to 89 (default 25)")
 
     c = sub.add_parser("reconstruct", help="photo → shape tree, CGA rules and a textured 3D model",

@@ -40,6 +40,19 @@ def _clean_ring(ring: np.ndarray) -> np.ndarray:
     return ring[keep]
 
 
+def _usable_holes(ring: np.ndarray, holes: list) -> list:
+    """The holes that leave some of the polygon ``ring`` (x, y) standing: holes that cover
+    it all are dropped (the building keeps its outline), so one bad ring cannot stop a batch."""
+    if not holes:
+        return holes
+    import shapely
+
+    outline = shapely.Polygon(ring).buffer(0)
+    rest = outline.difference(shapely.union_all([shapely.Polygon(h[:, [0, 2]] * [1, -1]).buffer(0)
+                                                 for h in holes]))
+    return holes if rest.area > 1e-9 * max(outline.area, 1.0) else []
+
+
 def _upward(poly: np.ndarray) -> np.ndarray:
     n = polygon_normal(poly)
     if not n.any():
@@ -127,6 +140,7 @@ def _geojson(p: Path) -> list[Footprint]:
                     raise InputError(f"'{p}': feature {i} has a malformed hole") from None
                 if len(hr) >= 3:
                     holes.append(np.column_stack([hr[:, 0], np.zeros(len(hr)), -hr[:, 1]]))
+            holes = _usable_holes(ring, holes)
             out.append(Footprint(name if len(polys) == 1 else f"{name}_{k}", poly,
                                  {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))},
                                  holes))

@@ -7,6 +7,7 @@ import math
 import numpy as np
 
 from ...geometry.cut import split_along_axis
+from ...geometry.holed import HOLED
 from ...geometry.mesh import EPS, Mesh, cross3, polygon_normal
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -143,9 +144,9 @@ def op_inner_rectangle(call):
         raise CGARuntimeError(f"innerRectangle: the alignment is scope or edge, not '{mode}'")
     st = call.state
     mesh = st.geometry
-    rects, rests = [], []
+    rects, rests, rect_src, rest_src = [], [], [], []
     rot = st.scope.rotation
-    for poly in mesh.polygons():
+    for f, poly in enumerate(mesh.polygons()):
         n = polygon_normal(poly)
         if not n.any():
             continue
@@ -181,21 +182,24 @@ def op_inner_rectangle(call):
             return p0 + np.outer(ring2[:, 0], u) + np.outer(ring2[:, 1], v)
 
         rects.append(lift(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])))
+        rect_src.append(f)
         face = shapely.Polygon(xy).buffer(0)
         rest = face.difference(shapely.box(x0, y0, x1, y1))
         for g in getattr(rest, "geoms", [rest]):
             if g.geom_type == "Polygon" and g.area > 1e-9 * max(face.area, 1.0):
-                rests.extend(lift(ring) for ring in simple_pieces(g))
+                pieces = [lift(ring) for ring in simple_pieces(g)]
+                rests.extend(pieces)
+                rest_src.extend([f] * len(pieces))
     out = []
     for branch in call.branches:
         key = _selector_key(call, branch)
         if key not in ("shape", "remainder"):
             raise CGARuntimeError(f"innerRectangle selectors are shape and remainder, not '{key}'")
-        faces = rects if key == "shape" else rests
+        faces, source = (rects, rect_src) if key == "shape" else (rests, rest_src)
         if not faces:
             continue
         ps = st.child(len(out))
-        ps.geometry = Mesh.from_polygons(faces)
+        ps.geometry = Mesh.from_polygons(faces).inherit(mesh, source, drop=("kind", HOLED))
         ps.fit_scope()
         out.append((ps, branch.ops, {"sel": key}))
     return out

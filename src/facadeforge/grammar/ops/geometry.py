@@ -346,7 +346,8 @@ def op_convexify(call):
         parts = convex_parts(p)
         polys.extend(parts)
         source.extend([f] * len(parts))
-    st.geometry = Mesh.from_polygons(polys).inherit(st.geometry, source)
+    # convex parts are faces of their own (a face with holes too: its pieces come apart)
+    st.geometry = Mesh.from_polygons(polys).inherit(st.geometry, source, drop=("kind", HOLED))
 
 
 # ---- small geometry edits -------------------------------------------------------------------------
@@ -367,6 +368,9 @@ def op_envelope(call):
     angle = call.num(3, 45.0)
     polys, parts, source = [], [], []
     mesh = st.geometry
+    if any(len(g) > 1 for g in face_groups(mesh)):
+        raise CGARuntimeError("envelope: the face has holes (a courtyard), which envelope does "
+                              "not take; deleteHoles() first, or extrude and roofHip")
     for f in range(mesh.n_faces):
         p = mesh.vertices[mesh.face(f)]
         n = polygon_normal(p)
@@ -386,7 +390,7 @@ def op_envelope(call):
         source.extend([f] * (len(parts) - len(source)))
     keep = [i for i, q in enumerate(polys) if np.linalg.norm(cross3(q[1] - q[0], q[-1] - q[0])) > 0]
     out = Mesh.from_polygons([polys[i] for i in keep]).inherit(
-        mesh, [source[i] for i in keep], drop=("kind", "ring"))
+        mesh, [source[i] for i in keep], drop=("kind", HOLED))
     st.geometry = auto_tag(out, "envelope", [parts[i] for i in keep])
     st.fit_scope()
 

@@ -14,13 +14,14 @@ import math
 
 import numpy as np
 
+from ...geometry.holed import HOLED
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool
 from . import operation
 from .geometry import align_scope_y, asset_material_keys
-from .tagging import auto_tag
+from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
 
 PIVOT_KEY = "pivot"
 UV_SETS_KEY = "uv_sets"
@@ -319,8 +320,13 @@ def op_taper(call):
     normal = polygon_normal(base)
     if not normal.any():
         raise CGARuntimeError("taper: the first face is degenerate (no area); nothing to taper")
-    st.geometry = auto_tag(taper_mesh(base, normal, height).inherit(g, [0] * (len(base) + 1)),
-                           "taper", ["bottom"] + ["side"] * len(base))
+    pyramid = taper_mesh(base, normal, height).inherit(g, [0] * (len(base) + 1),
+                                                       drop=("kind", HOLED))
+    if g.corner_column(EDGE_TAGS) is not None:  # a side rising from an edge takes its tags
+        edge_tags = corner_tags(g, EDGE_TAGS)
+        pyramid = faces_from_edges(pyramid, [()] + [edge_tags[int(g.starts[0]) + j]
+                                                    for j in range(len(base))])
+    st.geometry = auto_tag(pyramid, "taper", ["bottom"] + ["side"] * len(base))
     align_scope_y(st, normal)
     st.fit_scope()
     if height < 0:  # the scope starts at the base and reaches down: scope.sy < 0

@@ -953,6 +953,9 @@ class _PlanarEdges:
                 if g.geom_type != "Polygon" or g.area <= EPS:
                     continue
                 for ring in simple_pieces(g):
+                    x, y = ring[:, 0], ring[:, 1]
+                    if abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) <= 1e-9:
+                        continue  # a sliver the cut left along a straight edge
                     faces.append(self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
             if not faces:
                 continue

@@ -27,7 +27,6 @@ Reference: "Geometry Tagging: Essential Knowledge"
 
 from __future__ import annotations
 
-import re
 from functools import lru_cache
 
 import numpy as np
@@ -46,23 +45,50 @@ def clean_tag(name: str) -> str:
     return ".".join(p for p in name.split(".") if p)
 
 
+class _Query:
+    """A compiled tag query: ``match(tag)`` by dynamic programming over the subtags (a regular
+    expression with several ``*`` backtracks exponentially on long tags)."""
+
+    __slots__ = ("parts",)
+
+    def __init__(self, query: str):
+        self.parts = tuple(p for p in query.split(".") if p)
+
+    def match(self, tag: str) -> bool:
+        q, t = self.parts, tag.split(".")
+        if not q:
+            return True
+        # ok[j]: the first i query parts match the first j subtags exactly
+        ok = [True] + [False] * len(t)
+        for part in q:
+            new = [False] * (len(t) + 1)
+            if part == "*":
+                seen = False
+                for j in range(1, len(t) + 1):  # one or more subtags after a matched prefix
+                    seen = seen or ok[j - 1]
+                    new[j] = seen
+            else:
+                for j in range(1, len(t) + 1):
+                    new[j] = ok[j - 1] and (part == "?" or part == t[j - 1])
+            ok = new
+            if not any(ok):
+                return False
+        return any(ok)  # the tag may go on with more subtags
+
+
 @lru_cache(maxsize=4096)
-def _query_regex(query: str) -> re.Pattern:
-    parts = [p for p in query.split(".") if p]
-    sub = r"[^.]+"
-    body = r"\.".join(sub if p == "?" else rf"{sub}(?:\.{sub})*" if p == "*" else re.escape(p)
-                      for p in parts)
-    return re.compile(rf"{body}(?:\..+)?\Z" if body else r".*\Z", re.DOTALL)
+def _query_regex(query: str) -> _Query:
+    return _Query(query)
 
 
 def matches(query: str, tag: str) -> bool:
     """Whether tag ``query`` matches ``tag``: subtag by subtag from the start (``?`` one subtag,
     ``*`` one or more), the tag may go on with more subtags; the empty query matches every
     tag."""
-    return _query_regex(query).match(tag) is not None
+    return _query_regex(query).match(tag)
 
 
-def _any_match(rx: re.Pattern, tags) -> bool:
+def _any_match(rx: _Query, tags) -> bool:
     return bool(tags) and any(rx.match(t) for t in tags)
 
 
