@@ -67,7 +67,8 @@ def test_offset_and_setback_of_a_face_with_holes(block):
     assert a["I"] == pytest.approx(28 * 18 - 12 * 12)
     assert a["B"] == pytest.approx(500 - (28 * 18 - 12 * 12))
     parts = by_symbol(derive_on("Lot --> offset(-1) comp(f){ border : B. }", block))
-    assert len(parts["B"]) == 1                          # the border is one face
+    # the border: a ring along the outline and one round the courtyard, two faces
+    assert len(parts["B"]) == 2
     # the band along the front edges: the street front and the courtyard's side facing it,
     # which stops at the courtyard's corners
     a = areas(derive_on("Lot --> setback(2){ front : F. | remainder : R. }", block))
@@ -109,3 +110,27 @@ def test_the_courtyard_example():
         for p in court:
             b = p.mesh.bounds()
             assert np.all(b[0][[0, 2]] > lo[[0, 2]] + 1) and np.all(b[1][[0, 2]] < hi[[0, 2]] - 1)
+
+
+def test_a_face_with_holes_is_one_component_with_its_outline_s_scope(block):
+    m = derive_on("Lot --> extrude(3) comp(f){ top : print(scope.sx) print(scope.sy) "
+                  "split(x){ 12 : A. | ~1 : B. } }", block)
+    assert m.attributes["prints"] == ["30", "20"]
+    a = areas(m)
+    assert a["A"] == pytest.approx(12 * 20 - 2 * 10) and a["B"] == pytest.approx(18 * 20 - 8 * 10)
+
+
+def test_the_comp_function_index_and_logical_selectors_see_whole_faces(block):
+    m = derive_on("Lot --> print(size(comp(f){ all : 1 })) "
+                  "print(sum(comp(f){ all : geometry.area })) "
+                  "comp(f){ all && geometry.area > 400 : A. | all : B. } "
+                  "comp(f){ 0 : I. }", block)
+    assert m.attributes["prints"] == ["1", "500"]
+    assert areas(m) == pytest.approx({"A": 500, "I": 500})
+
+
+def test_pieces_that_a_cut_parts_are_faces_of_their_own(block):
+    # the middle slab of the block crosses the courtyard: two strips, two faces
+    m = derive_on("Lot --> split(x){ 12 : A. | 6 : M | ~1 : C. }\n"
+                  "M --> print(size(comp(f){ all : 1 })) comp(f){ all : S. }", block)
+    assert m.attributes["prints"] == ["2"] and len(by_symbol(m)["S"]) == 2

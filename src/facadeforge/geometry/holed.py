@@ -13,7 +13,7 @@ import itertools
 
 import numpy as np
 
-from .mesh import EPS, Mesh
+from .mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 
 HOLED = "holed"
 _IDS = itertools.count()
@@ -28,7 +28,8 @@ def fresh_ids(keys) -> list:
 
 def face_groups(mesh: Mesh, faces=None) -> list[list[int]]:
     """The faces (``faces``, default all) as CityEngine's faces: the pieces of one face with
-    holes together, in order of their first piece; every other face alone."""
+    holes together, in order of their first piece; every other face alone.  Pieces sharing an
+    id but not an edge (the two strips a split leaves of a courtyard block's face) are apart."""
     col = mesh.column(HOLED)
     faces = range(mesh.n_faces) if faces is None else faces
     if col is None:
@@ -43,7 +44,64 @@ def face_groups(mesh: Mesh, faces=None) -> list[list[int]]:
         else:
             at[key] = [int(f)]
             groups.append(at[key])
-    return groups
+    out = []
+    for g in groups:
+        out.extend(_connected(mesh, g) if len(g) > 1 else [g])
+    return out
+
+
+def _connected(mesh: Mesh, faces: list[int]) -> list[list[int]]:
+    """``faces`` in groups joined through shared edges (coincident vertices welded), each in
+    face order, the groups in order of their first face."""
+    corners = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in faces])
+    owner = np.repeat(np.arange(len(faces)), [mesh.starts[f + 1] - mesh.starts[f] for f in faces])
+    w = weld_ids(mesh.vertices[mesh.corners[corners]])
+    nxt = np.arange(1, len(corners) + 1)
+    ends = np.cumsum([mesh.starts[f + 1] - mesh.starts[f] for f in faces])
+    nxt[ends - 1] = ends - np.diff(np.concatenate([[0], ends]))
+    key = np.sort(np.stack([w, w[nxt]], axis=1), axis=1)
+    parent = list(range(len(faces)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    seen: dict = {}
+    for k, o in zip(map(tuple, key.tolist()), owner.tolist()):
+        if k[0] == k[1]:
+            continue
+        other = seen.setdefault(k, o)
+        if other != o:
+            a, b = root(other), root(o)
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+    comps: dict = {}
+    for i, f in enumerate(faces):
+        comps.setdefault(root(i), []).append(f)
+    return list(comps.values())
+
+
+def outline(mesh: Mesh, faces) -> np.ndarray:
+    """The outer ring (k, 3) of the pieces ``faces`` of one face with holes, counter-clockwise
+    about their normal and starting nearest the first piece's first corner (for its scope)."""
+    f = faces[0]
+    p = mesh.vertices[mesh.face(f)]
+    n = polygon_normal(p)
+    basis = plane_basis(n, p[1] - p[0])
+    found = rings(plane_polygon(mesh, faces, p[0], basis))
+    if not found:
+        return p
+    ring = max(found, key=lambda r: abs(_area2(r[0])))[0]
+    start = int(np.argmin(np.linalg.norm(ring, axis=1)))
+    ring = np.roll(ring, -start, axis=0)
+    return p[0] + ring @ basis[:, :2].T
+
+
+def _area2(xy: np.ndarray) -> float:
+    x, y = xy[:, 0], xy[:, 1]
+    return float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def plane_polygon(mesh: Mesh, faces, origin: np.ndarray, basis: np.ndarray):

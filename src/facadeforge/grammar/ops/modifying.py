@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...geometry.holed import HOLED, face_groups
 from ...geometry.mesh import EPS, Mesh, weld_ids
 from ..values import CGARuntimeError
 from . import OpCall, operation
@@ -41,13 +42,15 @@ def op_modify(call):
     comp = OpCall("comp", list(call.args), st.copy(), call.derivation, call.env, call.branches)
     pieces = op_comp(comp) or []
     weld = weld_ids(mesh.vertices)
+    groups = face_groups(mesh) if kind == "f" and mesh.column(HOLED) is not None else None
     moved: dict = {}
     replaced: list[int] = []
     built: list[Mesh] = []
     for ps, ops, info in pieces:
         results = derive_now(call.run, ops, ps, call.env.with_state(ps))
         if kind == "f":
-            faces = info.get("components") or [info["component"]]
+            chosen = info.get("components") or [info["component"]]
+            faces = [f for c in chosen for f in (groups[c] if groups else [c])]
             new = results[0][0].geometry if len(results) == 1 else None
             if new is not None and _same_faces(new, ps.geometry):
                 corners = _subset_corners(mesh, faces)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.holed import face_groups, plane_polygon, rings
+from ...geometry.holed import face_groups, outline, plane_polygon, rings
 from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -452,7 +452,7 @@ def component_count(st, kind: str) -> int:
     """Number of components ``comp(kind)`` splits the shape into (the comp function's size)."""
     mesh = st.geometry
     if kind == "f":
-        return mesh.n_faces
+        return len(face_groups(mesh)) if mesh.column("holed") is not None else mesh.n_faces
     if kind in ("v", "fv"):
         return len(mesh.used_vertices())
     if kind == "fe":
@@ -598,9 +598,11 @@ def _match(key, sel_table, n, extra=None, tags=None, states=None) -> np.ndarray:
 
 
 def _comp_faces(call, st):
+    """``comp(f)``: one component per face, the pieces of a face with holes being one face
+    (``geometry.holed``): its selectors, index, scope (from its outline) and comp function
+    value are the whole face's."""
     mesh = st.geometry
-    n = mesh.n_faces
-    if n == 0:
+    if mesh.n_faces == 0:
         return []
     normals = mesh.face_normals()
     table = classify_faces(normals, st.scope.rotation, call.derivation.object_scope.rotation)
@@ -608,18 +610,37 @@ def _comp_faces(call, st):
     if kinds is not None:
         extra = {"inside": kinds == "inside", "border": kinds == "border"}
     else:
-        extra = {"inside": np.zeros(n, bool), "border": np.zeros(n, bool)}
+        extra = {"inside": np.zeros(mesh.n_faces, bool), "border": np.zeros(mesh.n_faces, bool)}
+    tags = _tag_masks(mesh, "f")
+    groups = face_groups(mesh) if mesh.column("holed") is not None else None
+    if groups is not None:  # selectors per face with holes: its first piece's (all coplanar)
+        firsts = np.array([g[0] for g in groups])
+        table = {k: v[firsts] for k, v in table.items()}
+        extra = {k: v[firsts] for k, v in extra.items()}
+        face_tags = tags
+
+        def tags(query, sub):  # noqa: F811 -- a face with holes is tagged as its pieces are
+            hit = face_tags(query, sub)
+            return np.array([hit[g].any() for g in groups], bool)
+    n = len(groups) if groups is not None else mesh.n_faces
+
+    def members(i) -> list[int]:
+        return groups[i] if groups is not None else [int(i)]
+
+    def comp_scope(i):
+        faces = members(i)
+        ring = mesh.vertices[mesh.face(faces[0])] if len(faces) == 1 else outline(mesh, faces)
+        return face_scope(ring, normals[faces[0]])
+
+    def face_state(i):  # a component's own shape, for logical selectors that read it
+        ps = st.copy()
+        ps.geometry = mesh.subset(members(i))
+        ps.scope = comp_scope(i)
+        return ps
+
     taken = np.zeros(n, bool)
     out = []
     edges = MeshEdges(mesh)  # trim planes, worked out only if a successor needs them
-    tags = _tag_masks(mesh, "f")
-
-    def face_state(f):  # a face's own shape, for logical selectors that read it
-        ps = st.copy()
-        ps.geometry = mesh.subset([f])
-        ps.scope = face_scope(mesh.vertices[mesh.face(f)], normals[f])
-        return ps
-
     for branch in call.branches:
         if isinstance(branch, A.RepeatGroup):
             raise CGARuntimeError("comp bodies cannot contain repeat groups")
@@ -631,31 +652,26 @@ def _comp_faces(call, st):
             continue
         sel_name = key if isinstance(key, str) else str(key)
         if branch.mode == "=":
-            sub = mesh.subset(idx).without_columns(*OFFSET_COLUMNS)
+            faces = [f for i in idx for f in members(i)]
             ps = st.child(len(out))
-            ps.scope = face_scope(mesh.vertices[mesh.face(idx[0])], normals[idx[0]])
-            ps.geometry = sub
+            ps.scope = comp_scope(idx[0])
+            ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
             ps.fit_scope()
-            ps.trim = comp_trim(st, edges, idx, ps.scope)
+            ps.trim = comp_trim(st, edges, np.array(faces), ps.scope)
             ps.context = {**st.context, "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
             out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
             continue
-        groups = face_groups(mesh, idx)  # the pieces of a face with holes are one component
-        for j, group in enumerate(groups):
-            f = group[0]
+        for j, i in enumerate(idx):
+            faces = members(i)
             ps = st.child(len(out))
-            poly = mesh.vertices[mesh.face(f)]
-            ps.scope = face_scope(poly, normals[f])
-            ps.geometry = mesh.subset(group).without_columns(*OFFSET_COLUMNS)
-            if len(group) > 1:
+            ps.scope = comp_scope(i)
+            ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
+            if len(faces) > 1:
                 ps.fit_scope()
-            ps.trim = comp_trim(st, edges, tuple(group), ps.scope)
+            ps.trim = comp_trim(st, edges, tuple(faces), ps.scope)
             ps.context = {**st.context, "comp.index": j,
-                          "comp.total": len(groups), "comp.sel": sel_name}
-            info = {"sel": sel_name, "index": j, "component": int(f)}
-            if len(group) > 1:
-                info["components"] = [int(g) for g in group]
-            out.append((ps, branch.ops, info))
+                          "comp.total": len(idx), "comp.sel": sel_name}
+            out.append((ps, branch.ops, {"sel": sel_name, "index": j, "component": int(i)}))
     return out
 
 
