@@ -134,3 +134,22 @@ def test_pieces_that_a_cut_parts_are_faces_of_their_own(block):
     m = derive_on("Lot --> split(x){ 12 : A. | 6 : M | ~1 : C. }\n"
                   "M --> print(size(comp(f){ all : 1 })) comp(f){ all : S. }", block)
     assert m.attributes["prints"] == ["2"] and len(by_symbol(m)["S"]) == 2
+
+
+def test_a_band_running_on_past_a_convex_corner_stays_on_its_side_of_the_neighbour():
+    u = np.array([(0, 0), (20, 0), (20, 16), (14, 16), (14, 6), (6, 6), (6, 16), (0, 16)], float)
+    poly = np.column_stack([u[:, 0], np.zeros(len(u)), -u[:, 1]])
+    # edge 6 (a prong's outer side) alone: its strip must not reach into the other prong
+    a = areas(run("Lot --> setback(comp(fe){ 6 : 2 | all : 0 }){ all : S. | remainder : R. }",
+                  poly=poly))
+    assert a["S"] == pytest.approx(12) and a["R"] == pytest.approx(228)
+
+
+def test_corners_between_branches_and_sides_leave_no_notch():
+    ell = np.array([[0, 0, -20], [8, 0, -20], [8, 0, -8], [20, 0, -8], [20, 0, 0], [0, 0, 0]],
+                   float)[::-1]
+    whole = areas(run("Lot --> setback(1){ all : A. | remainder : R. }", poly=ell))
+    parts = areas(run("Lot --> setback(1){ front : A. | left : A. | back : A. | right : A. "
+                      "| remainder : R. }", poly=ell))
+    letter = areas(run("Lot --> shapeO(1, 1, 1, 1){ shape : A. | remainder : R. }", poly=ell))
+    assert parts == pytest.approx(whole) and letter == pytest.approx(whole)

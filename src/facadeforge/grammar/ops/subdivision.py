@@ -917,45 +917,54 @@ class _PlanarEdges:
     def corner_index(face: Mesh, k: int) -> int:
         return int(face.starts[0] + k)
 
-    def band(self, edges, width):
+    def band(self, edges, width, others=None):
         """Strip inside the face along the given edges, ``width`` wide (a number, or an array
         with one width per edge): the area between each edge and its offset line, as a
         setback with the other edges held still would sweep it.  At a convex corner the strip
-        runs on to the neighbouring edge (the face's outline clips it there); at a reflex corner
-        it stops at the corner, unless the neighbour is in the strip too, when the two offset
-        lines meet in a mitre.  Strips never run past a corner into other parts of the face
-        (a courtyard's far side, the other wing of a U)."""
+        runs on to the neighbouring edge, on that edge's inner side only (the face's outline
+        clips it there); at a reflex corner it stops at the corner, unless the neighbour is set
+        back too (``others``: every edge the operation sets back, default ``edges``), when the
+        two offset lines meet in a mitre.  Strips never run past a corner into other parts of
+        the face (a courtyard's far side, the other wing of a U)."""
         import shapely
 
         widths = np.broadcast_to(np.asarray(width, float), (self.k,))
         chosen = np.zeros(self.k, bool)
         chosen[np.asarray(list(edges), int)] = True
         chosen &= widths > 0
+        moving = chosen if others is None else (np.asarray(others, bool) & (widths > 0)) | chosen
         d = self.seg_b - self.seg_a
         length = np.maximum(np.linalg.norm(d, axis=1), EPS)
         t = d / length[:, None]
         inward = np.column_stack([-t[:, 1], t[:, 0]])
+        big = 4.0 * (float(np.ptp(self.seg_a, axis=0).max()) + float(widths.max(initial=0.0))) + 1
+
+        def inner_side(j):  # the half-plane left of edge j: the face's side of it
+            a = self.seg_a[j]
+            return shapely.Polygon([a - t[j] * big, a + t[j] * big,
+                                    a + t[j] * big + inward[j] * big, a - t[j] * big + inward[j] * big])
+
         parts = []
         for i in np.flatnonzero(chosen):
             a, b, w = self.seg_a[i], self.seg_b[i], widths[i]
-            ext = []
-            for j, at_start in ((self.prev[i], True), (self.next[i], False)):
-                e1, e2 = (t[j], t[i]) if at_start else (t[i], t[j])
+            off = inward[i] * w
+            parts.append(shapely.Polygon([a, b, b + off, a + off]))
+            for j, end, sign in ((self.prev[i], a, -1.0), (self.next[i], b, 1.0)):
+                e1, e2 = (t[j], t[i]) if sign < 0 else (t[i], t[j])
                 convex = e1[0] * e2[1] - e1[1] * e2[0] > EPS
-                ext.append(length[j] + w if convex and not chosen[j] else 0.0)
-            parts.append(shapely.Polygon([a - t[i] * ext[0], b + t[i] * ext[1],
-                                          b + t[i] * ext[1] + inward[i] * w,
-                                          a - t[i] * ext[0] + inward[i] * w]))
-            j = self.next[i]  # a reflex corner between two chosen edges: the mitre
-            if chosen[j] and t[i][0] * t[j][1] - t[i][1] * t[j][0] < -EPS:
+                if convex and not moving[j]:  # on to the neighbour, on its inner side
+                    ext = t[i] * sign * (length[j] + w)
+                    piece = shapely.Polygon([end, end + ext, end + ext + off, end + off])
+                    parts.append(piece.intersection(inner_side(j)))
+            j = self.next[i]  # a reflex corner between two edges set back: the mitre
+            if moving[j] and t[i][0] * t[j][1] - t[i][1] * t[j][0] < -EPS:
                 p1, p2 = b + inward[i] * w, b + inward[j] * widths[j]
                 den = t[i][0] * t[j][1] - t[i][1] * t[j][0]
                 q = p2 - p1
                 m = p1 + t[i] * ((q[0] * t[j][1] - q[1] * t[j][0]) / den)
                 parts.append(shapely.Polygon([b, p1, m, p2]).buffer(0))
-        if not parts:
-            return shapely.Polygon()
-        return shapely.union_all([p for p in parts if p.is_valid and p.area > 0])
+        parts = [p for p in parts if p.is_valid and p.area > 0]
+        return shapely.union_all(parts) if parts else shapely.Polygon()
 
     def shapes(self, st, pieces, selected=None, remainder=None) -> list:
         """``[(branch, shapely geometry)]`` → successor states on this face's plane.  The pieces
@@ -1006,6 +1015,7 @@ def _setback_pieces(call, pe, widths) -> tuple:
     then the selected edges and the remainder branch."""
     remaining, out, remainder_branch = pe.shape, [], None
     taken = np.zeros(pe.k, bool)
+    chosen = []
     for branch in call.branches:
         key = _selector_key(call, branch)
         if key == "remainder":
@@ -1013,7 +1023,9 @@ def _setback_pieces(call, pe, widths) -> tuple:
             continue
         idx = np.flatnonzero(_match(key, pe.table, pe.k, None, pe.tags) & ~taken)
         taken[idx] = True
-        band = pe.band(idx, widths)
+        chosen.append((branch, idx))
+    for branch, idx in chosen:  # corners see every edge set back, whichever branch has it
+        band = pe.band(idx, widths, taken)
         piece = remaining.intersection(band)
         remaining = remaining.difference(band)
         if piece.area > EPS:
@@ -1105,10 +1117,13 @@ def _shape_letter(sides: tuple[str, ...]):
         import shapely
 
         shape = shapely.Polygon()
+        widths = np.zeros(pe.k)
+        for k, side in enumerate(sides):
+            widths[pe.table[side] & (widths == 0)] = max(call.num(k), 0.0)
         for k, side in enumerate(sides):
             w = call.num(k)
             if w > 0:
-                shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), w))
+                shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), widths, widths > 0))
         shape = pe.shape.intersection(shape)
         remainder = pe.shape.difference(shape)
         selected = np.zeros(pe.k, bool)
