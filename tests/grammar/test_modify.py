@@ -59,3 +59,15 @@ def test_modify_goes_on_with_the_shape_and_unselected_parts_stay():
 def test_moving_the_top_along_its_normal_raises_the_mass():
     mesh = only_part("Lot --> extrude(4) modify(f) { top : t(0, 0, 2) } X.")
     assert mesh.bounds()[1] == pytest.approx([10, 6, 8]) and mesh.volume() == pytest.approx(480)
+
+
+def test_modify_keeps_the_tags_and_materials_its_branches_give():
+    m = run('Lot --> extrude(3) modify(f){ top : tag("Roof") color(1, 0, 0) } '
+            'comp(f){ isTagged("Roof") : R. | all : O. }')
+    assert not m.warnings
+    roof = [p for p in m.parts if p.symbol == "R"]
+    assert len(roof) == 1 and roof[0].mesh.area() == pytest.approx(80)
+    assert roof[0].material.color == pytest.approx((1, 0, 0))
+    m = run("Lot --> extrude(3) modify(f){ top : split(x){ ~1 : color(0, 0, 1) X. }* } X.")
+    blue = [p for p in m.parts if p.material.color == pytest.approx((0, 0, 1))]
+    assert sum(p.mesh.area() for p in blue) == pytest.approx(80)

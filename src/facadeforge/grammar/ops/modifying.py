@@ -46,6 +46,7 @@ def op_modify(call):
     moved: dict = {}
     replaced: list[int] = []
     built: list[Mesh] = []
+    rewritten: list = []  # (faces, corners, the component's mesh): its tags and materials
     for ps, ops, info in pieces:
         results = derive_now(call.run, ops, ps, call.env.with_state(ps))
         if kind == "f":
@@ -56,9 +57,12 @@ def op_modify(call):
                 corners = _subset_corners(mesh, faces)
                 for k, c in enumerate(corners):
                     moved[weld[mesh.corners[c]]] = new.vertices[new.corners[k]]
+                rewritten.append((faces, corners, _own_material(call.derivation, st,
+                                                                results[0][0])))
             else:
                 replaced.extend(faces)
-                built.extend(r.geometry for r, _ in results if r.geometry.n_faces)
+                built.extend(_own_material(call.derivation, st, r) for r, _ in results
+                             if r.geometry.n_faces)
             continue
         if len(results) != 1:
             raise CGARuntimeError(f"modify({kind}): an edge or vertex can only be moved (t, r, s, "
@@ -72,7 +76,7 @@ def op_modify(call):
             hit = np.flatnonzero(np.abs(mesh.vertices - p).max(axis=1) <= 1e-6)
             for v in hit:
                 moved[weld[v]] = q
-    if not moved and not replaced:
+    if not moved and not replaced and not rewritten:
         return []
     verts = mesh.vertices.copy()
     if moved:
@@ -81,7 +85,7 @@ def op_modify(call):
         lookup = dict(zip(ids.tolist(), range(len(ids))))
         targets = np.array([moved[i] for i in ids])
         verts[where] = targets[[lookup[w] for w in weld[where]]]
-    out = mesh.with_vertices(verts)
+    out = _rewrite(mesh.with_vertices(verts), rewritten)
     if replaced:
         keep = np.setdiff1d(np.arange(mesh.n_faces), replaced)
         rest = out.subset(keep)
@@ -92,6 +96,42 @@ def op_modify(call):
     st.geometry = out
     st.fit_scope()
     return []
+
+
+def _own_material(d, st, result) -> Mesh:
+    """The result's geometry, its faces carrying the result's material (face column
+    ``material``) where it is not the modified shape's own, as ``inline`` keeps it."""
+    g = result.geometry
+    own = g.column("material")
+    if own is None and result.material == st.material:
+        return g
+    made: dict = {}
+    column = []
+    for am in (own if own is not None else [None] * g.n_faces):
+        if id(am) not in made:
+            made[id(am)] = d.material(result, am)
+        column.append(made[id(am)])
+    return g.with_column("material", column)
+
+
+def _rewrite(mesh: Mesh, rewritten: list) -> Mesh:
+    """``mesh`` with the face and corner data of the moved components (their tags and
+    materials, as their operations left them) written over their faces and corners."""
+    if not rewritten:
+        return mesh
+    face_data = {k: v.copy() for k, v in (mesh.face_data or {}).items()}
+    corner_data = {k: v.copy() for k, v in (mesh.corner_data or {}).items()}
+    for faces, corners, comp in rewritten:
+        for data, index, columns, n in ((face_data, faces, comp.face_data, mesh.n_faces),
+                                        (corner_data, corners, comp.corner_data,
+                                         len(mesh.corners))):
+            for name, col in (columns or {}).items():
+                if name not in data:
+                    data[name] = np.empty(n, dtype=object)
+                data[name][np.asarray(index, np.int64)] = col
+    return Mesh(mesh.vertices, corners=mesh.corners, starts=mesh.starts,
+                corner_uvs=mesh.corner_uvs, closed=mesh.closed, face_data=face_data or None,
+                corner_data=corner_data or None)
 
 
 def _same_faces(new: Mesh, old: Mesh) -> bool:
