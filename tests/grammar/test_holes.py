@@ -153,3 +153,12 @@ def test_corners_between_branches_and_sides_leave_no_notch():
                       "| remainder : R. }", poly=ell))
     letter = areas(run("Lot --> shapeO(1, 1, 1, 1){ shape : A. | remainder : R. }", poly=ell))
     assert parts == pytest.approx(whole) and letter == pytest.approx(whole)
+
+
+def test_edges_inside_a_face_with_holes_are_not_edges(block):
+    m = derive_on("Lot --> print(size(comp(e){ all : 1 })) print(size(comp(fe){ all : 1 })) "
+                  "extrude(3) print(size(comp(e){ all : 1 })) "
+                  "comp(e){ all : print(\"e\") } X.", block)
+    prints = m.attributes["prints"]
+    # 4 + 4 edges of the block's outline and courtyard; a box round a courtyard has 24
+    assert prints[:3] == ["8", "8", "24"] and prints.count("e") == 24

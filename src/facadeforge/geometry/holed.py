@@ -83,6 +83,24 @@ def _connected(mesh: Mesh, faces: list[int]) -> list[list[int]]:
     return list(comps.values())
 
 
+def seams(mesh: Mesh, weld: np.ndarray) -> set:
+    """The edges inside faces with holes (between two of their pieces): welded vertex pairs
+    ``(min, max)`` of ``weld`` (per vertex), which ``comp(e)`` and tag queries do not see."""
+    if mesh.column(HOLED) is None:
+        return set()
+    group_of = np.full(mesh.n_faces, -1, np.int64)
+    for k, g in enumerate(face_groups(mesh)):
+        if len(g) > 1:
+            group_of[g] = k
+    owners: dict = {}
+    for f in np.flatnonzero(group_of >= 0):
+        face = mesh.face(f)
+        for a, b in zip(face, np.roll(face, -1)):
+            key = (min(weld[a], weld[b]), max(weld[a], weld[b]))
+            owners.setdefault(key, []).append(group_of[f])
+    return {key for key, gs in owners.items() if len(gs) >= 2 and len(set(gs)) == 1}
+
+
 def outline(mesh: Mesh, faces) -> np.ndarray:
     """The outer ring (k, 3) of the pieces ``faces`` of one face with holes, counter-clockwise
     about their normal and starting nearest the first piece's first corner (for its scope)."""

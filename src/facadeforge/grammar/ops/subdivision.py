@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.holed import face_groups, outline, plane_polygon, rings
+from ...geometry.holed import face_groups, outline, plane_polygon, rings, seams
 from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -455,8 +455,17 @@ def component_count(st, kind: str) -> int:
         return len(face_groups(mesh)) if mesh.column("holed") is not None else mesh.n_faces
     if kind in ("v", "fv"):
         return len(mesh.used_vertices())
-    if kind == "fe":
+    if kind == "fe" and mesh.column("holed") is None:
         return len(mesh.corners)
+    if kind in ("e", "fe") and mesh.column("holed") is not None:
+        weld = weld_ids(mesh.vertices)
+        inner = seams(mesh, weld)
+        keys = {(min(weld[a], weld[b]), max(weld[a], weld[b]))
+                for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])}
+        if kind == "e":
+            return len({k for k in keys if k[0] != k[1]} - inner)
+        return int(sum((min(weld[a], weld[b]), max(weld[a], weld[b])) not in inner
+                       for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])))
     if kind in ("m", "g", "h"):
         return len(_part_faces(st, kind))
     return len(mesh.welded_edges()[0])
@@ -686,10 +695,13 @@ def _comp_edges(call, st, per_face: bool = False):
     edges, seen, edge_faces = [], {}, []
     normals = mesh.face_normals()
     corner_edge = []
+    inner = seams(mesh, weld)  # edges between pieces of a face with holes are no edges
     for f in range(mesh.n_faces):
         face = mesh.face(f)
         for a, b in zip(face, np.roll(face, -1)):
             k = (min(weld[a], weld[b]), max(weld[a], weld[b]))
+            if k in inner:
+                continue
             corner_edge.append((a, b, f, seen.get(k, len(edges)) if k[0] != k[1] else -1))
             if k[0] == k[1]:
                 continue
