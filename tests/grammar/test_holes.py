@@ -162,3 +162,11 @@ def test_edges_inside_a_face_with_holes_are_not_edges(block):
     prints = m.attributes["prints"]
     # 4 + 4 edges of the block's outline and courtyard; a box round a courtyard has 24
     assert prints[:3] == ["8", "8", "24"] and prints.count("e") == 24
+
+
+def test_a_boolean_cut_through_a_face_leaves_a_face_with_a_hole():
+    m = run("Lot --> subtract { extrude(4) | t(2, -1, 2) s(4, 6, 4) primitiveCube } "
+            "print(geometry.nHoles) comp(f){ top : T. | side : S. }")
+    assert not m.warnings and m.attributes["prints"] == ["2"]   # through the top and bottom
+    parts = by_symbol(m)
+    assert len(parts["T"]) == 1 and parts["T"][0].mesh.area() == pytest.approx(80 - 16)

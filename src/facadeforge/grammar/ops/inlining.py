@@ -28,6 +28,7 @@ from collections import deque
 
 import numpy as np
 
+from ...geometry.holed import HOLED, fresh_ids
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
 from ..values import CGARuntimeError
 from .tagging import auto_tag, auto_tag_edges
@@ -111,8 +112,11 @@ def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
     _set_geometry(state, mesh, origin, meshes, shared)
     if len(origin):  # auto-tags: each face names the operand it came from
         from_a = origin[:, 0] < n_a
-        state.geometry = _cut_edges(auto_tag(state.geometry, "bool",
-                                             np.where(from_a, "A", "B").tolist()), from_a)
+        g = _cut_edges(auto_tag(state.geometry, "bool", np.where(from_a, "A", "B").tolist()),
+                       from_a)
+        # the pieces left of one operand face are one face (with holes where the cut went
+        # through it); pieces that do not touch are told apart by geometry.holed.face_groups
+        state.geometry = g.with_column(HOLED, fresh_ids(map(tuple, origin.tolist())))
 
 
 def _cut_edges(mesh: Mesh, from_a: np.ndarray) -> Mesh:
