@@ -170,3 +170,17 @@ def test_a_boolean_cut_through_a_face_leaves_a_face_with_a_hole():
     assert not m.warnings and m.attributes["prints"] == ["2"]   # through the top and bottom
     parts = by_symbol(m)
     assert len(parts["T"]) == 1 and parts["T"][0].mesh.area() == pytest.approx(80 - 16)
+
+
+def test_per_edge_setbacks_and_tag_selectors_on_a_face_with_holes(block):
+    plain = areas(derive_on("Lot --> setback(2){ front : S. | remainder : R. }", block))
+    per_edge = areas(derive_on("Lot --> setback(comp(fe){ front : 2 | all : 0 }){ all : S. "
+                               "| remainder : R. }", block))
+    assert per_edge == pytest.approx(plain)
+    # the remainder's new edges are tagged setback.back: a second setback can pick them
+    a = areas(derive_on('Lot --> setback(2){ front : S. | remainder : R }\n'
+                        'R --> setback(1){ isTagged("setback.back") : A. | remainder : B. }', block))
+    assert a["A"] == pytest.approx(30 * 1 + 10 * 1)
+    m = derive_on("Lot --> setback(2){ front : S. | remainder : R }\n"
+                  "R --> print(scope.sx) print(scope.sy) X.", block)
+    assert m.attributes["prints"] == ["30", "18"]

@@ -845,7 +845,8 @@ class _PlanarEdges:
         self.normal = mesh.face_normals()[0]
         self.sc = face_scope(poly, self.normal)
         self.holes: list = []
-        if len(groups[0]) == 1:
+        self.pieces = len(groups[0]) > 1
+        if not self.pieces:
             self.xy = self.sc.to_local(poly)[:, :2]
             self.shape = shapely.Polygon(self.xy).buffer(0)
         else:
@@ -870,20 +871,60 @@ class _PlanarEdges:
         t["all"] = np.ones(k, bool)
         _add_street_selectors(t, outward3, object_rot)
         self.table = t
-        self.tags = _tag_masks(mesh, "p") if not self.holes else self._holed_tags(mesh)
+        self.mesh = mesh
+        self.tags = _tag_masks(mesh, "p") if not self.pieces else self._piece_tags
+        self._edges_on: list | None = None
 
-    def _holed_tags(self, mesh):
-        """``isTagged`` on a face with holes: its edges match through the face's own tags (the
-        pieces' edge tags are not mapped onto the outline's edges)."""
-        faces = _tag_masks(mesh, "f")
-        return lambda query, sub: np.full(self.k, bool(faces(query, sub).any()))
+    def edges_on_segments(self) -> list[list[int]]:
+        """For each outline or hole segment of a face stored as pieces, the ``TagIndex`` edges
+        (welded, seams left out) lying on it."""
+        if self._edges_on is None:
+            ix = TagIndex(self.mesh)
+            nxt = self.mesh.next_corners()
+            a, d = self.seg_a, self.seg_b - self.seg_a
+            dd = np.maximum((d * d).sum(axis=1), EPS)
+            out: list[list[int]] = [[] for _ in range(self.k)]
+            for e, cs in enumerate(ix.edge_corners):
+                c = cs[0]
+                ends = self.sc.to_local(self.mesh.vertices[self.mesh.corners[[c, nxt[c]]]])[:, :2]
+                for i in range(self.k):
+                    t = ((ends - a[i]) @ d[i]) / dd[i]
+                    if np.all(np.abs(a[i] + t[:, None] * d[i] - ends) <= 1e-6) \
+                            and t.min() >= -1e-9 and t.max() <= 1 + 1e-9:
+                        out[i].append(e)
+                        break
+            self._edges_on = [out, ix]
+        return self._edges_on
+
+    def _piece_tags(self, query, sub):
+        """``isTagged`` on a face stored as pieces: a segment matches when an edge on it does
+        (its own tags, or a face's next to it)."""
+        on, ix = self.edges_on_segments()
+        hit = ix.edges(query, sub)
+        return np.array([any(hit[e] for e in es) for es in on], bool)
+
+    def from_face_edges(self, values: np.ndarray) -> np.ndarray:
+        """Per-edge values given in ``comp(fe)`` order (``setback(comp(fe){…})``) in this
+        face's segment order: the same for one face; for pieces, each segment takes the value of
+        the piece edge on it."""
+        if not self.pieces or not isinstance(values, np.ndarray) or len(values) != self.k:
+            return values
+        on, ix = self.edges_on_segments()
+        inner = seams(self.mesh, weld_ids(self.mesh.vertices))
+        w = weld_ids(self.mesh.vertices)[self.mesh.corners]
+        nxt = self.mesh.next_corners()
+        fe = [c for c in range(len(w)) if (min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]])) not in inner]
+        at = {int(ix.edge_of[c]): k for k, c in enumerate(fe)}
+        return np.array([values[at[es[0]]] if es and es[0] in at else values[i]
+                         for i, es in enumerate(on)], float)
 
     def setback_tags(self, face: Mesh, mesh: Mesh, selected, remainder: bool) -> Mesh:
         """Setback auto-tags on the edges of ``mesh``, a piece of the single face ``face``
         (reference, setback "Component tags"): on an original edge, ``setback.front`` if that
         edge was selected, else ``setback.side`` (``setback.remainder`` on every original edge
-        of the remainder); elsewhere ``setback.back``, the new setback edges, which also take
-        the tags of the selected edge they run along.  Edges between two pieces of the same
+        of the remainder); elsewhere ``setback.back`` for the new setback edges, which run along
+        a selected edge and take its tags, and ``setback.side`` for the ends of a band that
+        stops at a corner.  Edges between two pieces of the same
         shape (a holed piece stored as pieces) get none."""
         a, b = self.seg_a, self.seg_b
         d = b - a
@@ -909,9 +950,10 @@ class _PlanarEdges:
             elif ends[c] in twins:
                 part = ""
             else:
-                part = "back"
                 e = (r - q) / max(np.linalg.norm(r - q), EPS)
                 along = np.flatnonzero(selected & (np.abs(unit @ e) > 1 - 1e-6))
+                # a new edge along a selected one is its setback line; across, a band's end
+                part = "back" if len(along) else "side"
                 if own is not None and len(along):  # the nearest selected edge it runs along
                     w = q - a[along]
                     dist = np.abs(unit[along, 0] * w[:, 1] - unit[along, 1] * w[:, 0])
@@ -999,10 +1041,15 @@ class _PlanarEdges:
             ps = st.child(i)
             mesh = Mesh.from_polygons(faces).inherit(st.geometry, [0] * len(faces),
                                                      drop=OFFSET_COLUMNS)
+            scope_ring = faces[0]
+            if len(faces) > 1:  # the scope of a piece with holes starts on its outline
+                biggest = max(getattr(geom, "geoms", [geom]), key=lambda g: g.area)
+                ring = np.asarray(biggest.exterior.coords)[:-1]
+                scope_ring = self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))]))
             if selected is not None:
                 mesh = self.setback_tags(st.geometry, mesh, selected, branch is remainder)
             ps.geometry = mesh
-            ps.scope = face_scope(faces[0], self.normal)
+            ps.scope = face_scope(scope_ring, self.normal)
             ps.fit_scope()
             result.append((ps, branch.ops, {"index": i}))
         return result
@@ -1018,7 +1065,7 @@ def op_setback(call):
     """
     st = call.state
     pe = _PlanarEdges(st, "setback", call.derivation.object_scope.rotation)
-    return pe.shapes(st, *_setback_pieces(call, pe, _edge_widths(call, pe.k)))
+    return pe.shapes(st, *_setback_pieces(call, pe, pe.from_face_edges(_edge_widths(call, pe.k))))
 
 
 def _setback_pieces(call, pe, widths) -> tuple:
