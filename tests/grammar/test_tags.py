@@ -210,3 +210,12 @@ def test_edges_rising_from_tagged_vertices_take_their_tags():
     assert out == ["v"] * 4
     out = prints('Lot --> extrude(3) comp(e){ vertical && isTagged("corner") : print("v") } X.')
     assert out == []
+
+
+def test_cleanup_keeps_edge_tags_of_merged_faces():
+    out = prints('Lot --> inline(recompose) split(x){ 5 : X. | ~1 : tag("B", edges) X. } '
+                 'cleanupGeometry(all, 0) print(geometry.nFaces) '
+                 'comp(e){ isTagged("B") : print("b") } X.')
+    # one face again; the right half's three outer edges keep B (the merged bottom and top
+    # edges start in the left half, whose pieces were not tagged)
+    assert out[0] == "1" and out.count("b") >= 1

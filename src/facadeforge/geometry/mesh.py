@@ -90,6 +90,37 @@ def _concat_columns(parts: list) -> dict | None:
                                for data, n in parts]) for k in names}
 
 
+def corner_sources_anywhere(mesh: Mesh, parent: Mesh, tol: float = 1e-6) -> np.ndarray:
+    """As :func:`_corner_sources`, but a corner may take the data of any parent corner (faces
+    merged by a clean-up have edges of several parent faces): (2, C) vertex and edge sources,
+    the edge source being a parent edge that starts where the corner's edge does and runs the
+    same way."""
+    out = np.full((2, len(mesh.corners)), -1, np.int64)
+    if not len(mesh.corners) or not len(parent.corners):
+        return out
+    key = np.round(parent.vertices[parent.corners] / tol).astype(np.int64)
+    at: dict = {}
+    for c, k in enumerate(map(tuple, key.tolist())):
+        at.setdefault(k, []).append(c)
+    pnext = parent.next_corners()
+    p = mesh.vertices[mesh.corners]
+    r = p[mesh.next_corners()]
+    for c, k in enumerate(map(tuple, np.round(p / tol).astype(np.int64).tolist())):
+        cands = at.get(k, ())
+        if not cands:
+            continue
+        out[0, c] = cands[0]
+        d = r[c] - p[c]
+        n = np.linalg.norm(d)
+        for pc in cands:
+            e = parent.vertices[parent.corners[pnext[pc]]] - parent.vertices[parent.corners[pc]]
+            m = np.linalg.norm(e)
+            if n > tol and m > tol and e @ d > (1 - 1e-9) * n * m:
+                out[1, c] = pc
+                break
+    return out
+
+
 def _corner_sources(mesh: Mesh, parent: Mesh, source: np.ndarray, tol: float = 1e-6) -> np.ndarray:
     """For each corner of ``mesh``, the corner of its face's source face in ``parent`` whose
     data it keeps (-1 none): for vertex columns the parent corner at the same place, for edge

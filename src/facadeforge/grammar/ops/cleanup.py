@@ -12,6 +12,7 @@ import math
 from dataclasses import replace
 
 from ...geometry import cleanup as kernel
+from ...geometry.mesh import corner_sources_anywhere
 from ..values import CGARuntimeError
 from . import operation
 from .tagging import without_tags
@@ -65,8 +66,11 @@ def op_cleanup_geometry(call):
     st = call.state
     if not st.geometry.n_faces:
         return
-    mesh, source = kernel.cleanup(st.geometry, comp, tol, _face_groups(st.geometry))
-    st.geometry = mesh.inherit(st.geometry, source)
+    old = st.geometry
+    mesh, source = kernel.cleanup(old, comp, tol, _face_groups(old))
+    # a merged face's edges come from several faces: edge and vertex tags found by position
+    corners = corner_sources_anywhere(mesh, old) if old.corner_data is not None else None
+    st.geometry = mesh.inherit(old, source, corner_source=corners)
 
 
 @operation("resetGeometry", 0)
