@@ -219,3 +219,13 @@ def test_cleanup_keeps_edge_tags_of_merged_faces():
     # one face again; the right half's three outer edges keep B (the merged bottom and top
     # edges start in the left half, whose pieces were not tagged)
     assert out[0] == "1" and out.count("b") >= 1
+
+
+def test_offset_and_taper_faces_take_the_tags_of_the_edges_they_rise_from():
+    a = areas(run('Lot --> setback(2){ front : S | remainder : R. }\n'
+                  'S --> offset(-0.5, border) comp(f){ isTagged("setback.front") : F. | all : O. }'))
+    # the border is one face (a ring) rising from every edge, so it has the street edge's tag
+    assert a["F"] == pytest.approx(10 * 2 - 9 * 1) and "O" not in a
+    a = areas(run('Lot --> setback(2){ front : S | remainder : R. }\n'
+                  'S --> taper(3) comp(f){ isTagged("setback.front") : F. | all : O. }'))
+    assert a["F"] > 0

@@ -239,13 +239,14 @@ def op_offset(call):
     if mode not in ("all", "inside", "border"):
         raise CGARuntimeError(f"offset mode must be all, inside or border, not '{mode}'")
     mesh = st.geometry
-    polys, kinds, keys, source = [], [], [], []
+    polys, kinds, keys, source, from_edge = [], [], [], [], []
     normals = mesh.face_normals()
 
-    def add(ring, kind, key):
+    def add(ring, kind, key, edge=-1):
         polys.append(lift(ring))
         kinds.append(kind)
         keys.append(key)
+        from_edge.append(edge)
 
     for group in face_groups(mesh):
         f = group[0]
@@ -269,7 +270,7 @@ def op_offset(call):
                 for j in range(k):
                     jn = (j + 1) % k
                     add(np.array([outer_ring[j], outer_ring[jn], inner_ring[jn], inner_ring[j]]),
-                        "border", (f, "border"))
+                        "border", (f, "border"), int(mesh.starts[f]) + j)
         else:  # large offsets and faces with holes: shapely's mitre buffer, holed parts in pieces
             base = (shapely.Polygon(xy).buffer(0) if len(group) == 1
                     else plane_polygon(mesh, group, p[0], basis))
@@ -285,8 +286,12 @@ def op_offset(call):
         source.extend([f] * (len(polys) - before))
     # CityEngine's border is one face with a hole; here it is pieces sharing an id, so that
     # comp(f){ border : … } makes one shape of each, as CityEngine does
-    st.geometry = (Mesh.from_polygons(polys).inherit(mesh, source, drop=(HOLED,))
-                   .with_column("kind", kinds).with_column(HOLED, fresh_ids(keys)))
+    out = (Mesh.from_polygons(polys).inherit(mesh, source, drop=(HOLED,))
+           .with_column("kind", kinds).with_column(HOLED, fresh_ids(keys)))
+    if mesh.corner_column(EDGE_TAGS) is not None:  # a border piece rising from an edge
+        edge_tags = corner_tags(mesh, EDGE_TAGS)
+        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
+    st.geometry = out
     if st.geometry.n_faces:
         st.fit_scope()
 
