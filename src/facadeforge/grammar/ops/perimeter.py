@@ -40,8 +40,9 @@ def op_split_and_setback_perimeter(call):
     """
     st = call.state
     pe = _PlanarEdges(st, _NAME, call.derivation.object_scope.rotation)
-    if pe.holes:
-        raise CGARuntimeError(f"{_NAME}: the face has holes (a courtyard); deleteHoles() first")
+    if pe.pieces:
+        raise CGARuntimeError(f"{_NAME}: the face has holes or is in pieces (a courtyard); "
+                              "deleteHoles() or cleanupGeometry first")
     chain = _chain(call, pe)
     pattern = [b for b in call.branches if getattr(b, "depth", None) is not None]
     others = [b for b in call.branches if getattr(b, "depth", None) is None]
@@ -69,7 +70,7 @@ def op_split_and_setback_perimeter(call):
         used = union_all([g for _, g in pieces]) if pieces else None
         rest = pe.shape if used is None else pe.shape.difference(used, grid_size=1e-9)
         pieces.append((remainder, rest))
-    out = pe.shapes(st, pieces)
+    out = pe.shapes(st, pieces, chain.selected, remainder)  # the setback family's edge tags
     for ps, _, info in out:
         if info["index"] < n:
             ps.context = {**ps.context, "split.index": info["index"], "split.total": n}
