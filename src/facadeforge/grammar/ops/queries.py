@@ -144,8 +144,9 @@ def _geometry_groups(env, args):
     the initial shape, as CityEngine names initial-shape geometry.  Faces that keep their
     asset's groups (face column ``group``) name them, in the order ``comp(g)`` takes them."""
     column = env.state.geometry.column("group")
-    if column is not None:
-        return np.array([name for _, name in sorted({g for g in column if g is not None})],
+    if column is not None:  # faces before the file's first group are its "default" group
+        names = [name for _, name in sorted({g for g in column if g is not None})]
+        return np.array(names + (["default"] if any(g is None for g in column) else []),
                         dtype=object)
     name = _inserted(env)
     if name is not None and not name.startswith("builtin:"):
