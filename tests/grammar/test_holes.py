@@ -184,3 +184,13 @@ def test_per_edge_setbacks_and_tag_selectors_on_a_face_with_holes(block):
     m = derive_on("Lot --> setback(2){ front : S. | remainder : R }\n"
                   "R --> print(scope.sx) print(scope.sy) X.", block)
     assert m.attributes["prints"] == ["30", "18"]
+
+
+def test_comp_holes_gives_the_courtyards(block):
+    m = derive_on("Lot --> print(size(comp(h){ all : 1 })) comp(h){ all : H. }", block)
+    assert m.attributes["prints"] == ["1"]
+    (hole,) = by_symbol(m)["H"]
+    assert hole.mesh.area() == pytest.approx(100)
+    assert hole.mesh.face_normals()[0][1] == pytest.approx(1)   # facing up, as the lot does
+    m = run("Lot --> comp(h){ all : H. } X.")
+    assert "H" not in by_symbol(m)                               # a plain lot has no hole

@@ -9,7 +9,7 @@ import numpy as np
 
 from ...geometry.cut import split_along_axis
 from ...geometry.holed import face_groups, outline, plane_polygon, rings, seams
-from ...geometry.mesh import EPS, Mesh, cross3, weld_ids
+from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
 from .. import ast as A
@@ -466,7 +466,9 @@ def component_count(st, kind: str) -> int:
             return len({k for k in keys if k[0] != k[1]} - inner)
         return int(sum((min(weld[a], weld[b]), max(weld[a], weld[b])) not in inner
                        for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])))
-    if kind in ("m", "g", "h"):
+    if kind == "h":
+        return len(hole_polygons(mesh))
+    if kind in ("m", "g"):
         return len(_part_faces(st, kind))
     return len(mesh.welded_edges()[0])
 
@@ -514,7 +516,9 @@ def op_comp(call):
         pieces = _comp_edges(call, st, per_face=kind == "fe")
     elif kind in ("v", "fv"):
         pieces = _comp_vertices(call, st)
-    elif kind in ("m", "g", "h"):
+    elif kind == "h":
+        pieces = _comp_holes(call, st)
+    elif kind in ("m", "g"):
         pieces = _comp_parts(call, st, kind)
     else:
         raise CGARuntimeError(f"comp({kind}) is not a component type; use f, e, v, fe, fv, m, "
@@ -534,15 +538,14 @@ def op_comp(call):
 
 
 def _part_faces(st, kind: str) -> list:
-    """Face index arrays of the components of ``comp(m|g|h)``.
+    """Face index arrays of the components of ``comp(m|g)``.
 
     ``m``: one component per material, in order of first use (an inserted asset's own materials
     count; a shape without per-face materials is one component).  ``g``: one per OBJ group of
     an inserted asset (face column ``group``), in the file's order; geometry without groups is
-    one group, as in CityEngine.  ``h``: the faces' holes; a face with holes is kept as
-    pieces here, so there are none to give."""
+    one group, as in CityEngine.  (``comp(h)``: :func:`_comp_holes`.)"""
     n = st.geometry.n_faces
-    if n == 0 or kind == "h":
+    if n == 0:
         return []
     column = st.geometry.column("material" if kind == "m" else "group")
     if column is not None:
@@ -554,8 +557,57 @@ def _part_faces(st, kind: str) -> list:
     return [np.arange(n)]
 
 
+def hole_polygons(mesh: Mesh) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(polygon, normal)`` filling each hole of the mesh's faces with holes, turned the way
+    its face is (a face with holes is pieces sharing an id, ``geometry.holed``)."""
+    out = []
+    if mesh.column("holed") is None:
+        return out
+    normals = mesh.face_normals()
+    for group in face_groups(mesh):
+        if len(group) < 2:
+            continue
+        f = group[0]
+        p = mesh.vertices[mesh.face(f)]
+        basis = plane_basis(normals[f], p[1] - p[0])
+        for _, holes in rings(plane_polygon(mesh, group, p[0], basis)):
+            for h in holes:
+                out.append((p[0] + h[::-1] @ basis[:, :2].T, normals[f]))
+    return out
+
+
+def _comp_holes(call, st):
+    """``comp(h)``: one shape per hole of the faces with holes, the hole's polygon facing the
+    way its face does (reference: hole components)."""
+    holes = hole_polygons(st.geometry)
+    n = len(holes)
+    out, taken = [], np.zeros(n, bool)
+    for branch in call.branches:
+        if isinstance(branch, A.RepeatGroup):
+            raise CGARuntimeError("comp bodies cannot contain repeat groups")
+        key = _selector_key(call, branch)
+        m = _match(key, {"all": np.ones(n, bool)}, n) & ~taken
+        taken |= m
+        idx = np.flatnonzero(m)
+        sel_name = key if isinstance(key, str) else str(key)
+        if branch.mode == "=" and len(idx):
+            idx_groups = [idx]
+        else:
+            idx_groups = [[i] for i in idx]
+        for j, chosen in enumerate(idx_groups):
+            ps = st.child(len(out))
+            ps.geometry = Mesh.from_polygons([holes[i][0] for i in chosen])
+            ps.scope = face_scope(holes[chosen[0]][0], holes[chosen[0]][1])
+            ps.fit_scope()
+            ps.context = {**st.context, "comp.index": j, "comp.total": len(idx_groups),
+                          "comp.sel": sel_name}
+            out.append((ps, branch.ops, {"sel": sel_name, "index": j,
+                                         "components": [int(i) for i in chosen]}))
+    return out
+
+
 def _comp_parts(call, st, kind: str):
-    """``comp(m|g|h)``: components made of several faces keep the shape's scope orientation,
+    """``comp(m|g)``: components made of several faces keep the shape's scope orientation,
     fitted to the component."""
     parts = _part_faces(st, kind)
     out, taken = [], np.zeros(len(parts), bool)
