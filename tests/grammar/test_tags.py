@@ -229,3 +229,11 @@ def test_offset_and_taper_faces_take_the_tags_of_the_edges_they_rise_from():
     a = areas(run('Lot --> setback(2){ front : S | remainder : R. }\n'
                   'S --> taper(3) comp(f){ isTagged("setback.front") : F. | all : O. }'))
     assert a["F"] > 0
+
+
+def test_a_roof_plane_takes_the_tags_of_its_eave_edge():
+    a = areas(run('Lot --> setback(2){ front : S. | remainder : R }\n'
+                  'R --> roofHip(30) comp(f){ isTagged("setback.back") : F. | all : O. }'))
+    # the plane over the remainder's new front edge (10 m long, 6 m deep lot: a trapezoid
+    # rising 3 m inwards at 30 degrees)
+    assert a["F"] == pytest.approx((10 + 4) / 2 * 3 / np.cos(np.radians(30)))

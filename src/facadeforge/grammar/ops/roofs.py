@@ -8,7 +8,7 @@ from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, ring
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
 from ..values import CGARuntimeError
 from . import operation
-from .tagging import auto_tag
+from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
 
 
 def _roof(call, builder, holes_ok: bool = False):
@@ -29,7 +29,7 @@ def _roof(call, builder, holes_ok: bool = False):
     if not mesh.n_faces:
         return
     first_normal = mesh.face_normals()[0]
-    polys, source, parts, keys = [], [], [], []
+    polys, source, parts, keys, from_edge = [], [], [], [], []
     side = "side" if call.name == "roofGable" else "side.outer"
     holed = mesh.column(HOLED)
     for group in face_groups(mesh):
@@ -43,7 +43,7 @@ def _roof(call, builder, holes_ok: bool = False):
             outlines = [((p - p[0]) @ basis[:, :2], [])]
         else:
             outlines = rings(plane_polygon(mesh, group, p[0], basis))
-        roofs = []
+        roofs, rose_from = [], []  # the roof faces, and the face edge each rises from
         for xy, holes in outlines:
             x, y = xy[:, 0], xy[:, 1]
             if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
@@ -52,9 +52,15 @@ def _roof(call, builder, holes_ok: bool = False):
                 raise CGARuntimeError(f"{call.name}: the face has holes (a courtyard); roofHip and "
                                       "roofGable roof faces with holes, or deleteHoles() first")
             try:
-                roofs.extend(builder(xy, basis, n, holes))
+                built = builder(xy, basis, n, holes)
             except ValueError as e:
                 raise CGARuntimeError(f"{call.name}: {e}") from None
+            faces = getattr(built, "faces", built)
+            roofs.extend(faces)
+            edges = getattr(built, "edge_index", None)
+            single = len(group) == 1 and edges is not None and len(edges) == len(faces)
+            rose_from.extend(int(mesh.starts[f]) + int(e) if single and 0 <= e < len(xy) else -1
+                             for e in (edges if single else [-1] * len(faces)))
         if not roofs:
             continue
         for g in group:  # the bottom: the face itself, turned over
@@ -62,6 +68,8 @@ def _roof(call, builder, holes_ok: bool = False):
             parts.append("bottom")
             source.append(g)
             keys.append(None if holed is None else holed[g])
+            from_edge.append(-1)
+        from_edge.extend(rose_from)
         for q in roofs:
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
@@ -72,6 +80,9 @@ def _roof(call, builder, holes_ok: bool = False):
     out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED))
     if holed is not None:
         out = out.with_column(HOLED, fresh_ids(keys))
+    if mesh.corner_column(EDGE_TAGS) is not None:  # a roof plane rises from its eave's edge
+        edge_tags = corner_tags(mesh, EDGE_TAGS)
+        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
     st.geometry = auto_tag(out, "roof", parts)
     align_scope_y(st, first_normal)
     st.fit_scope()
@@ -90,7 +101,7 @@ def op_roof_hip(call):
 
     angle = _angle(call)
     overhang = call.num(1, 0.0)
-    _roof(call, lambda xy, basis, n, holes: roof_hip(xy, angle, overhang, holes=holes).faces,
+    _roof(call, lambda xy, basis, n, holes: roof_hip(xy, angle, overhang, holes=holes),
           holes_ok=True)
 
 
@@ -103,7 +114,7 @@ def op_roof_gable(call):
     oy = call.num(2, ox)  # CityEngine: the y overhang defaults to the x overhang
     even = bool(call.args[3]) if len(call.args) > 3 else False
     _roof(call, lambda xy, basis, n, holes: roof_gable(xy, angle, ox, oy, even,
-                                                             holes=holes).faces,
+                                                             holes=holes),
           holes_ok=True)
 
 
@@ -112,7 +123,7 @@ def op_roof_pyramid(call):
     from ...geometry.roofs import roof_pyramid
 
     angle = _angle(call)
-    _roof(call, lambda xy, basis, n, holes: roof_pyramid(xy, angle).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_pyramid(xy, angle))
 
 
 @operation("roofShed", 1, 2, selectors=(0,))
@@ -121,4 +132,4 @@ def op_roof_shed(call):
 
     angle = _angle(call)
     edge = int(call.num(1, 0.0))
-    _roof(call, lambda xy, basis, n, holes: roof_shed(xy, angle, edge).faces)
+    _roof(call, lambda xy, basis, n, holes: roof_shed(xy, angle, edge))
