@@ -194,3 +194,34 @@ def test_comp_holes_gives_the_courtyards(block):
     assert hole.mesh.face_normals()[0][1] == pytest.approx(1)   # facing up, as the lot does
     m = run("Lot --> comp(h){ all : H. } X.")
     assert "H" not in by_symbol(m)                               # a plain lot has no hole
+
+
+TWO_YARDS = {"type": "Polygon", "coordinates": [
+    [[0, 0], [30, 0], [30, 20], [0, 20], [0, 0]],
+    [[4, 4], [10, 4], [10, 10], [4, 10], [4, 4]],
+    [[16, 6], [26, 6], [26, 14], [16, 14], [16, 6]]]}
+
+
+@pytest.mark.parametrize("src", [
+    "Lot --> shapeO(1, 2, 0.5, 0.7){ shape : A. | remainder : B. }",
+    "Lot --> setback(comp(fe){ front : 5 | all : 2.5 }){ all : A. | remainder : B. }",
+    "Lot --> setback(2){ all : A. | remainder : B. }",
+])
+def test_setback_pieces_tile_a_face_with_two_courtyards(tmp_path, src):
+    path = tmp_path / "yards.geojson"
+    path.write_text(json.dumps(TWO_YARDS))
+    m = derive_on(src, load_footprints(path))
+    assert sum(p.mesh.area() for p in m.parts) == pytest.approx(600 - 36 - 80)
+
+
+def test_a_boolean_keeps_a_face_with_holes_whole(block):
+    m = derive_on("Lot --> extrude(6) union { X. | t(40, 0, 0) s(3, 3, 3) primitiveCube } "
+                  "comp(f){ top : print(geometry.nHoles) T. }", block)
+    assert sorted(m.attributes["prints"]) == ["0", "1"]   # the roof round the yard; the cube
+
+
+def test_a_wall_with_a_hole_keeps_its_wall_scope():
+    for x in (2, 7):
+        m = run(f"Lot --> extrude(6) subtract {{ X. | t({x}, 1, -1) s(2, 3, 3) primitiveCube }} "
+                "comp(f){ back : print(scope.sx) print(scope.sy) B. }")
+        assert m.attributes["prints"][:2] == ["10", "6"]

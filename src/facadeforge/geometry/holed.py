@@ -13,7 +13,7 @@ import itertools
 
 import numpy as np
 
-from .mesh import EPS, Mesh, plane_basis, polygon_normal, weld_ids
+from .mesh import EPS, Mesh, plane_basis, weld_ids
 
 HOLED = "holed"
 _IDS = itertools.count()
@@ -103,18 +103,33 @@ def seams(mesh: Mesh, weld: np.ndarray) -> set:
 
 def outline(mesh: Mesh, faces) -> np.ndarray:
     """The outer ring (k, 3) of the pieces ``faces`` of one face with holes, counter-clockwise
-    about their normal and starting nearest the first piece's first corner (for its scope)."""
-    f = faces[0]
+    about their normal, for its scope: a wall's starts with its bottom edge (as an extruded
+    wall's does); another face's with the edge that runs along its first piece's first edge,
+    else at the corner nearest that piece's first corner."""
+    normals = mesh.face_normals()
+    f = next((g for g in faces if normals[g].any()), None)
+    if f is None:
+        return mesh.vertices[mesh.face(faces[0])]
     p = mesh.vertices[mesh.face(f)]
-    n = polygon_normal(p)
-    basis = plane_basis(n, p[1] - p[0])
+    basis = plane_basis(normals[f], p[1] - p[0])
     found = rings(plane_polygon(mesh, faces, p[0], basis))
     if not found:
         return p
     ring = max(found, key=lambda r: abs(_area2(r[0])))[0]
-    start = int(np.argmin(np.linalg.norm(ring, axis=1)))
-    ring = np.roll(ring, -start, axis=0)
-    return p[0] + ring @ basis[:, :2].T
+    world = p[0] + ring @ basis[:, :2].T
+    d = np.roll(world, -1, axis=0) - world
+    length = np.linalg.norm(d, axis=1)
+    if abs(normals[f][1]) < 0.99:  # a wall: its bottom edge first, as an extruded wall has
+        level = np.flatnonzero(np.abs(d[:, 1]) <= 1e-9 * np.maximum(length, 1.0))
+        if len(level):
+            low = world[level, 1].min()
+            bottom = level[world[level, 1] <= low + 1e-9]
+            return np.roll(world, -int(bottom[np.argmax(length[bottom])]), axis=0)
+    u = (p[1] - p[0]) / max(np.linalg.norm(p[1] - p[0]), EPS)
+    along = np.flatnonzero((d @ u) > (1 - 1e-9) * np.maximum(length, EPS))
+    near = np.linalg.norm(world - p[0], axis=1)
+    start = int(along[np.argmin(near[along])]) if len(along) else int(np.argmin(near))
+    return np.roll(world, -start, axis=0)
 
 
 def _area2(xy: np.ndarray) -> float:

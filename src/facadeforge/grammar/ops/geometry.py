@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
-from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
+from ...geometry.holed import HOLED, face_groups, fresh_ids, outline, plane_polygon, rings
 from ...geometry.mesh import (
     EPS,
     Mesh,
@@ -20,7 +20,7 @@ from ...geometry.primitives import PRIMITIVES, unit_ring
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
-from .subdivision import classify_faces, face_scope
+from .subdivision import classify_faces, face_scope, hole_polygons
 from .tagging import (
     EDGE_TAGS,
     VERTEX_TAGS,
@@ -373,12 +373,15 @@ def op_envelope(call):
     angle = call.num(3, 45.0)
     polys, parts, source = [], [], []
     mesh = st.geometry
-    if any(len(g) > 1 for g in face_groups(mesh)):
+    if hole_polygons(mesh):
         raise CGARuntimeError("envelope: the face has holes (a courtyard), which envelope does "
                               "not take; deleteHoles() first, or extrude and roofHip")
-    for f in range(mesh.n_faces):
-        p = mesh.vertices[mesh.face(f)]
+    for group in face_groups(mesh):  # a face stored as pieces: its outline
+        f = group[0]
+        p = mesh.vertices[mesh.face(f)] if len(group) == 1 else outline(mesh, group)
         n = polygon_normal(p)
+        if not n.any():
+            continue
         basis = plane_basis(n, p[1] - p[0])
         xy = (p - p[0]) @ basis[:, :2]
         walls, kinds = extrude_mesh(Mesh.from_polygons([p]), lambda nn: nn, base_h)

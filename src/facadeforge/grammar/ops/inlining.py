@@ -116,7 +116,10 @@ def boolean_into(d, state, kind: str, a_results: list, b_results: list) -> None:
                        from_a)
         # the pieces left of one operand face are one face (with holes where the cut went
         # through it); pieces that do not touch are told apart by geometry.holed.face_groups
-        state.geometry = g.with_column(HOLED, fresh_ids(map(tuple, origin.tolist())))
+        old = g.column(HOLED)  # an operand face that already had holes stays one face
+        keys = [(p, "holed", old[i]) if old is not None and old[i] is not None else (p, f)
+                for i, (p, f) in enumerate(origin.tolist())]
+        state.geometry = g.with_column(HOLED, fresh_ids(keys))
 
 
 def _cut_edges(mesh: Mesh, from_a: np.ndarray) -> Mesh:

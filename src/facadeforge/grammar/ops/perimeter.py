@@ -40,9 +40,8 @@ def op_split_and_setback_perimeter(call):
     """
     st = call.state
     pe = _PlanarEdges(st, _NAME, call.derivation.object_scope.rotation)
-    if pe.pieces:
-        raise CGARuntimeError(f"{_NAME}: the face has holes or is in pieces (a courtyard); "
-                              "deleteHoles() or cleanupGeometry first")
+    if pe.holes:
+        raise CGARuntimeError(f"{_NAME}: the face has holes (a courtyard); deleteHoles() first")
     chain = _chain(call, pe)
     pattern = [b for b in call.branches if getattr(b, "depth", None) is not None]
     others = [b for b in call.branches if getattr(b, "depth", None) is None]

@@ -691,7 +691,8 @@ def _comp_faces(call, st):
     def comp_scope(i):
         faces = members(i)
         ring = mesh.vertices[mesh.face(faces[0])] if len(faces) == 1 else outline(mesh, faces)
-        return face_scope(ring, normals[faces[0]])
+        lead = next((f for f in faces if normals[f].any()), faces[0])
+        return face_scope(ring, normals[lead])
 
     def face_state(i):  # a component's own shape, for logical selectors that read it
         ps = st.copy()
