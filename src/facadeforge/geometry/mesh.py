@@ -11,8 +11,8 @@ numpy calls instead of a Python loop per face, which is what makes inserting ass
 
 Per-face data travels with the faces: ``face_data`` maps a column name to an (F,) object array
 (``None`` = unset).  The grammar keeps there what CityEngine stores on a geometry's faces: a face's
-own material, its geometry tags, and which ``offset`` kind and border ring it came from (see
-:data:`FACE_COLUMNS`).  Selecting, merging, moving and reversing faces carry the columns; an
+own material, its geometry tags, its OBJ group, which ``offset`` part it is and which face with
+holes it is a piece of (see :data:`FACE_COLUMNS`); ``corner_data`` holds edge and vertex tags.  Selecting, merging, moving and reversing faces carry the columns; an
 operation that builds new faces says which old face each came from (:meth:`Mesh.inherit`).
 """
 
@@ -51,6 +51,15 @@ def _column(values, n: int) -> np.ndarray:
     return out
 
 
+def _take_column(column: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """``column`` at ``index`` (-1: unset)."""
+    new = index < 0
+    out = column[np.where(new, 0, index)] if len(column) else _column(None, len(index))
+    if new.any():
+        out[new] = None
+    return out
+
+
 def _take(data: dict | None, index) -> dict | None:
     """Columns at ``index`` (-1: unset).  Columns are never changed in place once made: meshes
     share them."""
@@ -59,14 +68,7 @@ def _take(data: dict | None, index) -> dict | None:
     if isinstance(index, slice):
         return {k: v[index].copy() for k, v in data.items()}
     index = np.asarray(index, np.int64)
-    new = index < 0
-    out = {}
-    for k, v in data.items():
-        col = v[np.where(new, 0, index)] if len(v) else _column(None, len(index))
-        if new.any():
-            col[new] = None
-        out[k] = col
-    return out
+    return {k: _take_column(v, index) for k, v in data.items()}
 
 
 def _set_column(data: dict | None, name: str, values, n: int) -> dict | None:
@@ -292,10 +294,9 @@ class Mesh:
     def without_columns(self, *names: str) -> Mesh:
         """Same mesh without the face columns ``names`` (itself when it has none of them)."""
         data = self.face_data
-        if data is None or (len(names) == 1 and names[0] not in data) or not any(
-                k in data for k in names):
+        if data is None or data.keys().isdisjoint(names):
             return self
-        data = {k: v for k, v in self.face_data.items() if k not in names}
+        data = {k: v for k, v in data.items() if k not in names}
         return self._like(face_data=data or None)
 
     def inherit(self, parent: Mesh, source, drop: Iterable[str] = (), corner_source=None) -> Mesh:
@@ -320,7 +321,7 @@ class Mesh:
         if parent.corner_data is not None:
             vsrc, esrc = (_corner_sources(self, parent, src) if corner_source is None
                           else np.asarray(corner_source, np.int64))
-            corner_data = {k: _take({k: v}, esrc if CORNER_COLUMNS.get(k) == "edge" else vsrc)[k]
+            corner_data = {k: _take_column(v, esrc if CORNER_COLUMNS.get(k) == "edge" else vsrc)
                            for k, v in parent.corner_data.items()}
         return self._like(face_data=face_data, corner_data=corner_data)
 

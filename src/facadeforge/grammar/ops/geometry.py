@@ -21,14 +21,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
 from .subdivision import classify_faces, face_scope, hole_polygons
-from .tagging import (
-    EDGE_TAGS,
-    VERTEX_TAGS,
-    auto_tag,
-    corner_tags,
-    faces_from_edges,
-    with_corner_tags,
-)
+from .tagging import VERTEX_TAGS, auto_tag, corner_tags, edges_with, faces_from_edges
 from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
@@ -101,14 +94,10 @@ def extrude_mesh(mesh: Mesh, direction_of_face, distance: float) -> tuple[Mesh, 
         out = out.with_column(HOLED, fresh_ids(
             None if holed[f] is None or k.startswith("side") else (holed[f], k)
             for f, k in zip(source, kinds)))
-    if mesh.corner_column(EDGE_TAGS) is not None:
-        edge_tags = corner_tags(mesh, EDGE_TAGS)
-        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
-    if mesh.corner_column(VERTEX_TAGS) is not None:
+    out = faces_from_edges(out, mesh, from_edge)
+    if mesh.corner_column(VERTEX_TAGS) is not None:  # an edge rising from a vertex
         vertex_tags = corner_tags(mesh, VERTEX_TAGS)
-        out = with_corner_tags(out, EDGE_TAGS, [
-            t + tuple(x for x in vertex_tags[r] if x not in t) if r >= 0 else t
-            for t, r in zip(corner_tags(out, EDGE_TAGS), rise)])
+        out = edges_with(out, [vertex_tags[r] if r >= 0 else () for r in rise])
     out.closed = True if mesh.n_faces == 1 else None  # a single face's prism is closed
     return out, kinds
 
@@ -288,10 +277,7 @@ def op_offset(call):
     # comp(f){ border : … } makes one shape of each, as CityEngine does
     out = (Mesh.from_polygons(polys).inherit(mesh, source, drop=(HOLED,))
            .with_column("kind", kinds).with_column(HOLED, fresh_ids(keys)))
-    if mesh.corner_column(EDGE_TAGS) is not None:  # a border piece rising from an edge
-        edge_tags = corner_tags(mesh, EDGE_TAGS)
-        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
-    st.geometry = out
+    st.geometry = faces_from_edges(out, mesh, from_edge)  # a border piece rising from an edge
     if st.geometry.n_faces:
         st.fit_scope()
 

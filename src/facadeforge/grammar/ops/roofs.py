@@ -8,7 +8,7 @@ from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, ring
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
 from ..values import CGARuntimeError
 from . import operation
-from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
+from .tagging import auto_tag, faces_from_edges
 
 
 def _roof(call, builder, holes_ok: bool = False):
@@ -80,9 +80,7 @@ def _roof(call, builder, holes_ok: bool = False):
     out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED))
     if holed is not None:
         out = out.with_column(HOLED, fresh_ids(keys))
-    if mesh.corner_column(EDGE_TAGS) is not None:  # a roof plane rises from its eave's edge
-        edge_tags = corner_tags(mesh, EDGE_TAGS)
-        out = faces_from_edges(out, [edge_tags[c] if c >= 0 else () for c in from_edge])
+    out = faces_from_edges(out, mesh, from_edge)  # a roof plane rises from its eave's edge
     st.geometry = auto_tag(out, "roof", parts)
     align_scope_y(st, first_normal)
     st.fit_scope()

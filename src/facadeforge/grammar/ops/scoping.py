@@ -21,7 +21,7 @@ from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool
 from . import operation
 from .geometry import align_scope_y, asset_material_keys
-from .tagging import EDGE_TAGS, auto_tag, corner_tags, faces_from_edges
+from .tagging import auto_tag, faces_from_edges
 
 PIVOT_KEY = "pivot"
 UV_SETS_KEY = "uv_sets"
@@ -322,10 +322,8 @@ def op_taper(call):
         raise CGARuntimeError("taper: the first face is degenerate (no area); nothing to taper")
     pyramid = taper_mesh(base, normal, height).inherit(g, [0] * (len(base) + 1),
                                                        drop=("kind", HOLED))
-    if g.corner_column(EDGE_TAGS) is not None:  # a side rising from an edge takes its tags
-        edge_tags = corner_tags(g, EDGE_TAGS)
-        pyramid = faces_from_edges(pyramid, [()] + [edge_tags[int(g.starts[0]) + j]
-                                                    for j in range(len(base))])
+    # a side rising from an edge takes its tags
+    pyramid = faces_from_edges(pyramid, g, [-1] + [int(g.starts[0]) + j for j in range(len(base))])
     st.geometry = auto_tag(pyramid, "taper", ["bottom"] + ["side"] * len(base))
     align_scope_y(st, normal)
     st.fit_scope()

@@ -21,7 +21,7 @@ from .tagging import (
     auto_tag_edges,
     component_env,
     corner_tags,
-    with_corner_tags,
+    edges_with,
 )
 from .trimming import MeshEdges, comp_trim
 
@@ -368,33 +368,28 @@ class LogicalSelector:
             isinstance(expr, A.Unary) and expr.op == "!") or (
             isinstance(expr, A.Binary) and expr.op in ("&&", "||"))
 
-    def _words(self, node, table: dict, out: dict) -> dict:
-        if isinstance(node, A.Name) and node.name in table:
-            out[node.name] = table[node.name]
-        for child in vars(node).values() if isinstance(node, A.Node) else ():
+    @staticmethod
+    def _nodes(node):
+        """The expression's nodes, depth first."""
+        yield node
+        for child in vars(node).values():
             for c in child if isinstance(child, tuple) else (child,):
                 if isinstance(c, A.Node):
-                    self._words(c, table, out)
-        return out
-
-    def _reads_shape(self, node, table: dict) -> bool:
-        """Whether the expression reads anything but selector words, ``isTagged`` and
-        literals (then each component needs its own shape)."""
-        if isinstance(node, A.Name):
-            return node.name not in table and node.name not in ("e", "v")
-        if isinstance(node, A.Call) and node.name != "isTagged":
-            return True
-        return any(self._reads_shape(c, table) for child in vars(node).values()
-                   for c in (child if isinstance(child, tuple) else (child,))
-                   if isinstance(c, A.Node))
+                    yield from LogicalSelector._nodes(c)
 
     def mask(self, table: dict, n: int, tags, states=None) -> np.ndarray:
         """(n,) bool; ``tags(query, sub)`` gives the components a tag query selects,
         ``states(i)`` component ``i``'s shape."""
-        words = self._words(self.expr, table, {})
+        nodes = list(self._nodes(self.expr))
+        words = {x.name: table[x.name] for x in nodes
+                 if isinstance(x, A.Name) and x.name in table}
+        # anything but selector words, isTagged and literals reads the component's own shape
+        reads_shape = any((isinstance(x, A.Name) and x.name not in table
+                           and x.name not in ("e", "v"))
+                          or (isinstance(x, A.Call) and x.name != "isTagged") for x in nodes)
         masks: dict = {}
         index = tags if tags is not None else (lambda q, sub: np.zeros(n, bool))
-        own = states is not None and self._reads_shape(self.expr, table)
+        own = states is not None and reads_shape
         return np.array([to_bool(component_env(self.env, i, words, masks, index,
                                                states(i) if own else None)
                                  .evaluator(self.expr)) for i in range(n)], bool)
@@ -457,15 +452,14 @@ def component_count(st, kind: str) -> int:
         return len(mesh.used_vertices())
     if kind == "fe" and mesh.column("holed") is None:
         return len(mesh.corners)
-    if kind in ("e", "fe") and mesh.column("holed") is not None:
+    if kind in ("e", "fe") and mesh.column("holed") is not None:  # seams are no edges
         weld = weld_ids(mesh.vertices)
         inner = seams(mesh, weld)
-        keys = {(min(weld[a], weld[b]), max(weld[a], weld[b]))
-                for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])}
+        keys = [(min(weld[a], weld[b]), max(weld[a], weld[b]))
+                for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])]
         if kind == "e":
             return len({k for k in keys if k[0] != k[1]} - inner)
-        return int(sum((min(weld[a], weld[b]), max(weld[a], weld[b])) not in inner
-                       for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])))
+        return sum(k not in inner for k in keys)
     if kind == "h":
         return len(hole_polygons(mesh))
     if kind in ("m", "g"):
@@ -1010,19 +1004,10 @@ class _PlanarEdges:
                 if own is not None and len(along):  # the nearest selected edge it runs along
                     w = q - a[along]
                     dist = np.abs(unit[along, 0] * w[:, 1] - unit[along, 1] * w[:, 0])
-                    extra = own[self.corner_index(face, along[np.argmin(dist)])]
+                    extra = own[int(face.starts[0]) + int(along[np.argmin(dist)])]
             parts.append(part)
             copied.append(extra)
-        mesh = auto_tag_edges(mesh, "setback", parts)
-        if any(copied):
-            mesh = with_corner_tags(mesh, EDGE_TAGS, [
-                t + tuple(x for x in e if x not in t)
-                for t, e in zip(corner_tags(mesh, EDGE_TAGS), copied)])
-        return mesh
-
-    @staticmethod
-    def corner_index(face: Mesh, k: int) -> int:
-        return int(face.starts[0] + k)
+        return edges_with(auto_tag_edges(mesh, "setback", parts), copied)
 
     def band(self, edges, width, others=None):
         """Strip inside the face along the given edges, ``width`` wide (a number, or an array

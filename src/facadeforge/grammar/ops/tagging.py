@@ -78,7 +78,7 @@ class _Query:
 
 
 @lru_cache(maxsize=4096)
-def _query_regex(query: str) -> _Query:
+def _query(query: str) -> _Query:
     return _Query(query)
 
 
@@ -86,7 +86,7 @@ def matches(query: str, tag: str) -> bool:
     """Whether tag ``query`` matches ``tag``: subtag by subtag from the start (``?`` one subtag,
     ``*`` one or more), the tag may go on with more subtags; the empty query matches every
     tag."""
-    return _query_regex(query).match(tag)
+    return _query(query).match(tag)
 
 
 def _any_match(rx: _Query, tags) -> bool:
@@ -137,7 +137,7 @@ def auto_tag(mesh: Mesh, op: str, parts) -> Mesh:
     """``mesh`` after operation ``op`` built it: every earlier ``op`` auto-tag (faces, edges and
     vertices) is removed, then face ``i`` gets ``op + "." + parts[i]`` (none for an empty
     part)."""
-    rx = _query_regex(op)
+    rx = _query(op)
     new = [tuple(x for x in t if not rx.match(x)) + ((f"{op}.{part}",) if part else ())
            for t, part in zip(face_tags(mesh), parts)]
     mesh = with_face_tags(mesh, new)
@@ -159,11 +159,24 @@ def auto_tag_edges(mesh: Mesh, op: str, parts, replace: bool = True) -> Mesh:
         for t, part in zip(corner_tags(mesh, EDGE_TAGS), parts)])
 
 
-def faces_from_edges(mesh: Mesh, edge_tags) -> Mesh:
-    """Faces rising from edges take those edges' tags: face ``i`` adds ``edge_tags[i]``."""
-    if not any(edge_tags):
+def faces_from_edges(mesh: Mesh, parent: Mesh, from_edge) -> Mesh:
+    """Faces rising from edges of ``parent`` take those edges' tags: face ``i`` adds the tags
+    of the edge starting at parent corner ``from_edge[i]`` (-1: none)."""
+    if parent.corner_column(EDGE_TAGS) is None:
         return mesh
-    return with_face_tags(mesh, [_added(t, e) for t, e in zip(face_tags(mesh), edge_tags)])
+    tags = corner_tags(parent, EDGE_TAGS)
+    extra = [tags[c] if c >= 0 else () for c in from_edge]
+    if not any(extra):
+        return mesh
+    return with_face_tags(mesh, [_added(t, e) for t, e in zip(face_tags(mesh), extra)])
+
+
+def edges_with(mesh: Mesh, extra) -> Mesh:
+    """``mesh`` with corner ``c``'s edge also tagged ``extra[c]`` (a tuple, maybe empty)."""
+    if not any(extra):
+        return mesh
+    return with_corner_tags(mesh, EDGE_TAGS, [_added(t, e) for t, e in
+                                              zip(corner_tags(mesh, EDGE_TAGS), extra)])
 
 
 # ---- which components a query selects -----------------------------------------------------
@@ -222,7 +235,7 @@ class TagIndex:
         return ok
 
     def faces(self, query: str, sub: str | None = None) -> np.ndarray:
-        rx = _query_regex(query)
+        rx = _query(query)
         if sub is None:
             return self._faces_own(rx)
         out = np.zeros(self.mesh.n_faces, bool)
@@ -239,7 +252,7 @@ class TagIndex:
         return out
 
     def edges(self, query: str, sub: str | None = None) -> np.ndarray:
-        rx = _query_regex(query)
+        rx = _query(query)
         if sub is None:
             return self._edges_rule(rx)
         ok = self._welded_vertex_rule(rx)
@@ -247,7 +260,7 @@ class TagIndex:
 
     def vertices(self, query: str, sub: str | None = None) -> np.ndarray:
         """Used vertices in ``comp(v)`` order (``Mesh.used_vertices``)."""
-        ok = self._welded_vertex_rule(_query_regex(query))
+        ok = self._welded_vertex_rule(_query(query))
         used, first = np.unique(self.mesh.corners, return_index=True)
         return np.array([bool(ok.get(self.weld[c])) for c in first], bool)
 
@@ -340,7 +353,7 @@ def op_delete_tags(call):
     """``deleteTags()``, ``deleteTags(query)``, ``deleteTags(query, all|faces|edges|vertices)``:
     remove the tags ``query`` matches (all tags without a query) from those components."""
     comp = _components(call, 1, "all", _DELETE_COMPONENTS)
-    rx = _query_regex(call.text(0, ""))
+    rx = _query(call.text(0, ""))
     st = call.state
     g = st.geometry
     for col in _columns_of(comp):
@@ -376,7 +389,7 @@ def _has_tags(env, args):
     """``geometry.hasTags([query[, components]])``: whether a face, edge or vertex of the
     geometry itself has a tag (one the query matches); neighbours' tags do not count."""
     query, comp = _query_args(args, "geometry.hasTags")
-    rx = _query_regex(query)
+    rx = _query(query)
     return any(_any_match(rx, t) for t in _stored(env.state.geometry, comp))
 
 
@@ -385,6 +398,6 @@ def _tags(env, args):
     """``geometry.tags([query[, components]])``: the distinct tags on the geometry's faces,
     edges and vertices (those the query matches), sorted alphabetically."""
     query, comp = _query_args(args, "geometry.tags")
-    rx = _query_regex(query)
+    rx = _query(query)
     found = {t for ts in _stored(env.state.geometry, comp) for t in ts if rx.match(t)}
     return np.array(sorted(found), dtype=object)
