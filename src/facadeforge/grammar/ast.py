@@ -208,10 +208,18 @@ class RuleDef(Node):
 
 @dataclass(frozen=True)
 class Import(Node):
+    """``import alias [( styles )] : "path" [( overrides )]`` (CityEngine's import keyword).
+
+    ``overrides`` holds ``(attr, None)`` (protected from propagation), ``(attr, expression)``
+    (redefined, evaluated in the importer) and ``RuleDef`` (an extension rule redefined);
+    ``protect_all`` is an empty ``()``; ``styles`` limits the imported styles."""
+
     alias: str | None
     path: str
-    overrides: tuple = ()  # ((attr name, expression or None) | RuleDef, ...)
+    overrides: tuple = ()
     annotations: tuple = ()
+    styles: tuple = ()
+    protect_all: bool = False
 
 
 @dataclass(frozen=True)

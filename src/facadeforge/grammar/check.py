@@ -4,6 +4,7 @@ the file, line and column (and a suggestion), before anything is derived."""
 from __future__ import annotations
 
 import difflib
+from pathlib import Path
 
 from ..errors import RuleError
 from . import ast as A
@@ -193,8 +194,15 @@ _OCCLUSION = {"inside", "overlaps", "touches", "minimumDistance", "contextCompar
 
 
 def check_rules(ruleset: RuleSet) -> None:
-    """Raise ``RuleError`` for the first unknown name in any linked module."""
+    """Raise ``RuleError`` for the first unknown name in any linked module (a file imported
+    several times in one style is checked once), and for an import statement that protects or
+    redefines an attribute or rule its file does not have."""
+    checked = set()
     for mod in ruleset.main.all_modules():
+        _check_import_statements(mod)
+        if (mod.path, mod.style) in checked:
+            continue
+        checked.add((mod.path, mod.style))
         c = _Checker(mod)
         attrs, functions, rules = mod.own_declarations    # in the module's style
         for a in attrs:
@@ -203,3 +211,31 @@ def check_rules(ruleset: RuleSet) -> None:
             c.expr(f.body, {p.name for p in f.params})
         for r in rules:
             c.ops(r.body, {p.name for p in r.params})
+
+
+def _check_import_statements(mod: Module) -> None:
+    for imp in mod.ast.imports:
+        child = mod.imports.get(imp.alias) if imp.alias else None
+        if child is None:
+            continue
+        for item in imp.overrides:
+            if isinstance(item, A.RuleDef):
+                if item.name not in child.rules:
+                    close = difflib.get_close_matches(item.name, list(child.rules), n=1)
+                    raise RuleError(
+                        f"import '{imp.alias}' redefines rule '{item.name}', which "
+                        f"{Path(child.path).name} does not define"
+                        + (f"; did you mean '{close[0]}'?" if close else ""),
+                        mod.path, item.line, item.column)
+                continue
+            name = item[0]
+            a = child.attrs.get(name)
+            if a is None or a.const:
+                what = "a constant, not an attribute" if a is not None else "not an attribute of it"
+                close = difflib.get_close_matches(
+                    name, [k for k, v in child.attrs.items() if not v.const], n=1)
+                raise RuleError(
+                    f"import '{imp.alias}' {'protects' if item[1] is None else 'redefines'} "
+                    f"'{name}', {what} ({Path(child.path).name})"
+                    + (f"; did you mean '{close[0]}'?" if close else ""),
+                    mod.path, imp.line, imp.column)

@@ -272,10 +272,9 @@ class Derivation:
         elif not adef.const and adef.name in module.import_overrides:
             importer, expr = module.import_overrides[adef.name]
             value = Env(self, importer, {}, self.initial.copy()).evaluator(expr)
-        elif not adef.const and module is not self.ruleset.main and adef.name in self.ruleset.main.attrs:
-            # CityEngine propagates an importer's attribute to same-named attributes of imports
-            main_def = self.ruleset.main.attrs[adef.name]
-            value = self.attr_value(self.ruleset.main, main_def, state)
+        elif not adef.const and (source := module.propagated_from(adef.name)) is not None:
+            # the importer's value, which a set() on this shape may have changed: not cached
+            return self.attr_value(*source, state)
         else:
             if key in self._attr_busy:
                 raise CGARuntimeError(f"attribute '{adef.name}' depends on itself")

@@ -7,11 +7,12 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from ..errors import RuleError, RuleSyntaxError
+from ..errors import RuleError
 from . import ast as A
 from .parser import DEFAULT_STYLE, parse_rules
 
 MAX_IMPORT_DEPTH = 32
+MAX_MODULES = 1000  # import statements in all files together (each is an instance)
 
 # names the runtime provides inside expressions (beside attributes, constants and parameters)
 BUILTIN_NAMES = {
@@ -78,6 +79,11 @@ class Module:
              for r in by_arity.values()])
         # ``import F : "f.cga" (a = expr)``: attribute a of this module evaluated in the importer
         self.import_overrides: dict[str, tuple[Module, A.Node]] = {}
+        # the module whose import statement made this one, and the attributes that statement
+        # protects from propagation (``(a, b)``; ``()`` protects all)
+        self.importer: Module | None = None
+        self.protected: set[str] = set()
+        self.protect_all = False
         # @StartRule of the chosen style first, then of the styles it extends, then Default's
         self.start_rules = list(dict.fromkeys(
             r.name for _, _, rules in reversed(chain) for r in rules
@@ -128,12 +134,24 @@ class Module:
         a = mod.attrs.get(short)
         return (mod, a) if a is not None else None
 
+    def propagated_from(self, name: str) -> tuple[Module, A.AttrDef] | None:
+        """The importer's attribute that gives attribute ``name`` of this module its value
+        (CityEngine propagates an importer's attribute to the same-named attribute of the
+        file it imports unless the import statement protects it)."""
+        imp = self.importer
+        if imp is None or self.protect_all or name in self.protected:
+            return None
+        a = imp.attrs.get(name)
+        return (imp, a) if a is not None and not a.const else None
+
     def all_modules(self):
-        seen, stack = [], [self]
+        """This module and every module it imports, directly or not, each once."""
+        seen, ids, stack = [], set(), [self]
         while stack:
             m = stack.pop()
-            if any(m is s for s in seen):
+            if id(m) in ids:
                 continue
+            ids.add(id(m))
             seen.append(m)
             stack.extend(m.imports.values())
         return seen
@@ -210,16 +228,23 @@ def _style_chain(rule_file: A.RuleFile, style: str) -> list[tuple[tuple, tuple, 
 def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | None = None, *,
          style: str | None = None) -> Module:
     """Parse ``text`` and, through ``read(importer_path, import_path) -> (text, path)``, its
-    imports; ``style`` selects a style of the main file (imported files use their Default
-    style, as in CityEngine)."""
+    imports; ``style`` selects a style of the main file.
+
+    Each import statement is its own instance of the imported file (CityEngine's "import"
+    keyword): ``import a : "x.cga" (h = 5)`` and ``import b : "x.cga" (h = 7)`` give two
+    modules whose attributes, import-statement overrides and redefined rules are their own.
+    A file is parsed once however often it is imported.  An imported file uses its Default
+    style, or the first style its import statement lists (``import id (Style) : "x.cga"``)."""
     main = Module(parse_rules(text, path), style=style)
-    pending = [(main, 0)]
-    cache: dict[str, Module] = {os.path.normpath(path): main}
+    parsed: dict[str, A.RuleFile] = {}
+    pending = [(main, (os.path.realpath(path),))]
+    anonymous: list[tuple[Module, Module]] = []  # (importer, imported), importers first
+    count = 1
     while pending:
-        mod, depth = pending.pop()
+        mod, chain = pending.pop()
         for imp in mod.ast.imports:
-            if depth >= MAX_IMPORT_DEPTH:
-                raise RuleError("imports nest deeper than 32 files (an import cycle?)", mod.path,
+            if len(chain) > MAX_IMPORT_DEPTH:
+                raise RuleError(f"imports nest deeper than {MAX_IMPORT_DEPTH} files", mod.path,
                                 imp.line, imp.column)
             if read is None:
                 raise RuleError(f"cannot import '{imp.path}' from rule text without a file",
@@ -229,33 +254,59 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
             except (OSError, KeyError) as e:
                 raise RuleError(f"cannot import '{imp.path}': {e}; check the path relative to "
                                 f"{Path(mod.path).name}", mod.path, imp.line, imp.column) from None
-            key = os.path.normpath(ipath)
-            child = cache.get(key)
-            if child is None:
-                try:
-                    child = Module(parse_rules(itext, ipath),
-                                   f"{mod.name}.{imp.alias}" if mod.name else (imp.alias or ""))
-                except RuleSyntaxError:
-                    raise
-                cache[key] = child
-                pending.append((child, depth + 1))
+            key = os.path.realpath(ipath)
+            if key in chain:
+                cycle = " → ".join(Path(p).name for p in (*chain[chain.index(key):], key))
+                raise RuleError(f"import cycle: {cycle}; a rule file cannot import itself",
+                                mod.path, imp.line, imp.column)
+            count += 1
+            if count > MAX_MODULES:
+                raise RuleError(f"more than {MAX_MODULES} imported rule files (each import "
+                                f"statement is one); import shared files fewer times",
+                                mod.path, imp.line, imp.column)
+            ast = parsed.get(key)
+            if ast is None:
+                ast = parsed[key] = parse_rules(itext, ipath)
+            name = f"{mod.name}.{imp.alias}" if mod.name and imp.alias else (imp.alias or mod.name)
+            child = Module(ast, name, style=_imported_style(ast, imp, mod.path))
+            pending.append((child, (*chain, key)))
             if imp.alias:
                 mod.imports[imp.alias] = child
+                child.importer = mod
+                child.protect_all = imp.protect_all
                 for item in imp.overrides:
                     if isinstance(item, A.RuleDef):  # ( Roof(angle) --> roofGable(angle) )
                         child.rule_overrides.setdefault(item.name, {})[len(item.params)] = \
                             (mod, item)
-                    elif item[1] is not None:
+                    elif item[1] is None:           # ( height ): protected
+                        child.protected.add(item[0])
+                    else:                           # ( height = 5 ): redefined
                         child.import_overrides[item[0]] = (mod, item[1])
-            else:  # anonymous import: its definitions join the importer's namespace
-                for k, v in child.attrs.items():
-                    mod.attrs.setdefault(k, v)
-                for k, v in child.functions.items():
-                    mod.functions.setdefault(k, v)
-                for k, v in child.rules.items():
-                    mod.rules.setdefault(k, v)
+            else:
+                anonymous.append((mod, child))
+    # an anonymous import's definitions join its importer's namespace (deepest first, so
+    # those it took from its own anonymous imports come along)
+    for into, m in reversed(anonymous):
+        for k, v in m.attrs.items():
+            into.attrs.setdefault(k, v)
+        for k, v in m.functions.items():
+            into.functions.setdefault(k, v)
+        for k, v in m.rules.items():
+            into.rules.setdefault(k, v)
+        for k, v in m.imports.items():
+            into.imports.setdefault(k, v)
     _attach_qualified_rules(main)
     return main
+
+
+def _imported_style(ast: A.RuleFile, imp: A.Import, importer: str) -> str:
+    """The style an imported file is derived in: the first its import statement lists."""
+    known = {DEFAULT_STYLE, *(sd.name for sd in ast.styles)}
+    for s in imp.styles:
+        if s not in known:
+            raise RuleError(f"style '{s}' is not defined in {Path(ast.path).name} (it defines "
+                            f"{', '.join(sorted(known))})", importer, imp.line, imp.column)
+    return imp.styles[0] if imp.styles else DEFAULT_STYLE
 
 
 def _attach_qualified_rules(main: Module) -> None:

@@ -332,8 +332,15 @@ class _ToAst(Transformer):
         return ("version", _unquote(str(c[0])))
 
     def import_stmt(self, meta, c):
-        overrides = tuple(c[2]) if len(c) > 2 and c[2] else ()
-        return A.Import(str(c[0]), _unquote(str(c[1])), overrides, **_pos(meta))
+        # import id [( style, … )] : "file.cga" [( attr | attr = expr | Ext --> ops, … )]
+        styles = c[1] if len(c) > 1 and isinstance(c[1], list) else []
+        rest = c[2:] if styles else c[1:]
+        overrides = tuple(rest[1]) if len(rest) > 1 else ()
+        return A.Import(str(c[0]), _unquote(str(rest[0])), overrides, styles=tuple(styles),
+                        protect_all=len(rest) > 1 and not overrides, **_pos(meta))
+
+    def import_styles(self, meta, c):
+        return [str(x) for x in c]
 
     def import_override(self, meta, c):
         return (str(c[0]), c[1] if len(c) > 1 else None)
