@@ -184,6 +184,36 @@ def test_roof_volumes_are_closed_and_sized():
     assert m.stats()["bbox"][1][1] == pytest.approx(10)
 
 
+@pytest.mark.parametrize("roof, closed", [
+    ("roofHip(byHeight, 3)", True), ("roofHip(byHeight, 3, 1)", False),  # overhangs open it
+    ("roofGable(byHeight, 3)", True), ("roofGable(byHeight, 3, 1, 0.5)", False),
+    ("roofPyramid(byHeight, 3)", True), ("roofShed(byHeight, 3)", True),
+    ("roofShed(byHeight, 3, 1)", True)])
+def test_roofs_by_height_reach_that_height(roof, closed):
+    m = derive_text(f"Lot --> extrude(6) comp(f) {{ top : {roof} Roof. | all : NIL }}",
+                    lot="12x8")[0]
+    (part,) = m.parts
+    assert part.mesh.is_closed() == closed
+    assert m.stats()["bbox"][1][1] == pytest.approx(9)
+
+
+def test_roofs_by_angle_and_gable_index():
+    def top(roof):
+        m = derive_text(f"Lot --> extrude(6) comp(f) {{ top : {roof} Roof. | all : NIL }}",
+                        lot="12x8")[0]
+        return m.stats()["bbox"][1][1] - 6
+
+    assert top("roofGable(byAngle, 45)") == pytest.approx(top("roofGable(45)")) == pytest.approx(4)
+    # index 0 makes the 12 m side a gable: the planes rise across 12 m, to 6 m at 45 degrees
+    assert top("roofGable(45, 0, 0, false, 0)") == pytest.approx(6)
+    assert top("roofGable(45, 0, 0, false, 1)") == pytest.approx(4)
+    assert top("roofShed(byAngle, 45, 1)") == pytest.approx(12)
+    m = derive_text("Lot --> extrude(6) comp(f) { top : roofHip(byWidth, 3) Roof. | all : NIL }",
+                    lot="12x8")[0]
+    assert any("roofHip: the first argument is an angle, byAngle or byHeight, not 'byWidth'" in w
+               for w in m.warnings)
+
+
 def test_extrude_scope_follows_the_extrusion():
     src = ("Lot --> extrude(6) comp(f) { front : extrude(0.5) report(\"sy\", scope.sy) "
            "report(\"sz\", scope.sz) comp(f) { top : T. | all : NIL } | all : NIL }")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
@@ -93,41 +95,83 @@ def _angle(call, k=0):
     return a
 
 
-@operation("roofHip", 1, 3, selectors=(0,))
+def _slope(call):
+    """The roof slope arguments: ``(angle, height, k)``, ``k`` the index of the next argument.
+
+    ``roofX(angle, …)`` and ``roofX(byAngle, angle, …)`` give an angle, ``roofX(byHeight,
+    height, …)`` a height (CityEngine's ``valueType``)."""
+    first = call.args[0] if call.args else None
+    if not isinstance(first, str):
+        return _angle(call), None, 1
+    if first == "byAngle":
+        return _angle(call, 1), None, 2
+    if first != "byHeight":
+        raise CGARuntimeError(f"{call.name}: the first argument is an angle, byAngle or byHeight, "
+                              f"not '{first}'")
+    h = call.num(1)
+    if h <= 0:
+        raise CGARuntimeError(f"{call.name}: the roof height must be positive, not {h}")
+    return None, h, 2
+
+
+def _sloped(angle, height, make):
+    """``make(angle)`` → roof builder.  Given a ``height`` (``byHeight``), each face's roof gets
+    the angle that puts its highest point at that height: roof heights grow with tan(angle), so
+    the angle follows from a 45° trial roof (overhangs included, which hang below the eaves)."""
+    if height is None:
+        return make(angle)
+
+    def build(xy, basis, n, holes):
+        trial = make(45.0)(xy, basis, n, holes)
+        top = max((float(np.max(np.asarray(f)[:, 2])) for f in getattr(trial, "faces", trial)),
+                  default=0.0)
+        if top <= EPS:
+            raise ValueError("the face gives the roof nothing to rise over")
+        return make(math.degrees(math.atan(height / top)))(xy, basis, n, holes)
+    return build
+
+
+@operation("roofHip", 1, 4, selectors=(0,))
 def op_roof_hip(call):
+    """``roofHip([byAngle|byHeight,] value[, overhang[, even]])``."""
     from ...geometry.roofs import roof_hip
 
-    angle = _angle(call)
-    overhang = call.num(1, 0.0)
-    _roof(call, lambda xy, basis, n, holes: roof_hip(xy, angle, overhang, holes=holes),
-          holes_ok=True)
+    angle, height, k = _slope(call)
+    overhang = call.num(k, 0.0)
+    _roof(call, _sloped(angle, height, lambda a: lambda xy, basis, n, holes: roof_hip(
+        xy, a, overhang, holes=holes)), holes_ok=True)
 
 
-@operation("roofGable", 1, 5, selectors=(0,))
+@operation("roofGable", 1, 6, selectors=(0,))
 def op_roof_gable(call):
+    """``roofGable([byAngle|byHeight,] value[, overhangX[, overhangY[, even[, index]]]])``:
+    ``index`` makes that edge's side and the side opposite it the gables."""
     from ...geometry.roofs import roof_gable
 
-    angle = _angle(call)
-    ox = call.num(1, 0.0)
-    oy = call.num(2, ox)  # CityEngine: the y overhang defaults to the x overhang
-    even = bool(call.args[3]) if len(call.args) > 3 else False
-    _roof(call, lambda xy, basis, n, holes: roof_gable(xy, angle, ox, oy, even,
-                                                             holes=holes),
-          holes_ok=True)
+    angle, height, k = _slope(call)
+    ox = call.num(k, 0.0)
+    oy = call.num(k + 1, ox)  # CityEngine: the y overhang defaults to the x overhang
+    even = bool(call.args[k + 2]) if len(call.args) > k + 2 else False
+    index = int(call.num(k + 3)) if len(call.args) > k + 3 else None
+    _roof(call, _sloped(angle, height, lambda a: lambda xy, basis, n, holes: roof_gable(
+        xy, a, ox, oy, even, index=index, holes=holes)), holes_ok=True)
 
 
 @operation("roofPyramid", 1, 2, selectors=(0,))
 def op_roof_pyramid(call):
+    """``roofPyramid([byAngle|byHeight,] value)``."""
     from ...geometry.roofs import roof_pyramid
 
-    angle = _angle(call)
-    _roof(call, lambda xy, basis, n, holes: roof_pyramid(xy, angle))
+    angle, height, _ = _slope(call)
+    _roof(call, _sloped(angle, height, lambda a: lambda xy, basis, n, holes: roof_pyramid(xy, a)))
 
 
-@operation("roofShed", 1, 2, selectors=(0,))
+@operation("roofShed", 1, 3, selectors=(0,))
 def op_roof_shed(call):
+    """``roofShed([byAngle|byHeight,] value[, index])``: the plane rises from edge ``index``."""
     from ...geometry.roofs import roof_shed
 
-    angle = _angle(call)
-    edge = int(call.num(1, 0.0))
-    _roof(call, lambda xy, basis, n, holes: roof_shed(xy, angle, edge))
+    angle, height, k = _slope(call)
+    edge = int(call.num(k, 0.0))
+    _roof(call, _sloped(angle, height, lambda a: lambda xy, basis, n, holes: roof_shed(
+        xy, a, edge)))
