@@ -243,10 +243,12 @@ class Derivation:
         self._attr_busy: set = set()
         self.shape_count = 0
         self._deadline = 0.0
-        self.occluders: list = []  # (node id, ancestors, (2,3) bounds) for occlusion queries
+        from .ops.occlusion import OccluderSet
+
+        self.occluders = OccluderSet()  # closed volumes left for occlusion queries
         # occluders of the other buildings around this one (``inter`` occlusion queries;
         # engine.derive finds them in a first pass over all initial shapes)
-        self.neighbours: list = list(neighbours or [])
+        self.neighbours = OccluderSet(neighbours or ())
         self._instances: dict = {}
         self.sink: list | None = None  # collects leaf shapes while an ``inline`` derives
         self.inline_depth = 0

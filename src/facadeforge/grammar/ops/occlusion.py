@@ -47,6 +47,46 @@ class Occluder:
         return inbox & _ray_inside(self.mesh, pts, strict)
 
 
+class OccluderSet:
+    """Occluders in the order they were added, with their bounding boxes stacked so that a
+    query finds the few whose boxes can matter in one vectorised test (a facade of a thousand
+    tiles queries a thousand occluders per tile otherwise)."""
+
+    def __init__(self, items=()):
+        self.items: list[Occluder] = []
+        self._lo = np.empty((16, 3))
+        self._hi = np.empty((16, 3))
+        for o in items:
+            self.append(o)
+
+    def append(self, occ: Occluder) -> None:
+        k = len(self.items)
+        if k == len(self._lo):
+            self._lo = np.concatenate([self._lo, np.empty_like(self._lo)])
+            self._hi = np.concatenate([self._hi, np.empty_like(self._hi)])
+        self._lo[k], self._hi[k] = occ.bounds
+        self.items.append(occ)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __iter__(self):
+        return iter(self.items)
+
+    def near(self, lo: np.ndarray, hi: np.ndarray, *, enclosing: bool = False) -> list[Occluder]:
+        """Occluders whose box comes within the touch tolerance of the box ``lo``–``hi``; with
+        ``enclosing``, only those whose box holds it (the only ones that can hold the shape)."""
+        n = len(self.items)
+        if not n:
+            return []
+        olo, ohi = self._lo[:n], self._hi[:n]
+        if enclosing:
+            ok = np.all((olo <= lo + TOUCH_TOL) & (ohi >= hi - TOUCH_TOL), axis=1)
+        else:
+            ok = np.all((olo <= hi + TOUCH_TOL) & (ohi >= lo - TOUCH_TOL), axis=1)
+        return [self.items[i] for i in np.flatnonzero(ok)]
+
+
 #: Ray direction of the inside test: slightly off the axes, so that rays along a building's
 #: walls do not graze the edges between its triangles (which would break the even-odd count)
 _RAY = np.linalg.qr(np.array([[1.0, 0.0012345, 0.0023456], [0, 1, 0], [0, 0, 1]]).T)[0].T
@@ -74,19 +114,22 @@ def _ray_inside(mesh: Mesh, pts: np.ndarray, strict: bool) -> np.ndarray:
     return out
 
 
-def _candidates(env, args):
-    """Occluders a query tests: ``intra`` those of this building that are not the shape's own
-    ancestors, ``inter`` those of the neighbouring buildings, ``all`` (the default) both."""
+def _candidates(env, args, pts: np.ndarray, enclosing: bool = False):
+    """Occluders a query about the points ``pts`` tests: ``intra`` those of this building that
+    are not the shape's own ancestors, ``inter`` those of the neighbouring buildings, ``all``
+    (the default) both; only those whose boxes reach the points' box (hold it, ``enclosing``)."""
     mode = to_str(args[0]) if args else "all"
     if mode not in ("intra", "inter", "all"):
         raise CGARuntimeError(f"occlusion target '{mode}' is not intra, inter or all")
     label = to_str(args[1]) if len(args) > 1 else None
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
     occ = []
     if mode != "inter":
         own = env.state.context.get("occluder_ancestors", ())
-        occ = [o for o in env.derivation.occluders if o.id not in own]
+        occ = [o for o in env.derivation.occluders.near(lo, hi, enclosing=enclosing)
+               if o.id not in own]
     if mode != "intra":
-        occ.extend(env.derivation.neighbours)
+        occ.extend(env.derivation.neighbours.near(lo, hi, enclosing=enclosing))
     if label:
         occ = [o for o in occ if o.label == label]
     return occ
@@ -116,13 +159,18 @@ def _geometry(env):
 @shape_function("inside")
 def _inside(env, args):
     pts = _sample(_geometry(env))
-    return any(bool(np.all(o.contains(pts, strict=False))) for o in _candidates(env, args)) if len(pts) else False
+    if not len(pts):
+        return False
+    return any(bool(np.all(o.contains(pts, strict=False)))
+               for o in _candidates(env, args, pts, enclosing=True))
 
 
 @shape_function("overlaps")
 def _overlaps(env, args):
     pts = _sample(_geometry(env))
-    return any(bool(np.any(o.contains(pts, strict=True))) for o in _candidates(env, args)) if len(pts) else False
+    if not len(pts):
+        return False
+    return any(bool(np.any(o.contains(pts, strict=True))) for o in _candidates(env, args, pts))
 
 
 def _face_interior(mesh: Mesh) -> np.ndarray:
@@ -142,12 +190,6 @@ def _touches(env, args):
     pts = _sample(g)
     if not len(pts):
         return False
-    lo, hi = g.bounds()
     interior = _face_interior(g)
-    for o in _candidates(env, args):
-        olo, ohi = o.bounds
-        if np.any(lo > ohi + TOUCH_TOL) or np.any(hi < olo - TOUCH_TOL):
-            continue
-        if np.any(o.contains(pts, strict=True)) or np.any(o.contains(interior, strict=False)):
-            return True
-    return False
+    return any(np.any(o.contains(pts, strict=True)) or np.any(o.contains(interior, strict=False))
+               for o in _candidates(env, args, pts))
