@@ -315,23 +315,43 @@ class _GlbReader:
         self._materials: dict[int | None, Material] = {}
         self._images: dict[int, str | None] = {}
 
-    def models(self) -> list[Model]:
+    def _walk(self):
+        """``(index, node, world matrix)`` of every node of the scene, depth first in order."""
         g = self.gltf
         if g.scenes:
             roots = g.scenes[g.scene or 0].nodes or []
         else:
             children = {c for n in g.nodes for c in (n.children or [])}
             roots = [i for i in range(len(g.nodes)) if i not in children]
-        out: list[Model] = []
-        stack = [(i, np.eye(4)) for i in reversed(roots)]
+        stack = [(i, np.eye(4), 0) for i in reversed(roots)]
         while stack:
-            idx, parent = stack.pop()
+            idx, parent, depth = stack.pop()
+            if depth > 256:
+                raise LoadError(f"{self.path}: the node hierarchy is deeper than 256 (a cycle?)")
             node = g.nodes[idx]
             world = parent @ _node_matrix(node)
+            yield idx, node, world
+            stack.extend((c, world, depth + 1) for c in reversed(node.children or []))
+
+    def models(self) -> list[Model]:
+        out: list[Model] = []
+        for idx, node, world in self._walk():
             model = self._node_model(node, idx, world)
             if model is not None:
                 out.append(model)
-            stack.extend((c, world) for c in reversed(node.children or []))
+        return out
+
+    def triangles(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray | None, Material]]:
+        """``(positions, triangles, uv or None, material)`` of every triangle primitive, the
+        positions in scene coordinates and shared by the primitive's triangles."""
+        out = []
+        for _, node, world in self._walk():
+            if node.mesh is None:
+                continue
+            for prim in self.gltf.meshes[node.mesh].primitives:
+                got = self._primitive_triangles(prim, world)
+                if got is not None:
+                    out.append((*got, self._material(prim.material)))
         return out
 
     def _node_model(self, node: gl.Node, idx: int, world: np.ndarray) -> Model | None:
@@ -347,21 +367,31 @@ class _GlbReader:
                 model.parts.extend(self._primitive_parts(prim, world))
         return model
 
-    def _primitive_parts(self, prim: gl.Primitive, world: np.ndarray) -> list[Part]:
+    def _primitive_triangles(self, prim: gl.Primitive, world: np.ndarray):
+        """``(positions, triangles, uv or None)`` of a triangle primitive, else ``None``."""
         if prim.mode not in (None, gl.TRIANGLES) or prim.attributes.POSITION is None:
-            return []
-        pos = self._accessor(prim.attributes.POSITION).astype(float)
+            return None
+        pos = self._accessor(prim.attributes.POSITION).astype(float).reshape(-1, 3)
         pos = pos @ world[:3, :3].T + world[:3, 3]
         if prim.indices is not None:
             tris = self._accessor(prim.indices).reshape(-1, 3).astype(np.int64)
         else:
             tris = np.arange(len(pos) - len(pos) % 3).reshape(-1, 3)
+        if len(tris) and (tris.min() < 0 or tris.max() >= len(pos)):
+            raise LoadError(f"{self.path}: a triangle refers to a vertex that does not exist")
         uv = None
         if prim.attributes.TEXCOORD_0 is not None:
-            uv = self._accessor(prim.attributes.TEXCOORD_0).astype(float)
+            uv = self._accessor(prim.attributes.TEXCOORD_0).astype(float).reshape(-1, 2)
             uv = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])
         if np.linalg.det(world[:3, :3]) < 0:
             tris = tris[:, ::-1]
+        return pos, tris, uv
+
+    def _primitive_parts(self, prim: gl.Primitive, world: np.ndarray) -> list[Part]:
+        got = self._primitive_triangles(prim, world)
+        if got is None:
+            return []
+        pos, tris, uv = got
         extras = prim.extras if isinstance(prim.extras, dict) else {}
         label = str(extras.get("label", ""))
         symbols = [str(s) for s in extras.get("symbols", [])]

@@ -1,4 +1,5 @@
-"""Asset resolution and loading: OBJ meshes and textures, confined to an asset root.
+"""Asset resolution and loading: OBJ meshes (other formats: ``asset_formats``) and textures,
+confined to an asset root.
 
 Paths in rules resolve like CityEngine's: relative paths against the asset folder (also tried
 against the rule file's folder), project-absolute paths (``/Project/assets/x.obj``) through a
@@ -68,7 +69,10 @@ class AssetResolver:
 
     # -- paths ---------------------------------------------------------------------------------
     def _allowed(self, p: Path) -> bool:
-        return any(p == r or r in p.parents for r in self.roots) or p in self.resolve_map.values()
+        from .asset_formats import TEXTURE_CACHE  # images taken out of inserted .glb assets
+
+        return any(p == r or r in p.parents for r in (*self.roots, TEXTURE_CACHE.resolve())) \
+            or p in self.resolve_map.values()
 
     def resolve(self, name: str) -> Path | None:
         """Readable file for an asset name, or ``None`` when there is none.
@@ -130,9 +134,21 @@ class AssetResolver:
             return None
         cached = self._mesh_cache.get(p)
         if cached is None:
-            if p.suffix.lower() != ".obj":
-                raise InputError(f"asset '{name}': only .obj assets can be inserted, not {p.suffix}")
-            cached = load_obj(p)
+            from .asset_formats import ASSIMP_SUFFIXES, GLTF_SUFFIXES, load_assimp, load_gltf
+
+            suffix = p.suffix.lower()
+            if p.stat().st_size > MAX_ASSET_BYTES:
+                raise InputError(f"asset {p} is larger than {MAX_ASSET_BYTES >> 20} MiB")
+            if suffix == ".obj":
+                cached = load_obj(p)
+            elif suffix in GLTF_SUFFIXES:
+                cached = load_gltf(p)
+            elif suffix in ASSIMP_SUFFIXES:
+                cached = load_assimp(p)
+            else:
+                raise InputError(f"asset '{name}': {p.suffix or 'a file without suffix'} cannot "
+                                 "be inserted; use .obj, " + ", ".join(
+                                     s for s in (*GLTF_SUFFIXES, *ASSIMP_SUFFIXES)))
             self._mesh_cache[p] = cached
         return cached
 

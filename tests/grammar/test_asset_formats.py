@@ -1,0 +1,84 @@
+"""Inserting assets in the formats CityEngine's ``i()`` takes besides OBJ: glTF (.glb/.gltf,
+read with pygltflib) and FBX, COLLADA… (read with assimp)."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from facadeforge import derive, load_rules
+from facadeforge.exchange import export
+from facadeforge.geometry.asset_formats import load_assimp, load_gltf
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "assets"
+RED = (0.8, 0.1, 0.1)
+
+
+def insert(tmp_path, name, scope="s(4, 6, 8)"):
+    rules = load_rules(f'Lot --> {scope} i("{name}") X.', assets=tmp_path)
+    return derive(rules, None, lot_size="10x10")[0]
+
+
+@pytest.mark.parametrize("name", ["box.dae", "box.fbx"])
+def test_assimp_formats_read_the_box(name):
+    a = load_assimp(DATA / name)
+    assert np.allclose(a.mesh.bounds(), [[0, 0, -3], [1, 2, 0]])
+    assert a.mesh.is_closed() and a.mesh.volume() == pytest.approx(6)
+    assert a.material.name == "red" and a.material.color == pytest.approx(RED)
+
+
+@pytest.mark.parametrize("name", ["box.dae", "box.fbx"])
+def test_inserted_fbx_and_dae_fill_the_scope(tmp_path, name):
+    shutil.copy(DATA / name, tmp_path / name)
+    m = insert(tmp_path, name)
+    assert not m.warnings
+    (part,) = m.parts
+    assert np.allclose(part.mesh.bounds(), [[0, 0, 0], [4, 6, 8]])
+    assert part.material.color == pytest.approx(RED)
+
+
+def _textured_glb(folder: Path) -> Path:
+    from PIL import Image
+
+    Image.new("RGB", (4, 4), (0, 200, 0)).save(folder / "green.png")
+    src = load_rules('Lot --> extrude(2) setupProjection(0, scope.xy, 1, 1) projectUV(0) '
+                     'texture("green.png") X.', assets=folder)
+    model = derive(src, None, lot_size="1x3")[0]
+    export(model, folder / "made.glb")
+    (folder / "green.png").unlink()  # the texture now lives only inside the .glb
+    return folder / "made.glb"
+
+
+def test_glb_asset_with_its_embedded_texture(tmp_path):
+    path = _textured_glb(tmp_path)
+    a = load_gltf(path)
+    assert np.allclose(a.mesh.bounds(), [[0, 0, 0], [1, 2, 3]])
+    assert a.material.texture is not None and Path(a.material.texture).is_file()
+    m = insert(tmp_path, "made.glb")
+    assert not m.warnings
+    assert np.allclose(m.stats()["bbox"], [[0, 0, 0], [4, 6, 8]])
+    assert {Path(p.material.texture).read_bytes() for p in m.parts} \
+        == {Path(a.material.texture).read_bytes()}
+
+
+def test_gltf_with_a_buffer_outside_its_folder_is_refused(tmp_path):
+    (tmp_path / "assets").mkdir()
+    doc = {"asset": {"version": "2.0"}, "buffers": [{"uri": "../secret.bin", "byteLength": 4}]}
+    (tmp_path / "assets" / "bad.gltf").write_text(json.dumps(doc))
+    (tmp_path / "secret.bin").write_bytes(b"\0" * 4)
+    m = insert(tmp_path / "assets", "bad.gltf")
+    assert any("buffer '../secret.bin' lies outside the asset's folder" in w for w in m.warnings)
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("broken.fbx", b"; FBX 7.4.0 project file\nObjects: { Geometry", "not a readable FBX asset"),
+    ("broken.glb", b"glTF not really", "not a readable glTF asset"),
+    ("model.blend", b"BLENDER", ".blend cannot be inserted; use .obj, .glb"),
+])
+def test_unreadable_assets_are_warnings(tmp_path, name, content, message):
+    (tmp_path / name).write_bytes(content)
+    m = insert(tmp_path, name)
+    assert any(message in w for w in m.warnings), m.warnings
+    assert m.parts[0].mesh.n_faces == 1  # the lot, left as it was
