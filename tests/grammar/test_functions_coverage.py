@@ -122,7 +122,7 @@ def test_new_functions_load_in_a_rule_file():
 const a = setElems([0,0,0], 1, 5)
 Lot --> print(a) print(isNull(0)) print(sortRowIndices([3,1,2])) print(findFirst(a, 5, 0))
         print(listFromArray(listToArray("p;q;")))''')
-    assert out == ["(0,5,0)", "false", "(1,2,0)", "1", "p;q;"]
+    assert out == ["(3)[0,5,0]", "false", "(3)[1,2,0]", "1", "p;q;"]
 
 
 def test_print_function_prints_and_returns_its_value():
@@ -191,7 +191,7 @@ Lot --> print(geometry.isInstanced) print(geometry.groups)
         s(2, 2, 2) print(geometry.isInstanced)
         split(x) { '0.5 : print(geometry.isInstanced) A. | ~1 : B. }''', assets=tmp_path)
     # materials in component-split order: comp(m) takes them as the faces first use them
-    assert out == ["false", "(lot)", "true", "(trunk,crown)", "(Wood,Bark)", "true", "false"]
+    assert out == ["false", "(1)[lot]", "true", "(2)[trunk,crown]", "(2)[Wood,Bark]", "true", "false"]
 
 
 # ---- files and assets -----------------------------------------------------------------------
@@ -214,7 +214,7 @@ def boxes(tmp_path):
 def test_files_search_is_an_array(boxes):
     out = prints('Lot --> print(filesSearch("box_*.obj")) print(size(filesSearch("*.none")))',
                  assets=boxes)
-    assert out == ["(box_a1.obj,box_b2.obj,box_c4.obj,box_d9.obj)", "0"]
+    assert out == ["(4)[box_a1.obj,box_b2.obj,box_c4.obj,box_d9.obj]", "0"]
 
 
 def test_asset_best_and_approx_size(boxes):
@@ -283,7 +283,7 @@ def test_asset_naming_info_and_metadata(tmp_path):
 Lot --> print(assetNamingInfo("t.obj", m)) print(assetNamingInfos("t.obj", g))
         print(assetNamingInfo("plain.obj", g)) print(assetMetadata("t.obj", "height", 7))''',
                  assets=tmp_path)
-    assert out == ["Bark;Foliage;", "(tree)", "plain;", "7"]
+    assert out == ["Bark;Foliage;", "(1)[tree]", "plain;", "7"]
     w = warnings_of('Lot --> print(assetNamingInfo("t.obj", x))', assets=tmp_path)
     assert any("unknown naming selector 'x'" in x for x in w)
     w = warnings_of('Lot --> print(assetNamingInfo("missing.obj", m))', assets=tmp_path)

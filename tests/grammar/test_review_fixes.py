@@ -82,7 +82,7 @@ def test_extruding_pieces_that_share_edges_gives_one_volume():
 def test_set_elems_ignores_negative_indices_and_their_values():
     m = run('Lot --> print(setElems([1, 2], [-1, 0], [9, 7])) print(setElems([1, 2], -1, 5)) X.')
     assert not m.warnings
-    assert m.attributes["prints"] == ["(7,2)", "(1,2)"]
+    assert m.attributes["prints"] == ["(2)[7,2]", "(2)[1,2]"]
 
 
 def test_a_boolean_keyword_called_like_an_operation_says_how_to_write_it():

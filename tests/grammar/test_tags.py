@@ -58,9 +58,9 @@ def test_extrude_sides_from_a_hole_are_inner():
 def test_an_operation_replaces_only_its_own_auto_tags():
     out = prints("Lot --> roofGable(30) extrude(1) print(geometry.tags) extrude(1) "
                  'print(geometry.tags("roof")) print(geometry.tags("extrude.side")) X.')
-    assert out[0] == "(extrude.bottom,extrude.side.outer,extrude.top,roof.bottom,roof.side,roof.top)"
-    assert out[1] == "(roof.bottom,roof.side,roof.top)"
-    assert out[2] == "(extrude.side.outer)"
+    assert out[0] == "(6)[extrude.bottom,extrude.side.outer,extrude.top,roof.bottom,roof.side,roof.top]"
+    assert out[1] == "(3)[roof.bottom,roof.side,roof.top]"
+    assert out[2] == "(1)[extrude.side.outer]"
 
 
 def test_logical_selectors_combine_tags_and_words():
@@ -102,7 +102,7 @@ def test_roof_auto_tags():
 
 def test_taper_and_envelope_auto_tags():
     out = prints('Lot --> taper(3) print(geometry.tags) X.')
-    assert out == ["(taper.bottom,taper.side)"]
+    assert out == ["(2)[taper.bottom,taper.side]"]
     a = areas(run('Lot --> envelope(normal, 10, 4, 45) comp(f){ isTagged("envelope.side.base") : W. '
                   '| isTagged("envelope.side.slope") : S. | isTagged("envelope.bottom") : B. }'))
     assert a["W"] == pytest.approx(4 * 36) and a["B"] == pytest.approx(80)
@@ -165,7 +165,7 @@ def test_deleting_and_listing_tags():
                  'print(geometry.tags) print(geometry.hasTags("v", faces)) '
                  'deleteTags("v", edges) print(geometry.tags) deleteTags() '
                  'print(geometry.hasTags()) X.')
-    assert out == ["(F,v.A,v.B)", "false", "(F)", "false"]
+    assert out == ["(3)[F,v.A,v.B]", "false", "(1)[F]", "false"]
 
 
 def test_cleanup_does_not_merge_faces_with_different_tags():

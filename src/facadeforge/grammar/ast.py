@@ -56,13 +56,22 @@ class Index(Node):
 
 
 @dataclass(frozen=True)
+class Colon(Node):
+    """``start : stop`` or ``start : step : stop`` inside ``[ ]`` (CGA's colon operator)."""
+
+    start: Node
+    step: Node | None
+    stop: Node
+
+
+@dataclass(frozen=True)
 class Array(Node):
     rows: tuple  # tuple of tuples of expressions; one row for 1-D arrays
 
 
 @dataclass(frozen=True)
 class Unary(Node):
-    op: str  # "-", "!", "'", "~"
+    op: str  # "-", "!", ".!", "'", "~"
     operand: Node
 
 

@@ -91,6 +91,10 @@ class _Checker:
             for row in node.rows:
                 for e in row:
                     self.expr(e, scope)
+        elif t is A.Colon:
+            for e in (node.start, node.step, node.stop):
+                if e is not None:
+                    self.expr(e, scope)
         elif t is A.Unary:  # a logical selector (``!inside``, ``left || right``) keeps its words
             self.expr(node.operand, scope, selector_ok=selector_ok)
         elif t is A.Binary:

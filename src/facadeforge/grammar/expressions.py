@@ -7,14 +7,13 @@ import operator
 
 import numpy as np
 
+from . import arrays
 from . import ast as A
 from .ops import SHAPE_FUNCTIONS as SELECTOR_FUNCTIONS
 from .values import (
     CGARuntimeError,
     Floating,
     Relative,
-    from_numpy,
-    make_array,
     to_bool,
     to_float,
     to_str,
@@ -68,7 +67,10 @@ def _compare(op, a, b):
             same = (isinstance(a, np.ndarray) and isinstance(b, np.ndarray)
                     and a.shape == b.shape and bool(np.all(a == b)))
             return same if op == "==" else not same
-        raise CGARuntimeError("arrays can only be compared with == and !=")
+        if not (isinstance(a, np.ndarray) and isinstance(b, np.ndarray)):
+            raise CGARuntimeError(f"an array and a single value cannot be compared with {op} "
+                                  f"(use .{op} to compare element by element)")
+        return _CMP[op](arrays.order(a, b), 0)
     if isinstance(a, str) or isinstance(b, str):
         if op in ("==", "!="):
             return _CMP[op](to_str(a), to_str(b))
@@ -124,26 +126,16 @@ class Evaluator:
 
     def _index(self, node):
         target = self(node.target)
-        idx = [int(to_float(self(i), "array index")) for i in node.indices]
         if not isinstance(target, np.ndarray):
             raise CGARuntimeError("only arrays can be indexed")
-        try:
-            if min(idx) < 0:
-                raise IndexError
-            return from_numpy(target[tuple(idx)])
-        except IndexError:
-            raise CGARuntimeError(f"array index {idx} out of range for size {target.shape}") from None
+        return arrays.index(target, [self(i) for i in node.indices])
 
     def _array(self, node):
-        rows = [[self(e) for e in row] for row in node.rows]
-        if not rows:
-            return np.zeros(0)
-        if len(rows) == 1:
-            return make_array(rows[0])
-        flat = make_array([x for r in rows for x in r])
-        if len({len(r) for r in rows}) != 1:
-            raise CGARuntimeError("rows of a 2D array must have the same length")
-        return flat.reshape(len(rows), len(rows[0]))
+        return arrays.build([[self(e) for e in row] for row in node.rows])
+
+    def _colon(self, node):
+        return arrays.colon(self(node.start), None if node.step is None else self(node.step),
+                            self(node.stop))
 
     def _unary(self, node):
         v = self(node.operand)
@@ -153,6 +145,8 @@ class Evaluator:
             return -to_float(v)
         if node.op == "!":
             return not to_bool(v)
+        if node.op == ".!":
+            return arrays.element_not(v)
         if node.op == "'":
             return Relative(to_float(v))
         return Floating(to_float(v))
@@ -164,6 +158,8 @@ class Evaluator:
         if op == "||":
             return to_bool(self(node.left)) or to_bool(self(node.right))
         a, b = self(node.left), self(node.right)
+        if op[0] == ".":
+            return arrays.elementwise(op[1:], a, b)
         if op in _CMP:
             return _compare(op, a, b)
         return _arith(op, a, b)
@@ -190,7 +186,7 @@ class Evaluator:
 _DISPATCH = {
     A.Num: Evaluator._num, A.Str: Evaluator._str, A.Bool: Evaluator._bool,
     A.Name: Evaluator._name, A.Call: Evaluator._call, A.Index: Evaluator._index,
-    A.Array: Evaluator._array, A.Unary: Evaluator._unary, A.Binary: Evaluator._binary,
+    A.Array: Evaluator._array, A.Colon: Evaluator._colon, A.Unary: Evaluator._unary, A.Binary: Evaluator._binary,
     A.CaseExpr: Evaluator._case, A.StochasticExpr: Evaluator._stochastic,
     A.CompFunction: Evaluator._comp_function,
 }

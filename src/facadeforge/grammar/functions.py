@@ -341,14 +341,16 @@ def _size(env, a):
 
 @builtin("nRows", 1)
 def _nrows(env, a):
+    """Rows: a 1D array is one row (``[transpose(a), transpose(b)]`` of two 1D arrays is the
+    reference's two-column example)."""
     v = _arr(a[0])
-    return float(v.shape[0]) if v.ndim else 0.0
+    return float(v.shape[0]) if v.ndim == 2 else (1.0 if v.size else 0.0)
 
 
 @builtin("nColumns", 1)
 def _ncols(env, a):
     v = _arr(a[0])
-    return float(v.shape[1]) if v.ndim == 2 else (1.0 if v.ndim == 1 else 0.0)
+    return float(v.shape[1]) if v.ndim == 2 else float(v.size)
 
 
 @builtin("floatArray", 0, 1)
@@ -393,7 +395,11 @@ def _reverse(env, a):
 
 @builtin("transpose", 1)
 def _transpose(env, a):
-    return _arr(a[0]).T.copy()
+    """Rows become columns: a 1D array (one row) becomes a column, a column a 1D array."""
+    from .arrays import canonical
+
+    v = _arr(a[0])
+    return v.reshape(-1, 1).copy() if v.ndim == 1 and v.size else canonical(v.T.copy())
 
 
 @builtin("sortRowIndices", 1)

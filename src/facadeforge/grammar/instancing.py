@@ -233,6 +233,8 @@ class Purity:
             elif t is A.Array:
                 for row in n.rows:
                     stack.extend(row)
+            elif t is A.Colon:
+                stack.extend(e for e in (n.start, n.step, n.stop) if e is not None)
             elif t is A.CaseExpr:
                 for c, v in n.branches:
                     stack.extend((c, v))

@@ -142,7 +142,15 @@ class _ToAst(Transformer):
         return self._fold(meta, c)
 
     def power(self, meta, c):
-        return c[0] if len(c) == 1 else A.Binary("^", c[0], c[1], **_pos(meta))
+        return c[0] if len(c) == 1 else A.Binary(str(c[1]), c[0], c[2], **_pos(meta))
+
+    def element_not(self, meta, c):
+        return A.Unary(".!", c[0], **_pos(meta))
+
+    def colon(self, meta, c):
+        start, *rest = c
+        step, stop = (rest[0], rest[1]) if len(rest) == 2 else (None, rest[0])
+        return A.Colon(start, step, stop, **_pos(meta))
 
     def neg(self, meta, c):
         if isinstance(c[0], A.Num):

@@ -72,10 +72,23 @@ def to_str(v) -> str:
     if isinstance(v, (int, float)):
         return format_float(float(v))
     if isinstance(v, np.ndarray):
-        return "(" + ",".join(to_str(x.item() if hasattr(x, "item") else x) for x in v.reshape(-1)) + ")"
+        return format_array(v)
     if isinstance(v, (Relative, Floating)):
         return to_str(v.value)
     return str(v)
+
+
+def format_array(a: np.ndarray) -> str:
+    """CityEngine's text of an array: ``(3)[1,2,3]``, or for rows, ``(2x3)`` then each row
+    with its columns right-aligned, three spaces apart (as ``print`` shows a table)."""
+    cells = [to_str(from_numpy(x)) for x in a.reshape(-1)]
+    if a.ndim < 2:
+        return f"({len(cells)})[{','.join(cells)}]"
+    rows, cols = a.shape
+    widths = [max((len(cells[r * cols + c]) for r in range(rows)), default=0) for c in range(cols)]
+    lines = ["".join("   " + cells[r * cols + c].rjust(widths[c]) for c in range(cols))
+             for r in range(rows)]
+    return "\n".join([f"({rows}x{cols})", *lines])
 
 
 def type_name(v) -> str:
