@@ -2,7 +2,6 @@
 function", "colon operator", "index operator" and "Array type operators"."""
 
 import pytest
-
 from cga_helpers import run
 
 A = "const array = [1,2,3,4]\nconst array2d = [1,2,3;4,5,6;7,8,9]\n"
