@@ -128,6 +128,7 @@ def load_all() -> dict[str, OpSpec]:
         extra,
         geometry,
         inlining,
+        materials,
         meta,
         modifying,
         occlusion,
