@@ -97,3 +97,14 @@ def test_fibonacci_from_the_reference():
 def test_array_misuse_is_a_warning(expr, message):
     m = run(f"{A}Lot --> print({expr}) X.")
     assert any(message in w for w in m.warnings), m.warnings
+
+
+@pytest.mark.parametrize("content", [b"a;b\n1;2\n", b"a\tb\n1\t2\n", b"a  b\n1 2\n",
+                                     "a,b\n1,2\n".encode("utf-16")])
+def test_tables_detect_their_delimiter_and_encoding(tmp_path, content):
+    from facadeforge import derive, load_rules
+
+    (tmp_path / "t.csv").write_bytes(content)
+    m = derive(load_rules('Lot --> print(readStringTable("t.csv")) print(readFloatTable("t.csv")) X.',
+                          assets=tmp_path), None, lot_size="4x4")[0]
+    assert m.attributes["prints"] == ["(2x2)\n   a   b\n   1   2", "(2x2)\n   nan   nan\n     1     2"]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from ...errors import InputError
@@ -841,12 +843,28 @@ def _asset_file(env, name: str, what: str, mesh: bool = False):
 
 
 def _read_table(env, args):
-    """Rows of a CSV file under the asset root (``readFloatTable``/``readStringTable``)."""
+    """Rows of a CSV file under the asset root (``readFloatTable``/``readStringTable``).  As in
+    CityEngine the delimiter is detected (comma, semicolon, tab or spaces) and UTF-8 and
+    UTF-16 (with its byte-order mark) are read; unprintable characters become '?'."""
     import csv
+    import io
 
-    with open(_asset_file(env, to_str(args[0]), "table"), newline="", encoding="utf-8",
-              errors="replace") as fh:
-        rows = [r for r in csv.reader(fh) if r]
+    raw = Path(_asset_file(env, to_str(args[0]), "table")).read_bytes()
+    text = raw.decode("utf-16") if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else \
+        raw.decode("utf-8-sig", errors="replace")
+    text = "".join(c if c.isprintable() or c in "\r\n\t" else "?" for c in text)
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    delimiter = ","
+    for d in (",", ";", "\t"):
+        if any(d in ln for ln in lines[:20]):
+            delimiter = d
+            break
+    else:
+        if any(" " in ln.strip() for ln in lines[:20]):
+            delimiter = " "
+    reader = csv.reader(io.StringIO("\n".join(lines)), delimiter=delimiter,
+                        skipinitialspace=delimiter == " ")
+    rows = [[c.strip() for c in r] for r in reader if r]
     width = max((len(r) for r in rows), default=0)
     return [r + [""] * (width - len(r)) for r in rows]
 
