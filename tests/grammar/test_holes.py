@@ -57,6 +57,22 @@ def test_a_hip_roof_runs_round_the_courtyard(block):
     assert top == pytest.approx(10 + 5 * np.tan(np.radians(30)))
 
 
+def test_a_shed_roof_over_a_courtyard_block(block):
+    # the plane rises from edge 0 (y = 0) at 45 degrees: 20 m deep, so 20 m high at the back
+    m = derive_on("Lot --> roofShed(45) comp(f){ isTagged(\"roof.side.inner\") : I. "
+                  "| isTagged(\"roof.side.outer\") : O. | isTagged(\"roof.top\") : T. "
+                  "| all : B. }", block)
+    parts, a = by_symbol(m), areas(m)
+    assert len(parts["T"]) == 1 and a["T"] == pytest.approx(500 * np.sqrt(2))  # one face, holed
+    assert len(parts["I"]) == 4                       # the courtyard's walls
+    # courtyard walls between heights 5 and 15: two sides 10 m wide, two of 10 m trapezoids
+    assert a["I"] == pytest.approx(10 * 5 + 10 * 15 + 2 * 10 * 10)
+    assert a["O"] == pytest.approx(30 * 20 + 2 * 20 * 20 / 2)  # the high back, two triangles
+    assert a["B"] == pytest.approx(500)
+    assert sum(p.mesh.volume() for p in m.parts) == pytest.approx(
+        30 * 20 * 10 - 10 * 10 * 10, rel=1e-6)            # mean height 10 over each
+
+
 def test_roofs_that_cannot_take_holes_say_so(block):
     m = derive(load_rules("Lot --> roofPyramid(30) X."), block)[0]
     assert any("has holes" in w and "deleteHoles" in w for w in m.warnings)

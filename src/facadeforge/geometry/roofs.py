@@ -506,14 +506,17 @@ def roof_pyramid(poly: np.ndarray, angle_deg: float, *, reference_edge: int | No
     return Roof(faces, src, ["roof"] * m)
 
 
-def roof_shed(poly: np.ndarray, angle_deg: float, edge_index: int = 0) -> Roof:
+def roof_shed(poly: np.ndarray, angle_deg: float, edge_index: int = 0, *,
+              holes: Sequence[np.ndarray] | None = None) -> Roof:
     """Shed roof (CGA ``roofShed(angle, index)``): one plane rising from an edge, closed by walls.
 
     The roof plane contains the line of edge ``edge_index`` and rises at ``angle_deg`` across the
     footprint (``z = tan(angle) * distance to that line``).  If part of the footprint lies behind that
     line (the edge is not on the convex hull) the plane is lifted so that its lowest point touches
     the footprint plane.  The volume under the plane is closed by vertical ``"side"`` faces on every
-    other edge (a triangle where one end has zero height).
+    other edge (a triangle where one end has zero height).  A footprint with ``holes`` (clockwise
+    rings, a courtyard) gets the plane over the face around them and ``"side.inner"`` walls
+    along the holes' edges, as CityEngine's ``roof.side.inner`` faces.
 
     Parameters
     ----------
@@ -523,36 +526,49 @@ def roof_shed(poly: np.ndarray, angle_deg: float, edge_index: int = 0) -> Roof:
         Slope in degrees, ``0 <= angle < 90``.
     edge_index : int
         Edge the roof rises from (CityEngine's ``index``, default 0).
+    holes : sequence of (M, 2) float, optional
+        Holes of the footprint.
 
     Returns
     -------
     Roof
-        The sloped top face (``"roof"``, edge ``edge_index``) followed by the ``"side"`` faces.
+        The sloped top face or faces (``"roof"``) followed by the ``"side"`` faces.
     """
     tan = _tan(angle_deg)
-    fp = _footprint(poly)
+    fp = _footprint(poly, holes)
     ring, src = fp.outer, fp.src[0]
-    hit = np.nonzero(src == int(edge_index) % fp.n_edges)[0]
+    hit = np.nonzero(src == int(edge_index) % len(np.asarray(poly)))[0]  # an outer edge
     if len(hit) == 0:
         raise ValueError(f"roof_shed: edge {edge_index} has zero length")
     _, n = _edge_frames(ring)
-    s = ring @ n[hit[0]]
-    z = (s - s.min()) * tan
+    normal, s_min = n[hit[0]], float((ring @ n[hit[0]]).min())
+
+    def height(p: np.ndarray) -> np.ndarray:
+        return (p @ normal - s_min) * tan
+
     zero = TOLERANCE.distance * fp.scale * max(tan, 1.0)
-    faces = [np.column_stack([ring, z])]
-    edges = [int(edge_index) % fp.n_edges]
-    kinds = ["roof"]
-    m = len(ring)
-    for j in range(m):
-        a, b = j, (j + 1) % m
-        if z[a] <= zero and z[b] <= zero:
-            continue
-        pts = [[*ring[a], 0.0], [*ring[b], 0.0]]
-        if z[b] > zero:
-            pts.append([*ring[b], z[b]])
-        if z[a] > zero:
-            pts.append([*ring[a], z[a]])
-        faces.append(np.array(pts))
-        edges.append(int(src[j]))
-        kinds.append("side")
+    if fp.holes:
+        import shapely
+
+        from .polygon import simple_pieces
+
+        region = shapely.Polygon(ring, [h for h in fp.holes])
+        tops = [np.column_stack([q, height(q)]) for q in simple_pieces(region)]
+    else:
+        tops = [np.column_stack([ring, height(ring)])]
+    faces, edges, kinds = tops, [int(src[hit[0]])] * len(tops), ["roof"] * len(tops)
+    for r, (rg, rsrc) in enumerate(zip(fp.rings, fp.src)):
+        z, m = height(rg), len(rg)
+        for j in range(m):
+            a, b = j, (j + 1) % m
+            if z[a] <= zero and z[b] <= zero:
+                continue
+            pts = [[*rg[a], 0.0], [*rg[b], 0.0]]
+            if z[b] > zero:
+                pts.append([*rg[b], z[b]])
+            if z[a] > zero:
+                pts.append([*rg[a], z[a]])
+            faces.append(np.array(pts))
+            edges.append(int(rsrc[j]))
+            kinds.append("side" if r == 0 else "side.inner")
     return Roof(faces, edges, kinds)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from ...geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
+from ...geometry.holed import HOLED, face_groups, fresh_ids, outline, plane_polygon, rings
 from ...geometry.mesh import EPS, Mesh, plane_basis, polygon_normal
 from ..values import CGARuntimeError
 from . import operation
@@ -44,21 +44,34 @@ def _roof(call, builder, holes_ok: bool = False):
         if len(group) == 1:
             outlines = [((p - p[0]) @ basis[:, :2], [])]
         else:
-            outlines = rings(plane_polygon(mesh, group, p[0], basis))
-        roofs, rose_from = [], []  # the roof faces, and the face edge each rises from
+            # the outer ring starts where the face's outline does (comp(fe) order), so edge
+            # indices (roofShed's, roofGable's) count as for the face itself
+            start = (outline(mesh, group)[0] - p[0]) @ basis[:, :2]
+            outlines = [(np.roll(xy, -int(np.argmin(np.linalg.norm(xy - start, axis=1))),
+                                 axis=0), holes)
+                        for xy, holes in rings(plane_polygon(mesh, group, p[0], basis))]
+        # the roof faces, the face edge each rises from, their kinds and the key of the face
+        # with holes a piece belongs to (a shed plane round a courtyard is pieces of one face)
+        roofs, rose_from, kinds, piece_of = [], [], [], []
         for xy, holes in outlines:
             x, y = xy[:, 0], xy[:, 1]
             if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) <= EPS:
                 continue
             if holes and not holes_ok:
-                raise CGARuntimeError(f"{call.name}: the face has holes (a courtyard); roofHip and "
-                                      "roofGable roof faces with holes, or deleteHoles() first")
+                raise CGARuntimeError(f"{call.name}: the face has holes (a courtyard); roofHip, "
+                                      "roofGable and roofShed roof faces with holes, or "
+                                      "deleteHoles() first")
             try:
                 built = builder(xy, basis, n, holes)
             except ValueError as e:
                 raise CGARuntimeError(f"{call.name}: {e}") from None
             faces = getattr(built, "faces", built)
             roofs.extend(faces)
+            kinds.extend(getattr(built, "kind", None) or [""] * len(faces))
+            tops = [k for k, kind in enumerate(getattr(built, "kind", []) or []) if kind == "roof"]
+            whole = holes and len(tops) > 1 and call.name == "roofShed"
+            piece_of.extend(("shed", f, len(roofs)) if whole and k in tops else None
+                            for k in range(len(faces)))
             edges = getattr(built, "edge_index", None)
             single = len(group) == 1 and edges is not None and len(edges) == len(faces)
             rose_from.extend(int(mesh.starts[f]) + int(e) if single and 0 <= e < len(xy) else -1
@@ -72,15 +85,16 @@ def _roof(call, builder, holes_ok: bool = False):
             keys.append(None if holed is None else holed[g])
             from_edge.append(-1)
         from_edge.extend(rose_from)
-        for q in roofs:
+        for q, kind, key in zip(roofs, kinds, piece_of):
             q = np.asarray(q, float)
             polys.append(p[0] + q[:, :2] @ basis[:, :2].T + np.outer(q[:, 2], n))
             # a wall (gable, the shed's high side) stands upright on the face; planes slope
-            parts.append(side if abs(polygon_normal(polys[-1]) @ n) < 1e-6 else "top")
+            upright = abs(polygon_normal(polys[-1]) @ n) < 1e-6
+            parts.append(("side.inner" if kind == "side.inner" else side) if upright else "top")
             source.append(f)
-            keys.append(None)
+            keys.append(key)
     out = Mesh.from_polygons(polys).inherit(mesh, source, drop=("kind", HOLED))
-    if holed is not None:
+    if holed is not None or any(k is not None for k in keys):
         out = out.with_column(HOLED, fresh_ids(keys))
     out = faces_from_edges(out, mesh, from_edge)  # a roof plane rises from its eave's edge
     st.geometry = auto_tag(out, "roof", parts)
@@ -174,4 +188,4 @@ def op_roof_shed(call):
     angle, height, k = _slope(call)
     edge = int(call.num(k, 0.0))
     _roof(call, _sloped(angle, height, lambda a: lambda xy, basis, n, holes: roof_shed(
-        xy, a, edge)))
+        xy, a, edge, holes=holes)), holes_ok=True)
