@@ -73,6 +73,15 @@ def test_a_shed_roof_over_a_courtyard_block(block):
         30 * 20 * 10 - 10 * 10 * 10, rel=1e-6)            # mean height 10 over each
 
 
+def test_geometry_counts_see_a_face_with_holes_as_one_face(block):
+    m = derive_on("Lot --> print(geometry.nFaces) print(geometry.nEdges) print(geometry.nVertices) "
+                  "extrude(5) print(geometry.nFaces) print(geometry.nEdges) "
+                  "print(geometry.nVertices) comp(v){ all : V. }", block)
+    # the block: one face, 4 + 4 edges, 8 corners; extruded: 2 caps and 8 walls, 24 edges
+    assert m.attributes["prints"] == ["1", "8", "8", "10", "24", "16"]
+    assert len(m.parts) == 0 and sum(s.symbol == "V" for s in m.root.walk()) == 16
+
+
 def test_roofs_that_cannot_take_holes_say_so(block):
     m = derive(load_rules("Lot --> roofPyramid(30) X."), block)[0]
     assert any("has holes" in w and "deleteHoles" in w for w in m.warnings)

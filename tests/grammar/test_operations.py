@@ -214,6 +214,22 @@ def test_roofs_by_angle_and_gable_index():
                for w in m.warnings)
 
 
+def test_vertex_and_edge_components_of_a_box():
+    def count(src):
+        m = derive_text(src, lot="4x3")[0]
+        return sum(s.symbol == "C" for s in m.root.walk())
+
+    # v and e: shared ones once; fv and fe: every face's own
+    assert count("Lot --> extrude(2) comp(v){ all : C. }") == 8
+    assert count("Lot --> extrude(2) comp(fv){ all : C. }") == 24
+    assert count("Lot --> extrude(2) comp(e){ all : C. }") == 12
+    assert count("Lot --> extrude(2) comp(fe){ all : C. }") == 24
+    assert count('Lot --> extrude(2) comp(v){ isTagged("extrude.top", v) : C. }') == 4
+    m = derive_text("Lot --> extrude(2) print(geometry.nVertices) print(geometry.nEdges) "
+                    "print(geometry.nFaces) print(comp(v){ all : 1 }) X.", lot="4x3")[0]
+    assert m.attributes["prints"] == ["8", "12", "6", "(8)[1,1,1,1,1,1,1,1]"]
+
+
 def test_extrude_scope_follows_the_extrusion():
     src = ("Lot --> extrude(6) comp(f) { front : extrude(0.5) report(\"sy\", scope.sy) "
            "report(\"sz\", scope.sz) comp(f) { top : T. | all : NIL } | all : NIL }")

@@ -22,7 +22,7 @@ from ...geometry.primitives import PRIMITIVES, unit_ring
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
-from .subdivision import classify_faces, face_scope, hole_polygons
+from .subdivision import classify_faces, component_count, face_scope, hole_polygons
 from .tagging import VERTEX_TAGS, auto_tag, corner_tags, edges_with, faces_from_edges
 from .trimming import apply_trim, note_asset
 
@@ -602,17 +602,21 @@ def _geometry_volume(env, args):
 
 @shape_function("geometry.nFaces")
 def _geometry_nfaces(env, args):
-    return float(env.state.geometry.n_faces)
+    """Faces as ``comp(f)`` counts them (a face with holes once, whatever its pieces)."""
+    return float(component_count(env.state, "f"))
 
 
 @shape_function("geometry.nVertices")
 def _geometry_nvertices(env, args):
-    return float(len(env.state.geometry.used_vertices()))
+    """Vertices as ``comp(v)`` counts them: coincident ones once (a box has 8)."""
+    return float(component_count(env.state, "v"))
 
 
 @shape_function("geometry.nEdges")
 def _geometry_nedges(env, args):
-    return float(len(env.state.geometry.corners))
+    """Edges as ``comp(e)`` counts them: shared ones once, not the seams inside a face with
+    holes (a box has 12)."""
+    return float(component_count(env.state, "e"))
 
 
 @shape_function("geometry.isClosedSurface")

@@ -449,7 +449,7 @@ def component_count(st, kind: str) -> int:
     if kind == "f":
         return len(face_groups(mesh)) if mesh.column("holed") is not None else mesh.n_faces
     if kind in ("v", "fv"):
-        return len(mesh.used_vertices())
+        return len(vertex_points(mesh, kind == "fv")[0])
     if kind == "fe" and mesh.column("holed") is None:
         return len(mesh.corners)
     if kind in ("e", "fe") and mesh.column("holed") is not None:  # seams are no edges
@@ -509,7 +509,7 @@ def op_comp(call):
     elif kind in ("e", "fe"):
         pieces = _comp_edges(call, st, per_face=kind == "fe")
     elif kind in ("v", "fv"):
-        pieces = _comp_vertices(call, st)
+        pieces = _comp_vertices(call, st, per_face=kind == "fv")
     elif kind == "h":
         pieces = _comp_holes(call, st)
     elif kind in ("m", "g"):
@@ -851,14 +851,35 @@ def _roof_edges(mesh, normals, edges, edge_faces, unit) -> dict:
     return out
 
 
-def _comp_vertices(call, st):
+def vertex_points(mesh: Mesh, per_face: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``comp(v)``'s vertices (coincident ones welded, each once, in order of first use) or
+    ``comp(fv)``'s (every face's corners, face by face): their positions and, for each, one
+    used vertex (its index among ``Mesh.used_vertices``)."""
+    if not mesh.n_faces:
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
+    used = np.unique(mesh.corners)
+    slot = np.searchsorted(used, mesh.corners)       # corner -> its used-vertex index
+    if per_face:
+        return mesh.vertices[mesh.corners], slot
+    weld = weld_ids(mesh.vertices[used])
+    _, first = np.unique(weld, return_index=True)
+    first = np.sort(first)
+    return mesh.vertices[used[first]], first
+
+
+def _comp_vertices(call, st, per_face: bool = False):
+    """``comp(v)``: one shape per vertex, coincident vertices welded (a box has 8);
+    ``comp(fv)``: one per corner of every face (a box has 24)."""
     mesh = st.geometry
-    pts = mesh.used_vertices()
+    pts, rep = vertex_points(mesh, per_face)
     n = len(pts)
     table = {"all": np.ones(n, bool)}
     out = []
     taken = np.zeros(n, bool)
-    tags = _tag_masks(mesh, "v")
+    used_tags = _tag_masks(mesh, "v")
+
+    def tags(query, sub):
+        return used_tags(query, sub)[rep]
     for branch in call.branches:
         k = _selector_key(call, branch)
         idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
