@@ -108,3 +108,32 @@ def test_tables_detect_their_delimiter_and_encoding(tmp_path, content):
     m = derive(load_rules('Lot --> print(readStringTable("t.csv")) print(readFloatTable("t.csv")) X.',
                           assets=tmp_path), None, lot_size="4x4")[0]
     assert m.attributes["prints"] == ["(2x2)\n   a   b\n   1   2", "(2x2)\n   nan   nan\n     1     2"]
+
+
+@pytest.mark.parametrize("expr, text", [
+    ("size([1e20:1:1e20])", "1"), ('"a" .== "a"', "true"), ('1 .< "a"', "true"),
+    ("0 ^ -1", "inf"), ("sortRowIndices([])", "(0)[]"),
+])
+def test_edge_values(expr, text):
+    assert show(expr) == text
+
+
+@pytest.mark.parametrize("expr, message", [
+    ("[-1e308 : 1e308 : 1e308]", "more than 100000 elements"),
+    ("array2d[[0:999], [0:999]]", "1000 x 1000 elements, more than"),
+    ('array[[""]]', "holds numbers or booleans, not strings"),
+    ('["a" : "b"]', "colon operator's start must be a number"),
+    ("[] + [1,2]", "'+' on arrays of different sizes (0 and 2)"),
+    ('-(["a"])', "a string array cannot be negated"),
+])
+def test_more_array_misuse_is_a_warning(expr, message):
+    m = run(f"{A}Lot --> print({expr}) X.")
+    assert any(message in w for w in m.warnings), m.warnings
+
+
+def test_dot_operators_are_not_logical_selectors():
+    from facadeforge import load_rules
+    from facadeforge.errors import RuleError
+
+    with pytest.raises(RuleError, match="unknown attribute or variable 'left'"):
+        load_rules("Lot --> extrude(3) comp(f){ left .|| right : X. }")

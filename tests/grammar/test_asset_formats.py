@@ -82,3 +82,24 @@ def test_unreadable_assets_are_warnings(tmp_path, name, content, message):
     m = insert(tmp_path, name)
     assert any(message in w for w in m.warnings), m.warnings
     assert m.parts[0].mesh.n_faces == 1  # the lot, left as it was
+
+
+def _gltf(folder: Path, doc: dict, name: str = "x.gltf") -> str:
+    (folder / name).write_text(json.dumps({"asset": {"version": "2.0"}, **doc}))
+    return name
+
+
+def test_gltf_nodes_reached_twice_are_refused(tmp_path):
+    # node i has node i+1 twice as child: 2^40 visits if nothing stopped it
+    nodes = [{"children": [i + 1, i + 1]} for i in range(40)] + [{}]
+    name = _gltf(tmp_path, {"scene": 0, "scenes": [{"nodes": [0]}], "nodes": nodes})
+    m = insert(tmp_path, name)
+    assert any("is reached twice" in w for w in m.warnings), m.warnings
+
+
+def test_gltf_accessor_claiming_more_than_its_data_is_refused(tmp_path):
+    doc = {"scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+           "accessors": [{"componentType": 5126, "count": 50_000_000, "type": "VEC3"}]}
+    m = insert(tmp_path, _gltf(tmp_path, doc))
+    assert any("has no data for its 50000000 elements" in w for w in m.warnings), m.warnings

@@ -23,9 +23,9 @@ def write(tmp_path, files):
     return tmp_path / "main.cga"
 
 
-def reports(tmp_path, main, **kw):
-    return derive(load_rules(write(tmp_path, {"imp.cga": IMP, "main.cga": main})), None,
-                  lot_size="10x10", **kw)[0].reports
+def reports(tmp_path, main, style=None, **kw):
+    rules = load_rules(write(tmp_path, {"imp.cga": IMP, "main.cga": main}), style=style)
+    return derive(rules, None, lot_size="10x10", **kw)[0].reports
 
 
 def test_one_file_imported_twice_is_two_instances(tmp_path):
@@ -120,3 +120,37 @@ def test_anonymous_import_brings_its_own_imports(tmp_path):
              "main.cga": 'import "lib.cga"\nLot --> Building\n'}
     m = derive(load_rules(write(tmp_path, files)), None, lot_size="10x10")[0]
     assert m.reports["h"] == [10]
+
+
+@pytest.mark.parametrize("main, message", [
+    ('import x : "imp.cga" (height = 5)\nimport x : "imp.cga"\nLot --> x.Lot\n',
+     "import id 'x' is used twice"),
+    ('import imp : "imp.cga" (Lot(a) --> X.)\nLot --> imp.Lot\n',
+     "redefines rule 'Lot' with 1 parameters; imp.cga defines it with 0"),
+    ('import imp : "imp.cga" (height = undefinedName)\nLot --> imp.Lot\n',
+     r"main.cga:1:\d+: unknown attribute or variable 'undefinedName'"),
+    ('import imp : "imp.cga" (Lot --> Nope(2))\nLot --> imp.Lot\n', None),
+])
+def test_import_statements_are_checked_when_the_rules_load(tmp_path, main, message):
+    if message is None:  # a rule override's body may call rules that do not exist: leaves
+        assert reports(tmp_path, main) == {}
+        return
+    with pytest.raises(RuleError, match=message):
+        reports(tmp_path, main)
+
+
+def test_propagation_through_an_anonymous_import(tmp_path):
+    files = {"imp.cga": IMP,
+             "lib.cga": 'import imp : "imp.cga"\nBuilding --> imp.Lot\n',
+             "main.cga": 'import "lib.cga"\nattr height = 9\nLot --> Building\n'}
+    m = derive(load_rules(write(tmp_path, files)), None, lot_size="10x10")[0]
+    assert m.reports["h"] == [9]
+
+
+def test_the_chosen_style_reaches_imports_that_have_it(tmp_path):
+    main = 'import imp : "imp.cga"\nLot --> imp.Lot\nstyle mystyle\n'
+    assert reports(tmp_path, main)["h"] == [10]
+    assert reports(tmp_path, main, style="mystyle")["h"] == [20]
+    # an import statement listing styles lets only those in
+    listed = 'import imp (Default) : "imp.cga"\nLot --> imp.Lot\nstyle mystyle\n'
+    assert reports(tmp_path, listed, style="mystyle")["h"] == [10]

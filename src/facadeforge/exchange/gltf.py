@@ -306,6 +306,10 @@ def load_glb(path: str | os.PathLike, *, texture_dir: str | os.PathLike | None =
     return _GlbReader(gltf, path, texture_dir).models()
 
 
+#: The most elements one accessor may claim (a 2 GB binary's worth of floats).
+MAX_ACCESSOR_COUNT = 1 << 27
+
+
 class _GlbReader:
     def __init__(self, gltf: gl.GLTF2, path: Path, texture_dir) -> None:
         self.gltf = gltf
@@ -324,10 +328,16 @@ class _GlbReader:
             children = {c for n in g.nodes for c in (n.children or [])}
             roots = [i for i in range(len(g.nodes)) if i not in children]
         stack = [(i, np.eye(4), 0) for i in reversed(roots)]
+        seen: set[int] = set()
         while stack:
             idx, parent, depth = stack.pop()
             if depth > 256:
                 raise LoadError(f"{self.path}: the node hierarchy is deeper than 256 (a cycle?)")
+            if idx in seen or not 0 <= idx < len(g.nodes):
+                # glTF: a node has at most one parent (else a tiny file could repeat a mesh
+                # 2^depth times)
+                raise LoadError(f"{self.path}: node {idx} is reached twice or does not exist")
+            seen.add(idx)
             node = g.nodes[idx]
             world = parent @ _node_matrix(node)
             yield idx, node, world
@@ -412,11 +422,20 @@ class _GlbReader:
         acc = self.gltf.accessors[index]
         dtype = np.dtype(_COMPONENT_DTYPES[acc.componentType])
         width = _TYPE_WIDTH[acc.type]
-        if acc.bufferView is None:
-            return np.zeros((acc.count, width), dtype).squeeze()
+        count = int(acc.count or 0)
+        if not 0 <= count <= MAX_ACCESSOR_COUNT:
+            raise LoadError(f"{self.path}: accessor {index} claims {count} elements")
+        if acc.bufferView is None:  # all zeros (sparse data is not read)
+            if count * width > len(self.blob) + 1_000_000:
+                raise LoadError(f"{self.path}: accessor {index} has no data for its "
+                                f"{count} elements")
+            return np.zeros((count, width), dtype).squeeze()
         view = self.gltf.bufferViews[acc.bufferView]
         offset = (view.byteOffset or 0) + (acc.byteOffset or 0)
         stride = view.byteStride or dtype.itemsize * width
+        need = (acc.byteOffset or 0) + (stride * (count - 1) + dtype.itemsize * width if count else 0)
+        if need > (view.byteLength or 0) or offset + need - (acc.byteOffset or 0) > len(self.blob):
+            raise LoadError(f"{self.path}: accessor {index} runs past its buffer view")
         arr = np.ndarray((acc.count, width), dtype, buffer=self.blob, offset=offset,
                          strides=(stride, dtype.itemsize)).copy()
         if acc.normalized and dtype.kind in "iu":
@@ -458,7 +477,12 @@ class _GlbReader:
             self.texture_dir.mkdir(parents=True, exist_ok=True)
             target = self.texture_dir / (f"{self.path.stem}_image{index}"
                                          f"{image_extension(image.mimeType or '')}")
-            target.write_bytes(data)
+            if not (target.is_file() and not target.is_symlink()
+                    and target.stat().st_size == len(data)):
+                # written whole and then renamed: parallel workers never read half a file
+                part = target.with_name(f".{target.name}.{os.getpid()}.part")
+                part.write_bytes(data)
+                os.replace(part, target)
             result = str(target)
         elif image.uri and not image.uri.startswith("data:"):
             candidate = self.path.parent / image.uri

@@ -38,6 +38,33 @@ def _cache_root() -> Path:
 
 #: Where embedded glTF images are written (one sub-folder per asset file content).
 TEXTURE_CACHE = _cache_root() / "asset-textures"
+
+
+def _private_cache() -> Path:
+    """The texture cache, made if need be; a folder someone else owns is not used (a fresh
+    private temporary folder instead)."""
+    try:
+        TEXTURE_CACHE.mkdir(parents=True, exist_ok=True, mode=0o700)
+        if TEXTURE_CACHE.stat().st_uid == os.getuid() and not TEXTURE_CACHE.is_symlink():
+            return TEXTURE_CACHE
+    except OSError:
+        pass
+    fallback = Path(tempfile.mkdtemp(prefix="facadeforge-textures-"))
+    _FALLBACKS.append(fallback.resolve())
+    return fallback
+
+
+_FALLBACKS: list[Path] = []
+
+
+def cached_texture(name: str) -> str | None:
+    """``name`` when it is an image this module wrote to the texture cache, else ``None``."""
+    try:
+        p = Path(name).resolve()
+        roots = [TEXTURE_CACHE.resolve(), *_FALLBACKS]
+    except (OSError, ValueError):
+        return None
+    return str(p) if any(r in p.parents for r in roots) and p.is_file() else None
 #: Suffixes read through assimp (lower case, with the dot).
 ASSIMP_SUFFIXES = (".fbx", ".dae", ".3ds", ".dxf", ".ply", ".stl", ".off")
 GLTF_SUFFIXES = (".glb", ".gltf")
@@ -117,7 +144,7 @@ def load_gltf(path: Path):
 
     path = Path(path)
     data = path.read_bytes()
-    cache = TEXTURE_CACHE / hashlib.sha1(data).hexdigest()[:20]
+    cache = _private_cache() / hashlib.sha1(data).hexdigest()[:20]
     try:
         with warnings.catch_warnings():  # pygltflib warns, then fails, on a foreign file
             warnings.simplefilter("ignore")

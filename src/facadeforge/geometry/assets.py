@@ -69,10 +69,7 @@ class AssetResolver:
 
     # -- paths ---------------------------------------------------------------------------------
     def _allowed(self, p: Path) -> bool:
-        from .asset_formats import TEXTURE_CACHE  # images taken out of inserted .glb assets
-
-        return any(p == r or r in p.parents for r in (*self.roots, TEXTURE_CACHE.resolve())) \
-            or p in self.resolve_map.values()
+        return any(p == r or r in p.parents for r in self.roots) or p in self.resolve_map.values()
 
     def resolve(self, name: str) -> Path | None:
         """Readable file for an asset name, or ``None`` when there is none.
@@ -153,6 +150,11 @@ class AssetResolver:
         return cached
 
     def texture(self, name: str, derivation=None) -> str | None:
+        from .asset_formats import cached_texture
+
+        cached = cached_texture(name)  # an image taken out of an inserted .glb asset
+        if cached is not None:
+            return cached
         try:
             p = self.resolve(name)
         except InputError as e:

@@ -40,18 +40,23 @@ def _checked(a: np.ndarray) -> np.ndarray:
 def colon(start, step, stop) -> np.ndarray:
     """``[start : step : stop]``: start, start + step, … not beyond ``stop`` (empty when
     ``step`` is 0 or points away from ``stop``)."""
+    for v, what in ((start, "start"), (step, "increment"), (stop, "limit")):
+        if isinstance(v, (str, np.ndarray)):
+            raise CGARuntimeError(f"the colon operator's {what} must be a number, not "
+                                  f"'{to_str(v)}'")
     a, b = to_float(start, "colon start"), to_float(stop, "colon limit")
     d = 1.0 if step is None else to_float(step, "colon increment")
     if not all(map(math.isfinite, (a, b, d))) or d == 0 or (b - a) * d < 0:
         return np.zeros(0)
-    n = int(math.floor((b - a) / d)) + 1
-    if n > MAX_ELEMENTS:
+    span = (b - a) / d
+    if not math.isfinite(span) or span >= MAX_ELEMENTS:
         raise CGARuntimeError(f"[{to_str(a)}:{to_str(d)}:{to_str(b)}] has more than "
                               f"{MAX_ELEMENTS} elements")
+    n = int(math.floor(span)) + 1
     # the last element must not pass the limit (the division may round either way)
-    while n > 0 and (a + (n - 1) * d - b) * d > 0:
+    if n > 0 and (a + (n - 1) * d - b) * d > 0:
         n -= 1
-    while (a + n * d - b) * d <= 0 and n < MAX_ELEMENTS:
+    elif a + n * d != a + (n - 1) * d and (a + n * d - b) * d <= 0:
         n += 1
     return a + d * np.arange(n, dtype=float)
 
@@ -99,6 +104,12 @@ def default_of(a: np.ndarray):
     return {"b": False, "f": 0.0}.get(a.dtype.kind, "")
 
 
+def _scalar_position(index, length: int) -> int:
+    """A single number's position, -1 when it is outside ``0…length-1``."""
+    i = to_float(index, "array index")
+    return int(i) if math.isfinite(i) and 0 <= i < length else -1
+
+
 def _positions(index, length: int) -> tuple[np.ndarray, tuple]:
     """Integer positions an index selects (-1 where it is outside ``0…length-1``) and the shape
     of the result along that axis: ``()`` for one number."""
@@ -109,6 +120,8 @@ def _positions(index, length: int) -> tuple[np.ndarray, tuple]:
     if index.dtype.kind == "b":
         picked = np.flatnonzero(index.reshape(-1))
         return np.where(picked < length, picked, -1), (len(picked),)
+    if index.dtype == object:
+        raise CGARuntimeError("an index array holds numbers or booleans, not strings")
     flat = index.reshape(-1).astype(float)
     ok = np.isfinite(flat) & (flat >= 0) & (flat < length)
     return np.where(ok, np.nan_to_num(flat).astype(np.int64), -1), index.shape
@@ -129,6 +142,14 @@ def index(target, indices: list):
     if not isinstance(target, np.ndarray):
         raise CGARuntimeError("only arrays can be indexed")
     default = default_of(target)
+    if not any(isinstance(i, np.ndarray) for i in indices):  # the common case, kept fast
+        if len(indices) == 1:
+            k = _scalar_position(indices[0], target.size)
+            return from_numpy(target.flat[k]) if k >= 0 else default
+        if len(indices) == 2:
+            rows, cols = target.shape if target.ndim == 2 else (1, target.size)
+            r, c = _scalar_position(indices[0], rows), _scalar_position(indices[1], cols)
+            return from_numpy(target.flat[r * cols + c]) if r >= 0 and c >= 0 else default
     if len(indices) == 1:
         flat = target.reshape(-1)
         pos, shape = _positions(indices[0], flat.size)
@@ -139,6 +160,9 @@ def index(target, indices: list):
     grid = target.reshape(1, -1) if target.ndim == 1 else target
     rows, rshape = _positions(indices[0], grid.shape[0])
     cols, cshape = _positions(indices[1], grid.shape[1])
+    if len(rows) * len(cols) > MAX_ELEMENTS:
+        raise CGARuntimeError(f"indexing gives {len(rows)} x {len(cols)} elements, more than "
+                              f"CityEngine's limit of {MAX_ELEMENTS}")
     out = np.empty((len(rows), len(cols)), dtype=grid.dtype)
     out[:] = default
     ok = (rows >= 0)[:, None] & (cols >= 0)[None, :]
@@ -180,8 +204,9 @@ def elementwise(op: str, a, b):
         elif op in _CMP:
             fn = {"==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le,
                   ">": operator.gt, ">=": operator.ge}[op]
-            out = np.frompyfunc(lambda x, y: fn(to_str(from_numpy(x)), to_str(from_numpy(y))),
-                                2, 1)(sa, sb).astype(bool)
+            out = np.asarray(np.frompyfunc(
+                lambda x, y: fn(to_str(from_numpy(x)), to_str(from_numpy(y))), 2, 1)(sa, sb),
+                dtype=bool)
         else:
             raise CGARuntimeError(f"'.{op}' does not apply to strings")
     else:

@@ -96,10 +96,11 @@ class _Checker:
                 if e is not None:
                     self.expr(e, scope)
         elif t is A.Unary:  # a logical selector (``!inside``, ``left || right``) keeps its words
-            self.expr(node.operand, scope, selector_ok=selector_ok)
+            self.expr(node.operand, scope, selector_ok=selector_ok and node.op == "!")
         elif t is A.Binary:
-            self.expr(node.left, scope, selector_ok=selector_ok)
-            self.expr(node.right, scope, selector_ok=selector_ok)
+            logical = selector_ok and node.op in ("&&", "||")
+            self.expr(node.left, scope, selector_ok=logical)
+            self.expr(node.right, scope, selector_ok=logical)
         elif t in (A.CaseExpr,):
             for c, v in node.branches:
                 self.expr(c, scope)
@@ -218,10 +219,13 @@ def check_rules(ruleset: RuleSet) -> None:
 
 
 def _check_import_statements(mod: Module) -> None:
+    """What an import statement names exists in the imported file, and its expressions and
+    rule bodies (evaluated in the importer) name what the importer has."""
     for imp in mod.ast.imports:
         child = mod.imports.get(imp.alias) if imp.alias else None
         if child is None:
             continue
+        checker = _Checker(mod)
         for item in imp.overrides:
             if isinstance(item, A.RuleDef):
                 if item.name not in child.rules:
@@ -231,7 +235,17 @@ def _check_import_statements(mod: Module) -> None:
                         f"{Path(child.path).name} does not define"
                         + (f"; did you mean '{close[0]}'?" if close else ""),
                         mod.path, item.line, item.column)
+                arities = sorted(child.rules[item.name])
+                if len(item.params) not in arities:
+                    raise RuleError(
+                        f"import '{imp.alias}' redefines rule '{item.name}' with "
+                        f"{len(item.params)} parameters; {Path(child.path).name} defines it "
+                        f"with {' or '.join(str(a) for a in arities)}",
+                        mod.path, item.line, item.column)
+                checker.ops(item.body, {p.name for p in item.params})
                 continue
+            if item[1] is not None:
+                checker.expr(item[1], set())
             name = item[0]
             a = child.attrs.get(name)
             if a is None or a.const:

@@ -43,6 +43,8 @@ def _arith(op: str, a, b):
             return float(x ** y) if not (x < 0 and y != int(y)) else math.nan
         except OverflowError:
             return math.inf
+        except ZeroDivisionError:  # 0 ^ -1, as IEEE pow gives it
+            return math.inf
     raise CGARuntimeError(f"unknown operator {op}")
 
 
@@ -50,6 +52,10 @@ def _array_arith(op, a, b):
     if op == "+" and ((isinstance(a, np.ndarray) and a.dtype == object) or
                       (isinstance(b, np.ndarray) and b.dtype == object)):
         return np.array([to_str(x) + to_str(y) for x, y in np.broadcast(a, b)], dtype=object)
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.shape != b.shape:
+        raise CGARuntimeError(f"'{op}' on arrays of different sizes ({a.size} and {b.size})")
+    if any(isinstance(x, np.ndarray) and x.dtype == object for x in (a, b)):
+        raise CGARuntimeError(f"'{op}' does not apply to string arrays")
     fa = a.astype(float) if isinstance(a, np.ndarray) else to_float(a)
     fb = b.astype(float) if isinstance(b, np.ndarray) else to_float(b)
     with np.errstate(all="ignore"):
@@ -141,6 +147,8 @@ class Evaluator:
         v = self(node.operand)
         if node.op == "-":
             if isinstance(v, np.ndarray):
+                if v.dtype == object:
+                    raise CGARuntimeError("a string array cannot be negated")
                 return -v.astype(float)
             return -to_float(v)
         if node.op == "!":

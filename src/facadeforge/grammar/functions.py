@@ -407,6 +407,8 @@ def _sort_row_indices(env, a):
     """Indices of the rows of ``array`` in lexicographic order; equal rows keep their order
     (func_sortRowIndices.html).  A 1D array's elements are its rows."""
     arr = _arr(a[0], "sortRowIndices argument")
+    if not arr.size:
+        return np.zeros(0)
     rows = arr.reshape(len(arr), -1) if arr.ndim else arr.reshape(0, 1)
     keys = [tuple(from_numpy(x) for x in r) for r in rows]
     return np.array(sorted(range(len(keys)), key=keys.__getitem__), float)

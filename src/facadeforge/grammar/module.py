@@ -84,6 +84,7 @@ class Module:
         self.importer: Module | None = None
         self.protected: set[str] = set()
         self.protect_all = False
+        self.anonymous: list[Module] = []  # files imported without an id (merged in here)
         # @StartRule of the chosen style first, then of the styles it extends, then Default's
         self.start_rules = list(dict.fromkeys(
             r.name for _, _, rules in reversed(chain) for r in rules
@@ -154,6 +155,7 @@ class Module:
             ids.add(id(m))
             seen.append(m)
             stack.extend(m.imports.values())
+            stack.extend(m.anonymous)
         return seen
 
 
@@ -268,9 +270,12 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
             if ast is None:
                 ast = parsed[key] = parse_rules(itext, ipath)
             name = f"{mod.name}.{imp.alias}" if mod.name and imp.alias else (imp.alias or mod.name)
-            child = Module(ast, name, style=_imported_style(ast, imp, mod.path))
+            child = Module(ast, name, style=_imported_style(ast, imp, mod.path, main.style))
             pending.append((child, (*chain, key)))
             if imp.alias:
+                if imp.alias in mod.imports:
+                    raise RuleError(f"import id '{imp.alias}' is used twice; each import needs "
+                                    "its own id", mod.path, imp.line, imp.column)
                 mod.imports[imp.alias] = child
                 child.importer = mod
                 child.protect_all = imp.protect_all
@@ -284,6 +289,7 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
                         child.import_overrides[item[0]] = (mod, item[1])
             else:
                 anonymous.append((mod, child))
+                mod.anonymous.append(child)
     # an anonymous import's definitions join its importer's namespace (deepest first, so
     # those it took from its own anonymous imports come along)
     for into, m in reversed(anonymous):
@@ -294,18 +300,23 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
         for k, v in m.rules.items():
             into.rules.setdefault(k, v)
         for k, v in m.imports.items():
-            into.imports.setdefault(k, v)
+            if into.imports.setdefault(k, v) is v and v.importer is m:
+                v.importer = into  # m's attributes are into's now: propagation starts there
     _attach_qualified_rules(main)
     return main
 
 
-def _imported_style(ast: A.RuleFile, imp: A.Import, importer: str) -> str:
-    """The style an imported file is derived in: the first its import statement lists."""
+def _imported_style(ast: A.RuleFile, imp: A.Import, importer: str, chosen: str) -> str:
+    """The style an imported file is derived in.  Its styles join the importer's (all of them,
+    or those the import statement lists): the style chosen for the main file where the file
+    has it and the statement lets it in, else the first style listed, else Default."""
     known = {DEFAULT_STYLE, *(sd.name for sd in ast.styles)}
     for s in imp.styles:
         if s not in known:
             raise RuleError(f"style '{s}' is not defined in {Path(ast.path).name} (it defines "
                             f"{', '.join(sorted(known))})", importer, imp.line, imp.column)
+    if chosen in known and (not imp.styles or chosen in imp.styles):
+        return chosen
     return imp.styles[0] if imp.styles else DEFAULT_STYLE
 
 
