@@ -141,8 +141,14 @@ def index(target, indices: list):
     result of index arrays has the shape of the index arrays."""
     if not isinstance(target, np.ndarray):
         raise CGARuntimeError("only arrays can be indexed")
+    if len(indices) == 1 and type(indices[0]) is float:  # the common case, kept fast
+        i = indices[0]
+        if 0 <= i < target.size:
+            v = target.item(int(i))
+            return float(v) if type(v) is int else v
+        return default_of(target)
     default = default_of(target)
-    if not any(isinstance(i, np.ndarray) for i in indices):  # the common case, kept fast
+    if not any(isinstance(i, np.ndarray) for i in indices):
         if len(indices) == 1:
             k = _scalar_position(indices[0], target.size)
             return from_numpy(target.flat[k]) if k >= 0 else default
