@@ -3,7 +3,7 @@
 The public API; every CLI command calls one of these.
 """
 
-from .engine import Rules, derive, derive_facade, load_rules, stats
+from .engine import Rules, derive, derive_facade, derive_iter, load_rules, stats
 from .errors import (
     DerivationError,
     FacadeForgeError,
@@ -17,7 +17,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DerivationError", "FacadeForgeError", "InputError", "Labels", "Material", "Model", "Part",
-    "RuleError", "RuleSyntaxError", "Rules", "Scope", "Shape", "derive", "derive_facade", "export",
+    "RuleError", "RuleSyntaxError", "Rules", "Scope", "Shape", "derive", "derive_facade", "derive_iter", "export",
     "load_rules", "parse", "reconstruct", "render", "stats",
 ]
 

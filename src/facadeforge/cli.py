@@ -159,16 +159,21 @@ def cmd_derive(args) -> int:
     from . import engine, export
 
     t0 = time.perf_counter()
-    models = engine.derive(args.rules, args.footprint, lot_size=args.lot, start=args.start,
-                           style=args.style,
-                           attrs=dict(args.attr), assets=args.assets, seed=args.seed,
-                           strict=args.strict, rule=args.rule, workers=args.workers,
-                           keep_tree=suffix_of(args.output) in ("png", "svg"))
-    export(models, args.output)
+    derived = engine.derive_iter(args.rules, args.footprint, lot_size=args.lot,
+                                 start=args.start, style=args.style, attrs=dict(args.attr),
+                                 assets=args.assets, seed=args.seed, strict=args.strict,
+                                 rule=args.rule, workers=args.workers,
+                                 keep_tree=suffix_of(args.output) in ("png", "svg"))
+    models = []  # what --stats needs of each building; the geometry goes on to the file
+
+    def tap(items):
+        for m in items:
+            for line in m.attributes.get("prints", []):  # stderr: --stats keeps stdout JSON
+                print(f"print: {line}", file=sys.stderr)
+            models.append(engine.summary(m))
+            yield m
+    export(tap(derived), args.output)
     seconds = time.perf_counter() - t0
-    for m in models:  # CGA print() goes to stderr, so --stats keeps stdout pure JSON
-        for line in m.attributes.get("prints", []):
-            print(f"print: {line}", file=sys.stderr)
     if args.stats:
         print(json.dumps(engine.stats(models, seconds)))
     else:

@@ -243,11 +243,12 @@ def _worker_init(spec):
 
 
 def _worker_run(job) -> Model:
-    fp, neighbours, keep_tree = job
+    fp, neighbours, keep_tree, occluders_only = job
     s = _WORKER["spec"]
-    return derive_footprint(_WORKER["rules"], fp, attrs=s["attrs"], seed=s["seed"],
-                            strict=s["strict"], start=s["start"], limits=s["limits"],
-                            keep_tree=keep_tree, neighbours=neighbours)
+    model = derive_footprint(_WORKER["rules"], fp, attrs=s["attrs"], seed=s["seed"],
+                             strict=s["strict"], start=s["start"], limits=s["limits"],
+                             keep_tree=keep_tree, neighbours=neighbours)
+    return _occluders_only(model) if occluders_only else model
 
 
 def neighbour_occluders(models: list[Model], reach: float = 0.01) -> list[list]:
@@ -258,17 +259,21 @@ def neighbour_occluders(models: list[Model], reach: float = 0.01) -> list[list]:
         occ = getattr(m, "occluders", [])
         b = np.array([mesh.bounds() for mesh, _ in occ]) if occ else np.zeros((0, 2, 3))
         boxes.append(b)
-    whole = [(b[:, 0].min(axis=0), b[:, 1].max(axis=0)) if len(b) else None for b in boxes]
+    has = np.array([len(b) > 0 for b in boxes], bool)
+    wlo = np.array([b[:, 0].min(axis=0) if len(b) else np.full(3, np.inf) for b in boxes]
+                   ).reshape(-1, 3)
+    whi = np.array([b[:, 1].max(axis=0) if len(b) else np.full(3, -np.inf) for b in boxes]
+                   ).reshape(-1, 3)
     out = []
     for i in range(len(models)):
         near = []
-        if whole[i] is not None:
-            lo, hi = whole[i][0] - reach, whole[i][1] + reach
-            for j, m in enumerate(models):
-                if j == i or whole[j] is None or np.any(whole[j][0] > hi) or np.any(whole[j][1] < lo):
-                    continue
+        if has[i]:
+            lo, hi = wlo[i] - reach, whi[i] + reach
+            # the buildings whose whole boxes come near, in one test over the city
+            close = np.flatnonzero(np.all((wlo <= hi) & (whi >= lo), axis=1) & has)
+            for j in close[close != i]:
                 hit = np.all((boxes[j][:, 0] <= hi) & (boxes[j][:, 1] >= lo), axis=1)
-                near.extend(m.occluders[k] for k in np.flatnonzero(hit))
+                near.extend(models[j].occluders[k] for k in np.flatnonzero(hit))
         out.append(near)
     return out
 
@@ -296,8 +301,23 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
     Returns
     -------
     list of Model
-        One per footprint, in input order.
+        One per footprint, in input order.  For a city, :func:`derive_iter` hands them out one
+        at a time instead, so that only a few are held at once.
     """
+    return list(derive_iter(rules, footprints, lot_size=lot_size, start=start, attrs=attrs,
+                            assets=assets, seed=seed, strict=strict, rule=rule, workers=workers,
+                            limits=limits, keep_tree=keep_tree, style=style))
+
+
+def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
+                start: str | None = None, attrs: dict | None = None, assets=None,
+                seed: int = 0, strict: bool = False, rule: str | None = None,
+                workers: int | None = None, limits: Limits | None = None,
+                keep_tree: bool = True, style: str | None = None):
+    """:func:`derive`, one model at a time, in input order: worker processes derive a few
+    footprints ahead of the one handed out, so memory holds a handful of buildings however
+    many the city has (the exporters write them as they come).  Rules and footprints are
+    loaded and checked before the first model is asked for."""
     if footprints is None and lot_size is None:
         raise InputError("give footprints (--footprint FILE) or a lot size (--lot WxD)")
     if isinstance(footprints, (str, Path)):
@@ -319,24 +339,60 @@ def derive(rules, footprints=None, *, lot_size: str | None = None, start: str | 
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "style": style,
                 "attrs": attrs, "seed": seed, "strict": strict, "limits": limits}
-        chunks = max(1, len(fps) // (n_workers * 4))
-        with ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,)) as pool:
-            around = [None] * len(fps)
-            if two_pass:
-                first = list(pool.map(_worker_run, [(fp, None, False) for fp in fps],
-                                      chunksize=chunks))
-                around = neighbour_occluders(first)
-            return list(pool.map(_worker_run, [(fp, a, keep_tree) for fp, a in zip(fps, around)],
-                                 chunksize=chunks))
+        return _derive_parallel(spec, fps, n_workers, two_pass, keep_tree)
 
     def one(fp, around=None, tree=keep_tree):
         return derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
                                 limits=limits, keep_tree=tree, neighbours=around)
 
-    if not two_pass:
-        return [one(fp) for fp in fps]
-    around = neighbour_occluders([one(fp, tree=False) for fp in fps])
-    return [one(fp, a) for fp, a in zip(fps, around)]
+    def run():
+        around = [None] * len(fps)
+        if two_pass:
+            around = neighbour_occluders([_occluders_only(one(fp, tree=False)) for fp in fps])
+        for fp, a in zip(fps, around):
+            yield one(fp, a)
+    return run()
+
+
+def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool):
+    """Models from worker processes, in order, at most a few per worker ahead."""
+    from collections import deque
+
+    pool = ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,))
+    try:
+        around = [None] * len(fps)
+        if two_pass:
+            chunks = max(1, len(fps) // (n_workers * 4))
+            around = neighbour_occluders(list(pool.map(
+                _worker_run, [(fp, None, False, True) for fp in fps], chunksize=chunks)))
+    except BaseException:
+        pool.shutdown(cancel_futures=True)
+        raise
+
+    def run():
+        jobs = iter(zip(fps, around))
+        window: deque = deque()
+        try:
+            for fp, a in jobs:
+                window.append(pool.submit(_worker_run, (fp, a, keep_tree, False)))
+                if len(window) >= 3 * n_workers:
+                    break
+            while window:
+                model = window.popleft().result()
+                nxt = next(jobs, None)
+                if nxt is not None:
+                    window.append(pool.submit(_worker_run, (nxt[0], nxt[1], keep_tree, False)))
+                yield model
+        finally:
+            pool.shutdown(cancel_futures=True)
+    return run()
+
+
+def _occluders_only(model: Model) -> Model:
+    """What the first pass of ``inter`` occlusion keeps of a model: its occluders."""
+    light = Model([], None, {}, [], model.name)
+    light.occluders = getattr(model, "occluders", [])
+    return light
 
 
 def _uses_occlusion(rules: Rules) -> bool:
@@ -347,6 +403,14 @@ def _uses_occlusion(rules: Rules) -> bool:
     if purity is None:
         purity = ruleset._purity = Purity(ruleset)
     return purity.uses_occlusion
+
+
+def summary(model: Model) -> Model:
+    """What :func:`stats` reads of a model (its counts, reports, warnings, attributes), without
+    its geometry: a city's stats need not keep the city."""
+    light = Model([], None, model.reports, model.warnings, model.name, dict(model.attributes))
+    light.derived_stats = getattr(model, "derived_stats", None) or model.stats()
+    return light
 
 
 def stats(models: list[Model], seconds: float) -> dict:

@@ -149,6 +149,20 @@ def scalar_attributes(attributes: dict) -> dict:
     return out
 
 
+def iter_models(models):
+    """The ``models`` argument of the exporters that write as they go, one model at a time:
+    a ``Model``, a sequence, or any iterable (``engine.derive_iter``'s generator)."""
+    items = [models] if isinstance(models, Model) else models
+    count = 0
+    for m in items:
+        if not isinstance(m, Model):
+            raise ExportError(f"expected Model objects, got {type(m).__name__}")
+        count += 1
+        yield m
+    if not count:
+        raise ExportError("nothing to export: no models given")
+
+
 def as_models(models: Model | Sequence[Model]) -> list[Model]:
     """Normalise the ``models`` argument of the exporters to a non-empty list of ``Model``."""
     items = [models] if isinstance(models, Model) else list(models)

@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -41,10 +43,10 @@ from ..model.labels import Labels, label_for_name
 from ..model.model import Material, Model, Part
 from ._common import (
     Staging,
-    as_models,
     corner_uvs,
     face_corners,
     image_extension,
+    iter_models,
     jsonable,
     previous_corner,
     read_texture,
@@ -104,7 +106,9 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
 
     Parameters
     ----------
-    models : Model or sequence of Model
+    models : Model, sequence or iterable of Model
+        Written as they come (a generator such as ``engine.derive_iter`` keeps memory to a
+        few buildings).
         One ``Building`` per model.
     path : path-like
         Destination (``.city.json``); written atomically together with copied textures.
@@ -130,19 +134,18 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
     list of Path
         The CityJSON file and every copied texture.
     """
-    models = as_models(models)
     types = _semantic_map(semantic_map)
     if str(lod) not in LODS:
         raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
     if not scale > 0:
         raise ExportError(f"scale must be positive, got {scale}")
     writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
-    doc = writer.document(models, _metadata(reference_system, metadata))
     out = Path(path)
     with Staging() as stage:
+        with open(stage.path(out), "w", encoding="utf-8", newline="\n") as fh:
+            writer.write(fh, iter_models(models), _metadata(reference_system, metadata))
         for relative, data in writer.texture_files.items():
             stage.write_bytes(out.parent / relative, data)
-        stage.write_text(out, json.dumps(doc, separators=(",", ":")))
     return [out, *(out.parent / r for r in writer.texture_files)]
 
 
@@ -238,27 +241,46 @@ class _CityJsonWriter:
         self.uv_list: list[np.ndarray] = []
         self.uv_count = 0
 
-    def document(self, models: list[Model], metadata: dict) -> dict:
-        faces = [_Faces(m, self.origin) for m in models]
-        allpts = np.concatenate([f.points for f in faces])
-        translate = allpts.min(axis=0) if len(allpts) else self.origin
-        ints = np.rint((allpts - translate) / self.scale).astype(np.int64)
-        uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        objects, start = {}, 0
-        for model, f in zip(models, faces):
-            ids = inverse[start:start + len(f.points)]
-            start += len(f.points)
-            objects[_unique_id(model.name, objects)] = self._building(model, f, ids)
-        if len(allpts):
-            metadata = {"geographicalExtent": _extent(allpts), **metadata}
-        doc = {"type": "CityJSON", "version": "2.0",
-               "transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
-               "metadata": metadata, "CityObjects": objects, "vertices": uniq.tolist()}
+    def write(self, fh, models, metadata: dict) -> None:
+        """The document, building by building, so that a city never sits in memory whole:
+        the CityObjects first, each with its own vertices (coincident ones once), which wait
+        in a temporary file; then the vertices, the transform, the metadata and the
+        appearance.  The translation is the first building's lowest corner."""
+        translate = None
+        lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+        taken: set[str] = set()
+        count = 0
+        with tempfile.TemporaryFile("w+", encoding="utf-8") as vertices:
+            fh.write('{"type":"CityJSON","version":"2.0","CityObjects":{')
+            for model in models:
+                f = _Faces(model, self.origin)
+                vids = np.zeros(0, np.int64)
+                if len(f.points):
+                    if translate is None:
+                        translate = f.points.min(axis=0)
+                    lo, hi = np.minimum(lo, f.points.min(axis=0)), np.maximum(hi, f.points.max(axis=0))
+                    ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
+                    uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
+                    vids = inverse.reshape(-1) + count
+                    text = json.dumps(uniq.tolist(), separators=(",", ":"))[1:-1]
+                    vertices.write(("," if count else "") + text)
+                    count += len(uniq)
+                name = _unique_id(model.name, taken)
+                taken.add(name)
+                fh.write(("," if len(taken) > 1 else "") + json.dumps(name) + ":"
+                         + json.dumps(self._building(model, f, vids), separators=(",", ":")))
+            fh.write('},"vertices":[')
+            vertices.seek(0)
+            shutil.copyfileobj(vertices, fh, 1 << 20)
+        translate = self.origin if translate is None else translate
+        if count:
+            metadata = {"geographicalExtent": [*lo.tolist(), *hi.tolist()], **metadata}
+        tail = {"transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
+                "metadata": metadata}
         appearance = self._appearance()
         if appearance:
-            doc["appearance"] = appearance
-        return doc
+            tail["appearance"] = appearance
+        fh.write("]," + json.dumps(tail, separators=(",", ":"))[1:])
 
     def _building(self, model: Model, f: _Faces, vids: np.ndarray) -> dict:
         obj: dict = {"type": "Building", "attributes": scalar_attributes(model.attributes)}

@@ -43,16 +43,16 @@ from ..geometry.mesh import Mesh
 from ..model.model import Material, Model, Part
 from ._common import (
     Staging,
-    as_models,
     corner_uvs,
     face_corners,
     image_extension,
+    iter_models,
     jsonable,
     mesh_from_flat,
     read_texture,
     triangulate_corners,
 )
-from .errors import LoadError
+from .errors import ExportError, LoadError
 
 __all__ = ["export_glb", "load_glb"]
 
@@ -69,7 +69,9 @@ def export_glb(models: Model | Sequence[Model], path: str | os.PathLike, *,
 
     Parameters
     ----------
-    models : Model or sequence of Model
+    models : Model, sequence or iterable of Model
+        Written as they come (a generator such as ``engine.derive_iter`` keeps memory to a
+        few buildings).
         What to write; one glTF node and mesh per model.
     path : path-like
         Destination ``.glb``; written atomically.
@@ -81,12 +83,11 @@ def export_glb(models: Model | Sequence[Model], path: str | os.PathLike, *,
     list of Path
         The file written.
     """
-    builder = _GlbBuilder(double_sided=double_sided)
-    for model in as_models(models):
-        builder.add_model(model)
-    data = builder.to_bytes()
-    with Staging() as stage:
-        stage.write_bytes(path, data)
+    with _GlbBuilder(double_sided=double_sided) as builder, Staging() as stage:
+        for model in iter_models(models):  # one at a time: a city never sits in memory whole
+            builder.add_model(model)
+        with open(stage.path(path), "wb") as fh:
+            builder.write(fh)
     return [Path(path)]
 
 
@@ -103,22 +104,31 @@ class _GlbBuilder:
                            "buffers": [], "bufferViews": [], "accessors": [], "materials": [],
                            "meshes": [], "nodes": [], "images": [], "textures": [],
                            "samplers": []}
-        self.chunks: list[bytes] = []
+        # the binary chunk goes to a temporary file as models come (written out last)
+        self.blob = tempfile.TemporaryFile()
         self.size = 0
         self._materials: dict[tuple, int] = {}
         self._textures: dict[str, int | None] = {}
 
+    def __enter__(self) -> _GlbBuilder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.blob.close()
+
     # buffers ---------------------------------------------------------------------------------
+    def _append(self, data: bytes) -> None:
+        self.blob.write(data)
+        self.size += len(data)
+
     def _view(self, data: bytes, target: int | None) -> int:
         pad = -self.size % 4
         if pad:
-            self.chunks.append(b"\0" * pad)
-            self.size += pad
+            self._append(b"\0" * pad)
         view = {"buffer": 0, "byteOffset": self.size, "byteLength": len(data)}
         if target is not None:
             view["target"] = target
-        self.chunks.append(data)
-        self.size += len(data)
+        self._append(data)
         self.json["bufferViews"].append(view)
         return len(self.json["bufferViews"]) - 1
 
@@ -233,8 +243,11 @@ class _GlbBuilder:
                 "extras": {"label": label, "symbols": symbols,
                            "parts_accessor": self._int_accessor(np.array(records))}}
 
-    def to_bytes(self) -> bytes:
+    def write(self, fh) -> None:
+        """The GLB container: header, JSON chunk, then the binary chunk copied from its
+        temporary file."""
         import json
+        import shutil
         import struct
 
         j = {k: v for k, v in self.json.items() if v or k == "asset"}
@@ -242,20 +255,23 @@ class _GlbBuilder:
         j["scene"] = 0
         pad = -self.size % 4
         if pad:
-            self.chunks.append(b"\0" * pad)
-            self.size += pad
+            self._append(b"\0" * pad)
         j["buffers"] = [{"byteLength": self.size}] if self.size else []
         if not self.size:
             j.pop("bufferViews", None)
         text = json.dumps(j, separators=(",", ":")).encode("utf-8")
         text += b" " * (-len(text) % 4)
         total = 12 + 8 + len(text) + (8 + self.size if self.size else 0)
-        out = [struct.pack("<III", 0x46546C67, 2, total), struct.pack("<II", len(text), 0x4E4F534A),
-               text]
+        if total >= 1 << 32:
+            raise ExportError(f"a GLB file holds at most 4 GiB; this one would be "
+                              f"{total / 2**30:.1f} GiB: export fewer buildings per file")
+        fh.write(struct.pack("<III", 0x46546C67, 2, total))
+        fh.write(struct.pack("<II", len(text), 0x4E4F534A))
+        fh.write(text)
         if self.size:
-            out.append(struct.pack("<II", self.size, 0x004E4942))
-            out.extend(self.chunks)
-        return b"".join(out)
+            fh.write(struct.pack("<II", self.size, 0x004E4942))
+            self.blob.seek(0)
+            shutil.copyfileobj(self.blob, fh, 1 << 20)
 
 
 def _group_parts(parts: Sequence[Part]) -> dict[tuple, list[Part]]:

@@ -23,7 +23,6 @@ relative paths.  Whitespace in object, group and material names is replaced by `
 
 from __future__ import annotations
 
-import io
 import json
 import os
 from collections.abc import Sequence
@@ -37,9 +36,9 @@ from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
 from ._common import (
     Staging,
-    as_models,
     corner_uvs,
     face_corners,
+    iter_models,
     jsonable,
     log,
     mesh_from_flat,
@@ -60,7 +59,9 @@ def export_obj(models: Model | Sequence[Model], path: str | os.PathLike, *,
 
     Parameters
     ----------
-    models : Model or sequence of Model
+    models : Model, sequence or iterable of Model
+        Written as they come (a generator such as ``engine.derive_iter`` keeps memory to a
+        few buildings).
         One ``o`` object per model, one ``g`` group per part.
     path : path-like
         Destination ``.obj``; the ``.mtl`` gets the same stem.  All files are written
@@ -76,16 +77,16 @@ def export_obj(models: Model | Sequence[Model], path: str | os.PathLike, *,
         The ``.obj``, the ``.mtl`` and every copied texture.
     """
     path = Path(path)
-    models = as_models(models)
     mtl_path = path.with_suffix(".mtl")
     with Staging() as stage:
         library = _MaterialLibrary(path.parent, texture_folder)
-        body = _obj_text(models, library, mtl_path.name, precision)
+        with open(stage.path(path), "w", encoding="utf-8", newline="\n") as out:
+            # model by model: a city never sits in memory whole
+            _write_obj(out, iter_models(models), library, mtl_path.name, precision)
         for source, relative in library.textures.items():
             if relative is not None:
                 stage.copy(source, path.parent / relative)
         stage.write_text(mtl_path, library.mtl_text())
-        stage.write_text(path, body)
     copied = [path.parent / rel for rel in library.textures.values() if rel is not None]
     return [path, mtl_path, *copied]
 
@@ -143,9 +144,7 @@ class _MaterialLibrary:
         return "\n".join(lines) + "\n"
 
 
-def _obj_text(models: list[Model], library: _MaterialLibrary, mtl_name: str,
-              precision: int) -> str:
-    out = io.StringIO()
+def _write_obj(out, models, library: _MaterialLibrary, mtl_name: str, precision: int) -> None:
     out.write(f"{_TAG} OBJ export\nmtllib {mtl_name}\n")
     counters = [0, 0]  # vertices and texture vertices written so far
     for i, model in enumerate(models):
@@ -155,10 +154,9 @@ def _obj_text(models: list[Model], library: _MaterialLibrary, mtl_name: str,
         for j, part in enumerate(model.parts):
             if part.mesh.n_faces:
                 _write_part(out, part, library.name(part.material), j, counters, precision)
-    return out.getvalue()
 
 
-def _write_part(out: io.StringIO, part: Part, material: str, index: int, counters: list[int],
+def _write_part(out, part: Part, material: str, index: int, counters: list[int],
                 precision: int) -> None:
     mesh = part.mesh
     corners, starts = face_corners(mesh)
