@@ -86,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--strict", action="store_true", help="CGA warnings become errors")
     d.add_argument("--workers", type=int, default=None, help="processes (default: all cores)")
     d.add_argument("-o", "--output", required=True,
-                   help="output file: .glb, .obj, .city.json, or .png/.svg (2D label layout)")
+                   help="output file: .glb, .obj, .city.json, .city.jsonl (CityJSON Text Sequences, a "
+                        "building a line), or .png/.svg (2D label layout)")
     d.add_argument("--stats", action="store_true", help="print statistics as one JSON object")
 
     r = sub.add_parser("render", help="CPU preview render of a .glb or .obj model",
@@ -157,9 +158,13 @@ def suffix_of(path: str) -> str:
 
 def cmd_derive(args) -> int:
     from . import engine, export
+    from .geometry.footprints import load_footprints
 
     t0 = time.perf_counter()
-    derived = engine.derive_iter(args.rules, args.footprint, lot_size=args.lot,
+    footprints = load_footprints(args.footprint) if args.footprint else None
+    total = len(footprints) if footprints is not None else 1
+    progress = sys.stderr.isatty() and total > 1  # a city takes a while: say how far it got
+    derived = engine.derive_iter(args.rules, footprints, lot_size=args.lot,
                                  start=args.start, style=args.style, attrs=dict(args.attr),
                                  assets=args.assets, seed=args.seed, strict=args.strict,
                                  rule=args.rule, workers=args.workers,
@@ -171,8 +176,12 @@ def cmd_derive(args) -> int:
             for line in m.attributes.get("prints", []):  # stderr: --stats keeps stdout JSON
                 print(f"print: {line}", file=sys.stderr)
             models.append(engine.summary(m))
+            if progress:
+                print(f"\r{len(models)}/{total} buildings", end="", file=sys.stderr, flush=True)
             yield m
     export(tap(derived), args.output)
+    if progress:
+        print("\r" + " " * 30 + "\r", end="", file=sys.stderr, flush=True)
     seconds = time.perf_counter() - t0
     if args.stats:
         print(json.dumps(engine.stats(models, seconds)))

@@ -103,3 +103,23 @@ def _by_label(models: list[Model]) -> dict:
 def by_label():
     """``f(models) -> {label: {"area", "faces", "material", "symbols"}}`` for round-trip checks."""
     return _by_label
+
+
+SCHEMAS = Path(__file__).resolve().parents[1] / "data" / "cityjson-2.0"
+
+
+@pytest.fixture(scope="session")
+def validator():
+    """The CityJSON 2.0 schema (tests/data/cityjson-2.0) as a jsonschema validator."""
+    import json
+
+    import jsonschema
+    from referencing import Registry, Resource
+
+    resources = []
+    for file in sorted(SCHEMAS.glob("*.schema.json")):
+        schema = json.loads(file.read_text())
+        resources.append((schema["$id"], Resource.from_contents(schema)))
+    registry = Registry().with_resources(resources)
+    root = json.loads((SCHEMAS / "cityjson.schema.json").read_text())
+    return jsonschema.Draft7Validator(root, registry=registry)

@@ -5,27 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import jsonschema
 import numpy as np
 import pytest
-from referencing import Registry, Resource
 
 from facadeforge.exchange import EXPORTERS, ExportError, export, load
 from facadeforge.exchange.cityjson import DEFAULT_SEMANTIC_MAP, SEMANTIC_TYPES, export_cityjson
 from facadeforge.model import Labels, Model
-
-SCHEMAS = Path(__file__).resolve().parents[1] / "data" / "cityjson-2.0"
-
-
-@pytest.fixture(scope="module")
-def validator() -> jsonschema.Draft7Validator:
-    resources = []
-    for file in sorted(SCHEMAS.glob("*.schema.json")):
-        schema = json.loads(file.read_text())
-        resources.append((schema["$id"], Resource.from_contents(schema)))
-    registry = Registry().with_resources(resources)
-    root = json.loads((SCHEMAS / "cityjson.schema.json").read_text())
-    return jsonschema.Draft7Validator(root, registry=registry)
 
 
 def _errors(validator, doc) -> list[str]:

@@ -12,7 +12,7 @@ from facadeforge.model import Model
 
 
 def test_suffixes():
-    assert set(EXPORTERS) == {"glb", "obj", "city.json", "png", "svg"}
+    assert set(EXPORTERS) == {"glb", "obj", "city.json", "city.jsonl", "png", "svg"}
     assert {"glb", "obj"} <= set(IMPORTERS)
 
 

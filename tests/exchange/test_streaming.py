@@ -67,3 +67,39 @@ def test_derive_iter_hands_out_models_in_order_from_workers():
     assert [m.reports["w"][0] for m in models] == pytest.approx([4 + k for k in range(9)])
     assert [m.stats()["faces"] for m in models] == [m.stats()["faces"]
                                                     for m in engine.derive(rules, fps, workers=1)]
+
+
+def test_cityjson_text_sequences(tmp_path: Path, house_factory, texture_png):
+    models = _models(house_factory, texture_png)
+    export(_generator(models), tmp_path / "out.city.jsonl")
+    lines = (tmp_path / "out.city.jsonl").read_text().splitlines()
+    head, features = json.loads(lines[0]), [json.loads(x) for x in lines[1:]]
+    assert head["type"] == "CityJSON" and head["CityObjects"] == {} and "transform" in head
+    assert [f["type"] for f in features] == ["CityJSONFeature"] * 3
+    assert [f["id"] for f in features] == ["house0", "house1", "house2"]
+    # each feature's vertex indices are its own, and the textured houses carry an appearance
+    for f in features:
+        used = {i for s in f["CityObjects"][f["id"]]["geometry"][0]["boundaries"]
+                for ring in s for i in ring}
+        assert used == set(range(len(f["vertices"])))
+    assert ["appearance" in f and "textures" in f["appearance"] for f in features] \
+        == [False, True, False]
+    back = load(tmp_path / "out.city.jsonl")
+    area = sum(p.mesh.area() for m in models for p in m.parts)
+    assert sum(p.mesh.area() for m in back for p in m.parts) == pytest.approx(area, rel=1e-4)
+    assert [m.name for m in back] == ["house0", "house1", "house2"]
+
+
+def test_cityjson_feature_content_is_valid_cityjson(tmp_path: Path, house_factory, texture_png,
+                                                     validator):
+    export(_models(house_factory, texture_png), tmp_path / "out.city.jsonl")
+    lines = (tmp_path / "out.city.jsonl").read_text().splitlines()
+    head = json.loads(lines[0])
+    for line in lines[1:]:
+        f = json.loads(line)
+        doc = {"type": "CityJSON", "version": "2.0", "transform": head["transform"],
+               "CityObjects": f["CityObjects"], "vertices": f["vertices"]}
+        if "appearance" in f:
+            doc["appearance"] = f["appearance"]
+        errors = [e.message for e in validator.iter_errors(doc)]
+        assert not errors, errors

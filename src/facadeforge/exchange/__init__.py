@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..model.model import Model
-from .cityjson import export_cityjson, load_cityjson
+from .cityjson import export_cityjson, export_cityjsonseq, load_cityjson, load_cityjsonseq
 from .errors import ExportError, LoadError
 from .gltf import export_glb, load_glb
 from .obj import export_obj, load_obj
@@ -37,8 +37,8 @@ from .render import render_file, render_preview
 
 __all__ = [
     "EXPORTERS", "IMPORTERS", "LABEL_COLORS", "LABEL_INDEX", "ExportError", "LoadError",
-    "export", "export_cityjson", "export_glb", "export_obj", "label_map", "load", "load_cityjson",
-    "load_glb", "load_obj", "render_file", "render_preview", "write_label_png", "write_label_svg",
+    "export", "export_cityjson", "export_cityjsonseq", "export_glb", "export_obj", "label_map",
+    "load", "load_cityjson", "load_cityjsonseq", "load_glb", "load_obj", "render_file", "render_preview", "write_label_png", "write_label_svg",
 ]
 
 #: File suffix (without the leading dot) → exporter ``f(models, path, **options) -> list[Path]``.
@@ -46,6 +46,7 @@ EXPORTERS: dict[str, Callable[..., list[Path]]] = {
     "glb": export_glb,
     "obj": export_obj,
     "city.json": export_cityjson,
+    "city.jsonl": export_cityjsonseq,
     "png": export_label_png,
     "svg": export_label_svg,
 }
@@ -55,6 +56,7 @@ IMPORTERS: dict[str, Callable[..., list[Model]]] = {
     "glb": load_glb,
     "obj": load_obj,
     "city.json": load_cityjson,
+    "city.jsonl": load_cityjsonseq,
 }
 
 

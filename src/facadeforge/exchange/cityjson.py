@@ -149,6 +149,30 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
     return [out, *(out.parent / r for r in writer.texture_files)]
 
 
+def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike, *,
+                       semantic_map: dict[str, str | None] | None = None,
+                       reference_system: str | int | None = None, lod: str = "3",
+                       scale: float = 0.001, origin: Sequence[float] = (0.0, 0.0, 0.0),
+                       metadata: dict | None = None, textures: bool = True) -> list[Path]:
+    """Write models as CityJSON Text Sequences (``.city.jsonl``, CityJSONSeq 2.0): one line with
+    the transform and metadata, then one ``CityJSONFeature`` a line, each building with its own
+    vertices and appearance, the form cities are streamed and tiled in.  Options as
+    :func:`export_cityjson`; written model by model."""
+    types = _semantic_map(semantic_map)
+    if str(lod) not in LODS:
+        raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
+    if not scale > 0:
+        raise ExportError(f"scale must be positive, got {scale}")
+    writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
+    out = Path(path)
+    with Staging() as stage:
+        with open(stage.path(out), "w", encoding="utf-8", newline="\n") as fh:
+            writer.write_sequence(fh, iter_models(models), _metadata(reference_system, metadata))
+        for relative, data in writer.texture_files.items():
+            stage.write_bytes(out.parent / relative, data)
+    return [out, *(out.parent / r for r in writer.texture_files)]
+
+
 def _semantic_map(overrides: dict | None) -> dict[str, str | None]:
     types = dict(DEFAULT_SEMANTIC_MAP)
     for label, kind in (overrides or {}).items():
@@ -235,9 +259,10 @@ class _CityJsonWriter:
         self.with_textures = textures
         self.materials: dict[tuple, int] = {}
         self.material_list: list[dict] = []
-        self.textures: dict[str, int | None] = {}
+        self.textures: dict[str, int | None] = {}   # source -> index in texture_list
         self.texture_list: list[dict] = []
-        self.texture_files: dict[str, bytes] = {}
+        self.texture_files: dict[str, bytes] = {}   # relative path -> image bytes (copied)
+        self.texture_paths: dict[str, str | None] = {}  # source -> relative path, once
         self.uv_list: list[np.ndarray] = []
         self.uv_count = 0
 
@@ -281,6 +306,39 @@ class _CityJsonWriter:
         if appearance:
             tail["appearance"] = appearance
         fh.write("]," + json.dumps(tail, separators=(",", ":"))[1:])
+
+    def write_sequence(self, fh, models, metadata: dict) -> None:
+        """CityJSON Text Sequences: a first line with the transform (its translation the first
+        building's lowest corner) and metadata, then one ``CityJSONFeature`` per line with its
+        own vertices and appearance."""
+        header_done = False
+        taken: set[str] = set()
+        translate = self.origin
+        for model in models:
+            f = _Faces(model, self.origin)
+            if not header_done:
+                translate = f.points.min(axis=0) if len(f.points) else self.origin
+                head = {"type": "CityJSON", "version": "2.0",
+                        "transform": {"scale": [self.scale] * 3,
+                                      "translate": translate.tolist()},
+                        "CityObjects": {}, "vertices": [], "metadata": metadata}
+                fh.write(json.dumps(head, separators=(",", ":")) + "\n")
+                header_done = True
+            self.reset_appearance()
+            vids, uniq = np.zeros(0, np.int64), np.zeros((0, 3), np.int64)
+            if len(f.points):
+                ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
+                uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
+                vids = inverse.reshape(-1)
+            name = _unique_id(model.name, taken)
+            taken.add(name)
+            feature = {"type": "CityJSONFeature", "id": name,
+                       "CityObjects": {name: self._building(model, f, vids)},
+                       "vertices": uniq.tolist()}
+            appearance = self._appearance()
+            if appearance:
+                feature["appearance"] = appearance
+            fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
 
     def _building(self, model: Model, f: _Faces, vids: np.ndarray) -> dict:
         obj: dict = {"type": "Building", "attributes": scalar_attributes(model.attributes)}
@@ -362,11 +420,10 @@ class _CityJsonWriter:
     def _texture_index(self, source: str | None) -> int | None:
         if not self.with_textures or not source:
             return None
-        if source not in self.textures:
+        if source not in self.texture_paths:
             found = read_texture(source)
-            if found is None:
-                self.textures[source] = None
-            else:
+            relative = None
+            if found is not None:
                 data, mime = found
                 ext = image_extension(mime)
                 relative = f"textures/{safe_name(Path(source).stem, 'texture')}{ext}"
@@ -375,10 +432,23 @@ class _CityJsonWriter:
                     n += 1
                     relative = f"textures/{safe_name(Path(source).stem, 'texture')}_{n}{ext}"
                 self.texture_files[relative] = data
+            self.texture_paths[source] = relative
+        if source not in self.textures:
+            relative = self.texture_paths[source]
+            if relative is None:
+                self.textures[source] = None
+            else:
                 self.textures[source] = len(self.texture_list)
-                self.texture_list.append({"type": "JPG" if ext == ".jpg" else "PNG",
+                self.texture_list.append({"type": "JPG" if relative.endswith(".jpg") else "PNG",
                                           "image": relative, "wrapMode": "wrap"})
         return self.textures[source]
+
+    def reset_appearance(self) -> None:
+        """Start a new document's materials and textures (each CityJSONFeature has its own);
+        texture files already chosen stay."""
+        self.materials, self.material_list = {}, []
+        self.textures, self.texture_list = {}, []
+        self.uv_list, self.uv_count = [], 0
 
     def _appearance(self) -> dict:
         out: dict = {}
@@ -450,6 +520,41 @@ def load_cityjson(path: str | os.PathLike) -> list[Model]:
     reader = _CityJsonReader(doc, path.parent)
     return [m for oid, obj in doc.get("CityObjects", {}).items()
             if (m := reader.model(oid, obj)) is not None]
+
+
+def load_cityjsonseq(path: str | os.PathLike) -> list[Model]:
+    """Read CityJSON Text Sequences (``.city.jsonl``): the first line's transform, then each
+    ``CityJSONFeature`` with its vertices and appearance, as :func:`load_cityjson` reads a
+    file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"no such file: {path}")
+    models: list[Model] = []
+    head = None
+    with open(path, encoding="utf-8") as fh:
+        for number, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                doc = json.loads(line)
+            except ValueError as exc:
+                raise LoadError(f"{path}:{number}: not a JSON line: {exc}") from exc
+            if head is None:
+                if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
+                    raise LoadError(f"{path}: the first line is not a CityJSON object")
+                head = doc
+                continue
+            if not isinstance(doc, dict) or doc.get("type") != "CityJSONFeature":
+                raise LoadError(f"{path}:{number}: not a CityJSONFeature")
+            part = {"type": "CityJSON", "transform": head.get("transform"),
+                    "vertices": doc.get("vertices", []), "appearance": doc.get("appearance"),
+                    "CityObjects": doc.get("CityObjects", {})}
+            reader = _CityJsonReader(part, path.parent)
+            models.extend(m for oid, obj in part["CityObjects"].items()
+                          if (m := reader.model(oid, obj)) is not None)
+    if head is None:
+        raise LoadError(f"{path} is empty")
+    return models
 
 
 class _CityJsonReader:
