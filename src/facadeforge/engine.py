@@ -232,6 +232,10 @@ _WORKER: dict = {}
 
 
 def _worker_init(spec):
+    # Ctrl-C is the main process's to handle (it stops the pool): workers print no traceback
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     # one BLAS thread per worker: the workers already use every core, and oversubscribed BLAS
     # threads made two workers slower than one
     from threadpoolctl import threadpool_limits
@@ -372,6 +376,7 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool)
     def run():
         jobs = iter(zip(fps, around))
         window: deque = deque()
+        finished = False
         try:
             for fp, a in jobs:
                 window.append(pool.submit(_worker_run, (fp, a, keep_tree, False)))
@@ -383,8 +388,10 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool)
                 if nxt is not None:
                     window.append(pool.submit(_worker_run, (nxt[0], nxt[1], keep_tree, False)))
                 yield model
+            finished = True
         finally:
-            pool.shutdown(cancel_futures=True)
+            # stopped early (an error, Ctrl-C): do not wait for buildings nobody will read
+            pool.shutdown(wait=finished, cancel_futures=True)
     return run()
 
 

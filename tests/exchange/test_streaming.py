@@ -103,3 +103,12 @@ def test_cityjson_feature_content_is_valid_cityjson(tmp_path: Path, house_factor
             doc["appearance"] = f["appearance"]
         errors = [e.message for e in validator.iter_errors(doc)]
         assert not errors, errors
+
+
+def test_shape_ids_do_not_depend_on_which_worker_derived_a_building():
+    fps = [Footprint(f"b{k}", np.array([[0, 0, 0], [6, 0, 0], [6, 0, -4], [0, 0, -4]], float)
+                     + [10.0 * k, 0, 0]) for k in range(6)]
+    rules = "Lot --> extrude(6) comp(f){ side : split(y){ 3 : F }* | all : X. }\nF --> Y."
+    ids = [[[p.shape_id for p in m.parts] for m in engine.derive(rules, fps, workers=w)]
+           for w in (1, 2)]
+    assert ids[0] == ids[1] and ids[0][0] == ids[0][5]

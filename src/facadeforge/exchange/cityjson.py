@@ -142,8 +142,10 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
     writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
     out = Path(path)
     with Staging() as stage:
-        with open(stage.path(out), "w", encoding="utf-8", newline="\n") as fh:
-            writer.write(fh, iter_models(models), _metadata(reference_system, metadata))
+        final = stage.path(out)
+        with open(final, "w", encoding="utf-8", newline="\n") as fh:
+            writer.write(fh, iter_models(models), _metadata(reference_system, metadata),
+                         spill_dir=final.parent)
         for relative, data in writer.texture_files.items():
             stage.write_bytes(out.parent / relative, data)
     return [out, *(out.parent / r for r in writer.texture_files)]
@@ -266,7 +268,7 @@ class _CityJsonWriter:
         self.uv_list: list[np.ndarray] = []
         self.uv_count = 0
 
-    def write(self, fh, models, metadata: dict) -> None:
+    def write(self, fh, models, metadata: dict, spill_dir=None) -> None:
         """The document, building by building, so that a city never sits in memory whole:
         the CityObjects first, each with its own vertices (coincident ones once), which wait
         in a temporary file; then the vertices, the transform, the metadata and the
@@ -275,7 +277,7 @@ class _CityJsonWriter:
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
         taken: set[str] = set()
         count = 0
-        with tempfile.TemporaryFile("w+", encoding="utf-8") as vertices:
+        with tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as vertices:
             fh.write('{"type":"CityJSON","version":"2.0","CityObjects":{')
             for model in models:
                 f = _Faces(model, self.origin)

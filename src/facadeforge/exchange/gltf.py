@@ -31,6 +31,7 @@ is a file path.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from collections.abc import Sequence
@@ -83,11 +84,14 @@ def export_glb(models: Model | Sequence[Model], path: str | os.PathLike, *,
     list of Path
         The file written.
     """
-    with _GlbBuilder(double_sided=double_sided) as builder, Staging() as stage:
-        for model in iter_models(models):  # one at a time: a city never sits in memory whole
-            builder.add_model(model)
-        with open(stage.path(path), "wb") as fh:
-            builder.write(fh)
+    with Staging() as stage:
+        final = stage.path(path)
+        # the binary chunk waits beside the destination, not in a /tmp that may be RAM
+        with _GlbBuilder(double_sided=double_sided, spill_dir=final.parent) as builder:
+            for model in iter_models(models):  # one at a time: a city never sits in memory
+                builder.add_model(model)
+            with open(final, "wb") as fh:
+                builder.write(fh)
     return [Path(path)]
 
 
@@ -98,14 +102,14 @@ class _GlbBuilder:
     with a million faces that is the difference between seconds and a fraction of one.
     """
 
-    def __init__(self, double_sided: bool = True) -> None:
+    def __init__(self, double_sided: bool = True, spill_dir=None) -> None:
         self.double_sided = double_sided
         self.json: dict = {"asset": {"generator": "facadeforge", "version": "2.0"},
                            "buffers": [], "bufferViews": [], "accessors": [], "materials": [],
                            "meshes": [], "nodes": [], "images": [], "textures": [],
                            "samplers": []}
         # the binary chunk goes to a temporary file as models come (written out last)
-        self.blob = tempfile.TemporaryFile()
+        self.blob = tempfile.TemporaryFile(dir=spill_dir)
         self.size = 0
         self._materials: dict[tuple, int] = {}
         self._textures: dict[str, int | None] = {}
@@ -118,6 +122,9 @@ class _GlbBuilder:
 
     # buffers ---------------------------------------------------------------------------------
     def _append(self, data: bytes) -> None:
+        if self.size + len(data) > MAX_GLB_BYTES:
+            raise ExportError("a GLB file holds at most 4 GiB of geometry and images; export "
+                              "fewer buildings per file (or to .city.jsonl)")
         self.blob.write(data)
         self.size += len(data)
 
@@ -322,6 +329,8 @@ def load_glb(path: str | os.PathLike, *, texture_dir: str | os.PathLike | None =
     return _GlbReader(gltf, path, texture_dir).models()
 
 
+#: The binary chunk of one GLB (its byte counts are 32-bit), less room for the JSON chunk.
+MAX_GLB_BYTES = (1 << 32) - (1 << 26)
 #: The most elements one accessor may claim (a 2 GB binary's worth of floats).
 MAX_ACCESSOR_COUNT = 1 << 27
 
@@ -491,14 +500,18 @@ class _GlbReader:
             if self.texture_dir is None:
                 self.texture_dir = Path(tempfile.mkdtemp(prefix="facadeforge-glb-"))
             self.texture_dir.mkdir(parents=True, exist_ok=True)
-            target = self.texture_dir / (f"{self.path.stem}_image{index}"
+            digest = hashlib.sha1(data).hexdigest()[:12]  # same name, same content
+            target = self.texture_dir / (f"{self.path.stem}_image{index}_{digest}"
                                          f"{image_extension(image.mimeType or '')}")
-            if not (target.is_file() and not target.is_symlink()
-                    and target.stat().st_size == len(data)):
+            if not target.is_file() or target.is_symlink():
                 # written whole and then renamed: parallel workers never read half a file
                 part = target.with_name(f".{target.name}.{os.getpid()}.part")
-                part.write_bytes(data)
-                os.replace(part, target)
+                try:
+                    part.write_bytes(data)
+                    os.replace(part, target)
+                except OSError:
+                    part.unlink(missing_ok=True)
+                    raise
             result = str(target)
         elif image.uri and not image.uri.startswith("data:"):
             candidate = self.path.parent / image.uri

@@ -242,6 +242,7 @@ class Derivation:
         self._column_groups: dict = {}
         self._attr_busy: set = set()
         self.shape_count = 0
+        self._ids = 0
         self._deadline = 0.0
         from .ops.occlusion import OccluderSet
 
@@ -306,7 +307,7 @@ class Derivation:
     # -- main loop ---------------------------------------------------------------------------
     def run(self) -> Model:
         self._deadline = time.perf_counter() + self.limits.max_seconds
-        root = Shape(self.start_rule, self.initial.scope, operator="initial")
+        root = Shape(self.start_rule, self.initial.scope, operator="initial", id=self.new_id())
         state = self.initial.copy()
         state.seed = self.seed * 0x9E3779B1 + 0x7F4A7C15
         state.label = ""
@@ -504,6 +505,12 @@ class Derivation:
         self.occluders.append(occ)
         return (*ancestors, occ.id)
 
+    def new_id(self) -> int:
+        """The next shape id of this derivation: numbered per building, so that a city's
+        output is the same whichever worker derived which building."""
+        self._ids += 1
+        return self._ids
+
     def count_shape(self, rule: str) -> None:
         self.shape_count += 1
         if self.shape_count > self.limits.max_shapes:
@@ -525,7 +532,7 @@ class _RunContext:
         child_state = state.child(self.emitted)
         self.emitted += 1
         self.d.count_shape(name)
-        child = Shape(name, child_state.scope)
+        child = Shape(name, child_state.scope, id=self.d.new_id())
         child.parent = self.node
         if origin:
             child.operator, child.params = origin
@@ -568,7 +575,7 @@ class _RunContext:
                         if not self.run(piece_ops, piece_state, sub, (op.name, info)):
                             self.d.count_shape(self.rule)
                             piece = Shape(self.rule, piece_state.scope, operator=op.name,
-                                          params=info)
+                                          params=info, id=self.d.new_id())
                             self.node.children.append(piece)
                             self.d._output(piece, piece_state, self.rule)
                     # the current shape is now an inner node of the tree, never a leaf; as in

@@ -59,7 +59,7 @@ def derive_now(run, ops: tuple, state, env) -> list:
     try:
         from ...model.shape import Shape
 
-        root = Shape(run.rule, state.scope, operator="inline")
+        root = Shape(run.rule, state.scope, operator="inline", id=d.new_id())
         queue: deque = deque()
         ctx = type(run)(d, queue, root, run.depth, run.rule)
         consumed = ctx.run(ops, work, env.with_state(work), None)
