@@ -154,3 +154,10 @@ def test_the_chosen_style_reaches_imports_that_have_it(tmp_path):
     # an import statement listing styles lets only those in
     listed = 'import imp (Default) : "imp.cga"\nLot --> imp.Lot\nstyle mystyle\n'
     assert reports(tmp_path, listed, style="mystyle")["h"] == [10]
+
+
+def test_an_anonymous_import_uses_its_importers_names(tmp_path):
+    files = {"lib.cga": "Mass --> extrude(height) X.\n",
+             "main.cga": 'import "lib.cga"\nattr height = 7\nLot --> Mass\n'}
+    m = derive(load_rules(write(tmp_path, files)), None, lot_size="4x4")[0]
+    assert not m.warnings and m.stats()["bbox"][1][1] == 7

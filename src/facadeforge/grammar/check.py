@@ -204,6 +204,8 @@ def check_rules(ruleset: RuleSet) -> None:
     redefines an attribute or rule its file does not have."""
     checked = set()
     for mod in ruleset.main.all_modules():
+        if mod.merged:  # included without an id: it may use its importer's names
+            continue
         _check_import_statements(mod)
         if (mod.path, mod.style) in checked:
             continue

@@ -85,6 +85,7 @@ class Module:
         self.protected: set[str] = set()
         self.protect_all = False
         self.anonymous: list[Module] = []  # files imported without an id (merged in here)
+        self.merged = False  # imported without an id: its names live in the importer's
         # @StartRule of the chosen style first, then of the styles it extends, then Default's
         self.start_rules = list(dict.fromkeys(
             r.name for _, _, rules in reversed(chain) for r in rules
@@ -290,6 +291,7 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
             else:
                 anonymous.append((mod, child))
                 mod.anonymous.append(child)
+                child.merged = True
     # an anonymous import's definitions join its importer's namespace (deepest first, so
     # those it took from its own anonymous imports come along)
     for into, m in reversed(anonymous):
