@@ -134,21 +134,8 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
     list of Path
         The CityJSON file and every copied texture.
     """
-    types = _semantic_map(semantic_map)
-    if str(lod) not in LODS:
-        raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
-    if not scale > 0:
-        raise ExportError(f"scale must be positive, got {scale}")
-    writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
-    out = Path(path)
-    with Staging() as stage:
-        final = stage.path(out)
-        with open(final, "w", encoding="utf-8", newline="\n") as fh:
-            writer.write(fh, iter_models(models), _metadata(reference_system, metadata),
-                         spill_dir=final.parent)
-        for relative, data in writer.texture_files.items():
-            stage.write_bytes(out.parent / relative, data)
-    return [out, *(out.parent / r for r in writer.texture_files)]
+    return _export(models, path, False, semantic_map, reference_system, lod, scale, origin,
+                   metadata, textures)
 
 
 def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike, *,
@@ -160,6 +147,13 @@ def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike,
     the transform and metadata, then one ``CityJSONFeature`` a line, each building with its own
     vertices and appearance, the form cities are streamed and tiled in.  Options as
     :func:`export_cityjson`; written model by model."""
+    return _export(models, path, True, semantic_map, reference_system, lod, scale, origin,
+                   metadata, textures)
+
+
+def _export(models, path, sequence: bool, semantic_map, reference_system, lod, scale, origin,
+            metadata, textures) -> list[Path]:
+    """Both CityJSON forms: options checked, the file and its textures written atomically."""
     types = _semantic_map(semantic_map)
     if str(lod) not in LODS:
         raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
@@ -168,8 +162,13 @@ def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike,
     writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
     out = Path(path)
     with Staging() as stage:
-        with open(stage.path(out), "w", encoding="utf-8", newline="\n") as fh:
-            writer.write_sequence(fh, iter_models(models), _metadata(reference_system, metadata))
+        final = stage.path(out)
+        with open(final, "w", encoding="utf-8", newline="\n") as fh:
+            meta = _metadata(reference_system, metadata)
+            if sequence:
+                writer.write_sequence(fh, iter_models(models), meta)
+            else:
+                writer.write(fh, iter_models(models), meta, spill_dir=final.parent)
         for relative, data in writer.texture_files.items():
             stage.write_bytes(out.parent / relative, data)
     return [out, *(out.parent / r for r in writer.texture_files)]
