@@ -276,7 +276,8 @@ class _CityJsonWriter:
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
         taken: set[str] = set()
         count = 0
-        with tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as vertices:
+        with tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as vertices, \
+                tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as uvs:
             fh.write('{"type":"CityJSON","version":"2.0","CityObjects":{')
             for model in models:
                 f = _Faces(model, self.origin)
@@ -295,18 +296,30 @@ class _CityJsonWriter:
                 taken.add(name)
                 fh.write(("," if len(taken) > 1 else "") + json.dumps(name) + ":"
                          + json.dumps(self._building(model, f, vids), separators=(",", ":")))
+                if self.uv_list:  # the building's texture coordinates wait on disk too
+                    text = json.dumps(np.concatenate(self.uv_list).round(6).tolist(),
+                                      separators=(",", ":"))[1:-1]
+                    uvs.write(("," if uvs.tell() else "") + text)
+                    self.uv_list = []
             fh.write('},"vertices":[')
             vertices.seek(0)
             shutil.copyfileobj(vertices, fh, 1 << 20)
-        translate = self.origin if translate is None else translate
-        if count:
-            metadata = {"geographicalExtent": [*lo.tolist(), *hi.tolist()], **metadata}
-        tail = {"transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
-                "metadata": metadata}
-        appearance = self._appearance()
-        if appearance:
-            tail["appearance"] = appearance
-        fh.write("]," + json.dumps(tail, separators=(",", ":"))[1:])
+            translate = self.origin if translate is None else translate
+            if count:
+                metadata = {"geographicalExtent": [*lo.tolist(), *hi.tolist()], **metadata}
+            tail = {"transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
+                    "metadata": metadata}
+            fh.write("]," + json.dumps(tail, separators=(",", ":"))[1:-1])
+            appearance = self._appearance(with_uvs=False)
+            if appearance:
+                fh.write(',"appearance":' + json.dumps(appearance, separators=(",", ":"))[:-1])
+                if self.texture_list and uvs.tell():
+                    fh.write(',"vertices-texture":[')
+                    uvs.seek(0)
+                    shutil.copyfileobj(uvs, fh, 1 << 20)
+                    fh.write(']')
+                fh.write("}")
+            fh.write("}")
 
     def write_sequence(self, fh, models, metadata: dict) -> None:
         """CityJSON Text Sequences: a first line with the transform (its translation the first
@@ -451,14 +464,17 @@ class _CityJsonWriter:
         self.textures, self.texture_list = {}, []
         self.uv_list, self.uv_count = [], 0
 
-    def _appearance(self) -> dict:
+    def _appearance(self, with_uvs: bool = True) -> dict:
+        """Materials and textures; the texture coordinates too unless they were written out
+        as the buildings came (``with_uvs`` False)."""
         out: dict = {}
         if self.material_list:
             out["materials"] = self.material_list
             out["default-theme-material"] = THEME
-        if self.texture_list and self.uv_list:
+        if self.texture_list and (self.uv_count if not with_uvs else self.uv_list):
             out["textures"] = self.texture_list
-            out["vertices-texture"] = np.concatenate(self.uv_list).round(6).tolist()
+            if with_uvs:
+                out["vertices-texture"] = np.concatenate(self.uv_list).round(6).tolist()
             out["default-theme-texture"] = THEME
         return out
 
