@@ -75,6 +75,18 @@ def test_rule_package(tmp_path):
         load_rules(rpk, rule="rules/nope.cga")
 
 
+def test_rule_package_main_rule_found_by_its_compiled_twin_in_bin(tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    write_project(src)
+    (src / "rules" / "other.cga").write_text("@StartRule\nLot --> X.\n")
+    (src / "bin").mkdir()
+    (src / "bin" / "main.cgb").write_bytes(b"compiled")
+    rpk = tmp_path / "pkg.rpk"
+    pack(src, rpk)
+    assert load_rules(rpk).source.endswith("main.cga")
+
+
 def test_rule_package_with_only_compiled_rules_is_refused(tmp_path):
     src = tmp_path / "src"
     (src / "rules").mkdir(parents=True)

@@ -37,8 +37,8 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
     path : path to the ``.rpk``
     rule : str, optional
         Main rule file inside the package (``rules/building.cga``); default as CityEngine: the
-        rule file that has a compiled ``.cgb`` twin at the top of ``rules/``, else the only
-        ``.cga`` there, else the one with ``@StartRule``.
+        rule file that has a compiled ``.cgb`` twin (beside it, or in the package's ``bin/``),
+        else the only ``.cga`` in ``rules/``, else the first with ``@StartRule``.
     """
     import py7zr
 
@@ -111,6 +111,12 @@ def _find_main(root: Path, rule: str | None, path) -> Path:
     with_cgb = [c for c in top if c.with_suffix(".cgb").is_file()]
     if len(with_cgb) == 1:
         return with_cgb[0]
+    # CityEngine puts the compiled main rule in bin/ (bin/x.cgb beside rules/x.cga): the rule
+    # file whose compiled twin is anywhere in the package
+    compiled = {c.stem for c in root.rglob("*.cgb")}
+    twins = [c for c in (with_cgb or top) if c.stem in compiled]
+    if len(twins) == 1:
+        return twins[0]
     if len(top) == 1:
         return top[0]
     starts = [c for c in top if "@StartRule" in c.read_text(encoding="utf-8", errors="replace")]
