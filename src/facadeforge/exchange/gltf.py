@@ -335,6 +335,13 @@ MAX_GLB_BYTES = (1 << 32) - (1 << 26)
 MAX_ACCESSOR_COUNT = 1 << 27
 
 
+def gltf_triangles(gltf: gl.GLTF2, path: Path, texture_dir) -> list:
+    """``(positions, triangles, uv or None, material)`` of every triangle primitive of a loaded
+    glTF, in scene coordinates (what inserting a ``.glb``/``.gltf`` asset needs); embedded
+    images are written to ``texture_dir``."""
+    return _GlbReader(gltf, Path(path), texture_dir).triangles()
+
+
 class _GlbReader:
     def __init__(self, gltf: gl.GLTF2, path: Path, texture_dir) -> None:
         self.gltf = gltf

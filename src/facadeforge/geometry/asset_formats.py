@@ -139,7 +139,7 @@ def load_gltf(path: Path):
     import pygltflib as gl
 
     from ..exchange.errors import LoadError
-    from ..exchange.gltf import _GlbReader
+    from ..exchange.gltf import gltf_triangles
     from .assets import AssetMaterial
 
     path = Path(path)
@@ -156,7 +156,7 @@ def load_gltf(path: Path):
                 gltf = gl.GLTF2.load_from_bytes(data)
         if gltf is None:
             raise LoadError("no glTF content")
-        triangles = _GlbReader(gltf, path, cache).triangles()
+        triangles = gltf_triangles(gltf, path, cache)
     except InputError:
         raise
     except Exception as e:  # pygltflib raises many kinds on malformed files

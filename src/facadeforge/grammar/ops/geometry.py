@@ -833,7 +833,7 @@ def _convert(env, args):
     return float(out[comp])
 
 
-def _asset_file(env, name: str, what: str, mesh: bool = False):
+def asset_file(env, name: str, what: str, mesh: bool = False):
     """A readable file under the asset roots for a rule's file function (its loaded asset with
     ``mesh``), or a CGA warning."""
     res = env.derivation.assets
@@ -853,7 +853,7 @@ def _read_table(env, args):
     import csv
     import io
 
-    raw = Path(_asset_file(env, to_str(args[0]), "table")).read_bytes()
+    raw = Path(asset_file(env, to_str(args[0]), "table")).read_bytes()
     text = raw.decode("utf-16") if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else \
         raw.decode("utf-8-sig", errors="replace")
     text = "".join(c if c.isprintable() or c in "\r\n\t" else "?" for c in text)
@@ -893,7 +893,7 @@ def _read_string_table(env, args):
 
 @shape_function("readTextFile")
 def _read_text_file(env, args):
-    return _asset_file(env, to_str(args[0]), "text file").read_text(encoding="utf-8", errors="replace")
+    return asset_file(env, to_str(args[0]), "text file").read_text(encoding="utf-8", errors="replace")
 
 
 def _scope_ratio(env, axes: str) -> float:

@@ -16,7 +16,7 @@ import numpy as np
 from ..values import CGARuntimeError, format_float, from_numpy, to_str
 from . import operation, shape_function
 from .appearance import set_material
-from .geometry import _asset_file, asset_material_keys
+from .geometry import asset_file, asset_material_keys
 
 #: CityEngine's material attributes with the values of its default material, in the order
 #: ``getMaterial(…, all)`` lists them (colour maps and the PBR and classic parameters).
@@ -180,7 +180,7 @@ def _read_material(env, args):
     if len(args) != 1:
         raise CGARuntimeError("readMaterial(filePath)")
     name = to_str(args[0])
-    path = Path(_asset_file(env, name, "material file"))
+    path = Path(asset_file(env, name, "material file"))
     suffix = path.suffix.lower()
     if suffix not in (".mtl", ".cgamat"):
         raise CGARuntimeError(f"readMaterial reads .mtl and .cgamat files, not '{name}'")

@@ -23,13 +23,13 @@ from ...geometry.mesh import EPS, Mesh, weld_ids
 from ..values import CGARuntimeError, to_float, to_str
 from . import shape_function
 from .geometry import (
-    _asset_file,
     _asset_info,
     _face_selection,
     _file_search,
     _image_info,
     _list,
     _sort_by_ratio,
+    asset_file,
     sort_by_size,
 )
 
@@ -164,7 +164,7 @@ def _files_search(env, args):
 
 
 def _asset(env, name: str):
-    return _asset_file(env, name, "asset", mesh=True)
+    return asset_file(env, name, "asset", mesh=True)
 
 
 def _obj_groups(env, name: str) -> list[str]:
