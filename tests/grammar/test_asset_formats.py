@@ -103,3 +103,31 @@ def test_gltf_accessor_claiming_more_than_its_data_is_refused(tmp_path):
            "accessors": [{"componentType": 5126, "count": 50_000_000, "type": "VEC3"}]}
     m = insert(tmp_path, _gltf(tmp_path, doc))
     assert any("has no data for its 50000000 elements" in w for w in m.warnings), m.warnings
+
+
+@pytest.mark.parametrize("ops, bbox", [
+    # the box is x 0..1, y 0..2, z -3..0 in its file; the scope starts at (1, 0, -2), 2 x 3 x 4
+    ('i("box.dae")', [[1, 0, -2], [3, 3, 2]]),
+    ('i("box.dae", zUp)', [[1, 0, -2], [3, 3, 2]]),
+    ('i("box.dae", yUp, keepSizeAndPosition)', [[1, 0, -5], [2, 2, -2]]),
+    ('i("box.dae", yUp, keepSizeAlignPosition)', [[1.5, 0, -1.5], [2.5, 2, 1.5]]),
+    ('i("box.dae", yUp, alignSizeAndPosition, noCleanup)', [[1, 0, -2], [3, 3, 2]]),
+    ('s(0, 0, 0) i("box.dae")', [[1, 0, -5], [2, 2, -2]]),
+    # two zero sizes: uniform scale by the third, the scope moved by the scaled offset
+    ('s(0, 6, 0) i("box.dae")', [[1, 0, -11], [4, 6, -2]]),
+])
+def test_insert_modes_and_zero_sized_scopes(tmp_path, ops, bbox):
+    shutil.copy(DATA / "box.dae", tmp_path / "box.dae")
+    m = derive(load_rules(f"Lot --> t(1, 0, -2) s(2, 3, 4) {ops} X.", assets=tmp_path), None,
+               lot_size="6x6")[0]
+    assert not m.warnings
+    assert np.allclose(m.stats()["bbox"], bbox)
+
+
+def test_z_up_assets_stand_up(tmp_path):
+    shutil.copy(DATA / "box.dae", tmp_path / "box.dae")
+    m = derive(load_rules('Lot --> s(0, 0, 0) i("box.dae", zUp) X.', assets=tmp_path), None,
+               lot_size="6x6")[0]
+    # (x, y, z) -> (x, z, -y): the file's z -3..0 is now y -3..0, its y 0..2 now z -2..0,
+    # kept in place and size
+    assert np.allclose(m.stats()["bbox"], [[0, -3, -2], [1, 0, 0]])

@@ -161,3 +161,27 @@ def test_an_anonymous_import_uses_its_importers_names(tmp_path):
              "main.cga": 'import "lib.cga"\nattr height = 7\nLot --> Mass\n'}
     m = derive(load_rules(write(tmp_path, files)), None, lot_size="4x4")[0]
     assert not m.warnings and m.stats()["bbox"][1][1] == 7
+
+
+@pytest.mark.parametrize("instancing", [True, False])
+def test_extension_forwarding_reuses_the_default(tmp_path, instancing):
+    # CityEngine 2024.0: ( Ext -> MyExt ) sends the file's calls of Ext to MyExt, which can
+    # call imp.Ext for the file's own version without recursing forever
+    files = {"imp.cga": 'extension Ext --> report("ext", 1) X.\nLot --> split(x){ 2 : Ext }*\n',
+             "main.cga": 'import imp : "imp.cga" ( Ext -> MyExt )\n'
+                         'extension MyExt --> report("my", 1) imp.Ext\n'
+                         '@StartRule\nLot --> imp.Lot\n'}
+    m = derive(load_rules(write(tmp_path, files)), None, lot_size="4x4",
+               keep_tree=not instancing)[0]
+    assert m.reports == {"my": [1, 1], "ext": [1, 1]}
+
+
+@pytest.mark.parametrize("statement, message", [
+    ("( Nope -> MyExt )", "sends rule 'Nope' on, which imp.cga does not define"),
+    ("( Ext -> Nope )", "sends rule 'Ext' to 'Nope', which main.cga does not define"),
+])
+def test_extension_forwarding_names_are_checked(tmp_path, statement, message):
+    files = {"imp.cga": "extension Ext --> X.\nLot --> Ext\n",
+             "main.cga": f'import imp : "imp.cga" {statement}\nMyExt --> X.\nLot --> imp.Lot\n'}
+    with pytest.raises(RuleError, match=message):
+        load_rules(write(tmp_path, files))

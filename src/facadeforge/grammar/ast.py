@@ -220,7 +220,8 @@ class Import(Node):
     """``import alias [( styles )] : "path" [( overrides )]`` (CityEngine's import keyword).
 
     ``overrides`` holds ``(attr, None)`` (protected from propagation), ``(attr, expression)``
-    (redefined, evaluated in the importer) and ``RuleDef`` (an extension rule redefined);
+    (redefined, evaluated in the importer), ``RuleDef`` (an extension rule redefined) and
+    ``RuleForward`` (an extension rule sent to a rule of the importer);
     ``protect_all`` is an empty ``()``; ``styles`` limits the imported styles."""
 
     alias: str | None
@@ -229,6 +230,16 @@ class Import(Node):
     annotations: tuple = ()
     styles: tuple = ()
     protect_all: bool = False
+
+
+@dataclass(frozen=True)
+class RuleForward(Node):
+    """``import imp : "imp.cga" ( Ext -> MyExt )``: calls of the extension rule ``Ext`` inside
+    the imported file run the importer's rule ``MyExt`` (CityEngine 2024.0); ``imp.Ext`` from
+    the importer still runs the file's own ``Ext``."""
+
+    name: str
+    target: str
 
 
 @dataclass(frozen=True)

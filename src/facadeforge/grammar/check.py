@@ -229,6 +229,16 @@ def _check_import_statements(mod: Module) -> None:
             continue
         checker = _Checker(mod)
         for item in imp.overrides:
+            if isinstance(item, A.RuleForward):
+                if item.name not in child.rules:
+                    raise RuleError(f"import '{imp.alias}' sends rule '{item.name}' on, which "
+                                    f"{Path(child.path).name} does not define",
+                                    mod.path, item.line, item.column)
+                if not mod.has_rule_name(item.target):
+                    raise RuleError(f"import '{imp.alias}' sends rule '{item.name}' to "
+                                    f"'{item.target}', which {Path(mod.path).name} does not "
+                                    "define", mod.path, item.line, item.column)
+                continue
             if isinstance(item, A.RuleDef):
                 if item.name not in child.rules:
                     close = difflib.get_close_matches(item.name, list(child.rules), n=1)

@@ -87,6 +87,13 @@ class Purity:
                     if arity not in redefined:
                         self._ops(m, rdef.body, info)
                 self.info[(id(m), name)] = info
+            for name, (owner, target) in m.rule_forwards.items():
+                # calls inside the file run the importer's rule, imp.Ext the file's own:
+                # what holds for the rule holds for both
+                info = self.info.setdefault((id(m), name), RuleInfo())
+                callee = self._callee(owner, target)
+                if callee is not None:
+                    info.calls.add(callee)
             for name, overloads in m.functions.items():
                 info = RuleInfo()
                 for fdef in overloads.values():

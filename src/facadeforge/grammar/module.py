@@ -70,6 +70,8 @@ class Module:
         # rules of this module redefined by an importer (qualified rules, extension overrides
         # in the import statement): name -> arity -> (importer, rule); they win over own rules
         self.rule_overrides: dict[str, dict[int, tuple[Module, A.RuleDef]]] = {}
+        # ``( Ext -> MyExt )``: calls of Ext inside this module run the importer's MyExt
+        self.rule_forwards: dict[str, tuple[Module, str]] = {}
         # this file's own declarations in its style (anonymous imports add theirs to the
         # namespace below; they are checked in their own file)
         self.own_declarations: tuple[list, list, list] = (
@@ -107,6 +109,10 @@ class Module:
         if found is None:
             return None
         mod, short = found
+        forward = self.rule_forwards.get(name) if "." not in name else None
+        if forward is not None:  # only calls inside the file; imp.Ext keeps the default
+            importer, target = forward
+            return importer.rule(target, arity)
         redefined = mod.rule_overrides.get(short)
         if redefined is not None and arity in redefined:
             return redefined[arity]
@@ -118,7 +124,8 @@ class Module:
     def has_rule_name(self, name: str) -> bool:
         found = self.resolve(name) if "." in name else (self, name)
         return found is not None and (found[1] in found[0].rules
-                                      or found[1] in found[0].rule_overrides)
+                                      or found[1] in found[0].rule_overrides
+                                      or found[1] in found[0].rule_forwards)
 
     def function(self, name: str, arity: int) -> tuple[Module, A.FuncDef] | None:
         found = self.resolve(name) if "." in name else (self, name)
@@ -281,7 +288,9 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
                 child.importer = mod
                 child.protect_all = imp.protect_all
                 for item in imp.overrides:
-                    if isinstance(item, A.RuleDef):  # ( Roof(angle) --> roofGable(angle) )
+                    if isinstance(item, A.RuleForward):  # ( Ext -> MyExt )
+                        child.rule_forwards[item.name] = (mod, item.target)
+                    elif isinstance(item, A.RuleDef):  # ( Roof(angle) --> roofGable(angle) )
                         child.rule_overrides.setdefault(item.name, {})[len(item.params)] = \
                             (mod, item)
                     elif item[1] is None:           # ( height ): protected

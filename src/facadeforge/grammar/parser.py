@@ -359,6 +359,9 @@ class _ToAst(Transformer):
         params = c[1] if len(c) == 3 else ()
         return A.RuleDef(str(c[0]), params or (), c[-1], **_pos(meta))
 
+    def import_rule_forward(self, meta, c):
+        return A.RuleForward(str(c[0]), str(c[1]), **_pos(meta))
+
     def import_anon(self, meta, c):
         return A.Import(None, _unquote(str(c[0])), (), **_pos(meta))
 

@@ -396,8 +396,11 @@ def op_envelope(call):
 def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     """Place a mesh given in its own frame into the scope, scaled to the scope size.
 
-    Zero scope dimensions take the asset's proportions: they are scaled by the mean factor of the
-    non-zero dimensions (CityEngine keeps aspect ratios the same way).
+    Zero scope dimensions take the asset's proportions (CityEngine's insert operation): one
+    zero size is the mean scale of the other two times the asset's, the scope staying where it
+    is; with two zero sizes the asset scales uniformly by the third and the scope moves along
+    the two by the asset's scaled offset; with all three zero the asset keeps its size and its
+    place relative to the scope's origin.
     """
     lo, hi = bounds
     ext = hi - lo
@@ -405,25 +408,55 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     factors = np.where((ext > EPS) & (size > EPS), size / np.where(ext > EPS, ext, 1.0), np.nan)
     known = factors[~np.isnan(factors)]
     fill = float(known.mean()) if len(known) else 1.0
+    zero = np.isnan(factors) & (size <= EPS)
     factors = np.where(np.isnan(factors), fill, factors)
     new_size = np.where(ext > EPS, ext * factors, size)
     local = (mesh.vertices - lo) * factors
-    st.own_scope().size = new_size
+    sc = st.own_scope()
+    if zero.sum() >= 2:  # line or point scopes move by the asset's own offset
+        sc.origin = sc.to_world((np.where(zero, lo * factors, 0.0))[None])[0]
+    sc.size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
     if np.linalg.det(st.scope.rotation) < 0:  # a mirrored scope (mirrorScope): faces stay outward
         st.geometry = st.geometry.reversed()
 
 
-@operation("i", 1, 3, selectors=(1, 2))
+_INSERT_MODES = ("alignSizeAndPosition", "keepSizeAndPosition", "keepSizeAlignPosition")
+
+
+@operation("i", 1, 4, selectors=(1, 2, 3))
 def op_insert(call):
-    """Insert an asset (OBJ file or ``builtin:…``) fitted to the scope, then cut at the
-    shape's trim planes (CityEngine "insert operation", note on trim planes:
-    https://doc.arcgis.com/en/cityengine/latest/cga/cga-i.htm)."""
+    """``i(filePath[, yUp|zUp[, insertMode[, numericalCleanup|noCleanup]]])``: insert an asset
+    (a file or ``builtin:…``) fitted to the scope, then cut at the shape's trim planes
+    (CityEngine "insert operation", https://doc.arcgis.com/en/cityengine/latest/cga/cga-i.htm).
+
+    ``zUp`` turns a z-up asset by -90° about x; ``keepSizeAndPosition`` is ``s(0,0,0)`` first
+    (the asset keeps its size and place); ``keepSizeAlignPosition`` keeps its size and stands
+    it in the xz centre of the scope on y = 0.  Assets are never cleaned up numerically, so both
+    cleanup modes give the same."""
     st = call.state
     name = call.text(0)
+    up = call.sel(1, "yUp")
+    mode = call.sel(2, "alignSizeAndPosition")
+    cleanup = call.sel(3, "numericalCleanup")
+    if up not in ("yUp", "zUp") or mode not in _INSERT_MODES \
+            or cleanup not in ("numericalCleanup", "noCleanup"):
+        raise CGARuntimeError("i(filePath, yUp|zUp, alignSizeAndPosition|keepSizeAndPosition|"
+                              "keepSizeAlignPosition, numericalCleanup|noCleanup)")
     mesh, asset = load_asset(call, name)
+    if up == "zUp":
+        v = mesh.vertices
+        mesh = mesh.with_vertices(np.column_stack([v[:, 0], v[:, 2], -v[:, 1]]))
     bounds = mesh.bounds()
     note_asset(name, bounds)
+    if mode == "keepSizeAndPosition":
+        st.own_scope().size = np.zeros(3)
+    elif mode == "keepSizeAlignPosition":
+        sc = st.own_scope()
+        ext = bounds[1] - bounds[0]
+        sc.origin = sc.to_world(np.array([[(sc.size[0] - ext[0]) / 2, 0.0,
+                                           (sc.size[2] - ext[2]) / 2]]))[0]
+        sc.size = ext.copy()
     _fit_unit_mesh(st, mesh, bounds)
     st.context.pop("asset_material", None)
     several = asset is not None and asset.face_material is not None
