@@ -376,17 +376,18 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool)
     def run():
         jobs = iter(zip(fps, around))
         window: deque = deque()
+
+        def submit() -> None:  # the next footprint, if any, to a worker
+            job = next(jobs, None)
+            if job is not None:
+                window.append(pool.submit(_worker_run, (*job, keep_tree, False)))
         finished = False
         try:
-            for fp, a in jobs:
-                window.append(pool.submit(_worker_run, (fp, a, keep_tree, False)))
-                if len(window) >= 3 * n_workers:
-                    break
+            for _ in range(3 * n_workers):
+                submit()
             while window:
                 model = window.popleft().result()
-                nxt = next(jobs, None)
-                if nxt is not None:
-                    window.append(pool.submit(_worker_run, (nxt[0], nxt[1], keep_tree, False)))
+                submit()
                 yield model
             finished = True
         finally:

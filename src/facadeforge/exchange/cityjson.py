@@ -286,9 +286,8 @@ class _CityJsonWriter:
                     if translate is None:
                         translate = f.points.min(axis=0)
                     lo, hi = np.minimum(lo, f.points.min(axis=0)), np.maximum(hi, f.points.max(axis=0))
-                    ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
-                    uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
-                    vids = inverse.reshape(-1) + count
+                    uniq, vids = self._quantized(f, translate)
+                    vids = vids + count
                     text = json.dumps(uniq.tolist(), separators=(",", ":"))[1:-1]
                     vertices.write(("," if count else "") + text)
                     count += len(uniq)
@@ -339,11 +338,7 @@ class _CityJsonWriter:
                 fh.write(json.dumps(head, separators=(",", ":")) + "\n")
                 header_done = True
             self.reset_appearance()
-            vids, uniq = np.zeros(0, np.int64), np.zeros((0, 3), np.int64)
-            if len(f.points):
-                ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
-                uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
-                vids = inverse.reshape(-1)
+            uniq, vids = self._quantized(f, translate)
             name = _unique_id(model.name, taken)
             taken.add(name)
             feature = {"type": "CityJSONFeature", "id": name,
@@ -353,6 +348,14 @@ class _CityJsonWriter:
             if appearance:
                 feature["appearance"] = appearance
             fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
+
+    def _quantized(self, f: _Faces, translate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A building's integer vertices (coincident ones once) and each corner's index."""
+        if not len(f.points):
+            return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
+        ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
+        uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
+        return uniq, inverse.reshape(-1)
 
     def _building(self, model: Model, f: _Faces, vids: np.ndarray) -> dict:
         obj: dict = {"type": "Building", "attributes": scalar_attributes(model.attributes)}
@@ -471,7 +474,7 @@ class _CityJsonWriter:
         if self.material_list:
             out["materials"] = self.material_list
             out["default-theme-material"] = THEME
-        if self.texture_list and (self.uv_count if not with_uvs else self.uv_list):
+        if self.texture_list and self.uv_count:
             out["textures"] = self.texture_list
             if with_uvs:
                 out["vertices-texture"] = np.concatenate(self.uv_list).round(6).tolist()

@@ -463,10 +463,11 @@ class _GlbReader:
                                 f"{count} elements")
             return np.zeros((count, width), dtype).squeeze()
         view = self.gltf.bufferViews[acc.bufferView]
-        offset = (view.byteOffset or 0) + (acc.byteOffset or 0)
+        inside = acc.byteOffset or 0  # where the accessor starts in its view
+        offset = (view.byteOffset or 0) + inside
         stride = view.byteStride or dtype.itemsize * width
-        need = (acc.byteOffset or 0) + (stride * (count - 1) + dtype.itemsize * width if count else 0)
-        if need > (view.byteLength or 0) or offset + need - (acc.byteOffset or 0) > len(self.blob):
+        span = stride * (count - 1) + dtype.itemsize * width if count else 0
+        if inside + span > (view.byteLength or 0) or offset + span > len(self.blob):
             raise LoadError(f"{self.path}: accessor {index} runs past its buffer view")
         arr = np.ndarray((acc.count, width), dtype, buffer=self.blob, offset=offset,
                          strides=(stride, dtype.itemsize)).copy()

@@ -329,34 +329,13 @@ def _builder_mesh(b: _PartBuilder, verts: np.ndarray, tverts: np.ndarray) -> Mes
 
 def _read_mtl(path: Path) -> dict[str, Material]:
     """Materials of an MTL file (missing file: none, with a log message)."""
+    from ..geometry.assets import read_mtl
+
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        found = read_mtl(path)
     except OSError as exc:
         log.warning("material library %s not read: %s", path, exc)
         return {}
-    found: dict[str, dict] = {}
-    current: dict | None = None
-    for line in text.splitlines():
-        key, _, rest = line.strip().partition(" ")
-        rest = rest.strip()
-        if key == "newmtl":
-            current = found.setdefault(rest, {"name": rest})
-        elif current is not None:
-            _mtl_field(current, key, rest, path.parent)
-    return {name: Material(**fields) for name, fields in found.items()}
-
-
-def _mtl_field(fields: dict, key: str, rest: str, folder: Path) -> None:
-    if key == "Kd":
-        fields["color"] = tuple(float(x) for x in rest.split()[:3])
-    elif key == "d":
-        fields["opacity"] = float(rest.split()[0])
-    elif key == "Tr" and "opacity" not in fields:
-        fields["opacity"] = 1.0 - float(rest.split()[0])
-    elif key == "Pr":
-        fields["roughness"] = float(rest.split()[0])
-    elif key == "Pm":
-        fields["metallic"] = float(rest.split()[0])
-    elif key == "map_Kd" and rest:
-        candidate = folder / rest.split()[-1]
-        fields["texture"] = str(candidate) if candidate.is_file() else None
+    keys = ("name", "color", "opacity", "metallic", "roughness")
+    return {name: Material(**{k: m[k] for k in keys if k in m}, texture=m.get("colormap"))
+            for name, m in found.items()}

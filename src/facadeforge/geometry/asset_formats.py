@@ -7,8 +7,8 @@ coordinates (node transforms applied, y up as CityEngine and glTF have it), uv s
 material per face when the file has several.  Faces are triangles (assimp triangulates; glTF
 holds triangles).  Texture files must lie in the asset's folder or below it, as for OBJ; a
 glTF's external buffers and images too.  Embedded glTF images are written once, by content, to
-a cache folder under the system's temporary directory, so every process (and the exporters)
-can read them.
+the user's cache folder (``~/.cache/facadeforge/asset-textures``, private to the user), so every
+process (and the exporters) can read them.
 """
 
 from __future__ import annotations

@@ -230,7 +230,9 @@ def load_obj(path: Path) -> Asset:
     for lib in mtllibs:
         mp = (path.parent / lib).resolve()
         if mp.parent == path.parent.resolve() and mp.is_file():
-            mats.update(_read_mtl(mp))
+            mats.update({name: AssetMaterial(name, m.get("color", (1.0, 1.0, 1.0)),
+                                             m.get("colormap"), m.get("opacity", 1.0))
+                         for name, m in read_mtl(mp).items()})
     names = sorted({m for m in face_mtl if m is not None})
     material_list = [mats.get(n, AssetMaterial(n)) for n in names]
     face_material = None
@@ -242,25 +244,49 @@ def load_obj(path: Path) -> Asset:
     return Asset(mesh, material, material_list, face_material)
 
 
-def _read_mtl(path: Path) -> dict[str, AssetMaterial]:
-    mats: dict[str, AssetMaterial] = {}
-    cur = None
+#: MTL keys → CGA material attributes: colours, numbers, texture maps.
+_MTL_COLORS = {"Kd": "color", "Ka": "ambient", "Ks": "specular", "Ke": "emissive"}
+_MTL_NUMBERS = {"Ns": "shininess", "Pr": "roughness", "Pm": "metallic"}
+_MTL_MAPS = {"map_kd": "colormap", "map_bump": "bumpmap", "bump": "bumpmap",
+             "map_ks": "specularmap", "map_d": "opacitymap", "norm": "normalmap",
+             "map_ke": "emissivemap", "map_pr": "roughnessmap", "map_pm": "metallicmap"}
+
+
+def read_mtl(path: Path) -> dict[str, dict]:
+    """The materials of a Wavefront ``.mtl`` file, in file order, each as CGA material
+    attributes: ``name``, ``color``/``ambient``/``specular``/``emissive`` (r, g, b),
+    ``opacity``, ``shininess``, ``roughness``, ``metallic`` and texture maps (``colormap``…)
+    as paths of readable files in the file's folder or below (others are left out).
+    Malformed lines are skipped."""
+    path = Path(path)
+    folder = path.parent.resolve()
+    found: dict[str, dict] = {}
+    current: dict | None = None
     with open(path, encoding="utf-8", errors="replace") as fh:
         for line in fh:
             parts = line.split()
-            if not parts:
+            if not parts or parts[0].startswith("#"):
                 continue
-            if parts[0] == "newmtl":
-                cur = AssetMaterial(" ".join(parts[1:]))
-                mats[cur.name] = cur
-            elif cur is None:
+            key = parts[0]
+            if key == "newmtl":
+                name = " ".join(parts[1:])
+                current = found.setdefault(name, {"name": name})
                 continue
-            elif parts[0] == "Kd" and len(parts) >= 4:
-                cur.color = tuple(float(x) for x in parts[1:4])
-            elif parts[0] == "d" and len(parts) >= 2:
-                cur.opacity = float(parts[1])
-            elif parts[0] == "map_Kd" and len(parts) >= 2:
-                tex = (path.parent / parts[-1]).resolve()
-                if tex.parent == path.parent.resolve() or path.parent.resolve() in tex.parents:
-                    cur.texture = str(tex) if tex.is_file() else None
-    return mats
+            if current is None:
+                continue
+            try:
+                if key in _MTL_COLORS and len(parts) >= 4:
+                    current[_MTL_COLORS[key]] = tuple(float(x) for x in parts[1:4])
+                elif key == "d" and len(parts) >= 2:
+                    current["opacity"] = float(parts[1])
+                elif key == "Tr" and len(parts) >= 2 and "opacity" not in current:
+                    current["opacity"] = 1.0 - float(parts[1])
+                elif key in _MTL_NUMBERS and len(parts) >= 2:
+                    current[_MTL_NUMBERS[key]] = float(parts[1])
+                elif key.lower() in _MTL_MAPS and len(parts) >= 2:
+                    tex = (folder / parts[-1].replace("\\", "/")).resolve()
+                    if folder in tex.parents and tex.is_file():
+                        current[_MTL_MAPS[key.lower()]] = str(tex)
+            except ValueError:
+                continue
+    return found

@@ -56,18 +56,24 @@ class Roof:
     edge_index : (F,) int
         Footprint edge each face belongs to.
     kind : list of str
-        ``"roof"`` (sloped), ``"gable"`` (vertical gable end) or ``"side"`` (vertical closing face).
+        ``"roof"`` (sloped), ``"gable"`` (vertical gable end), ``"side"`` (vertical closing face)
+        or ``"side.inner"`` (a closing face along a hole).
+    pieces : list of int or None, optional
+        Per face, the number of the face with holes it is a piece of (a shed plane round a
+        courtyard is triangles of one face), ``None`` for a face of its own.
     """
 
     faces: list[np.ndarray] = field(default_factory=list)
     edge_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     kind: list[str] = field(default_factory=list)
+    pieces: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.faces = [np.asarray(f, float).reshape(-1, 3) for f in self.faces]
         self.edge_index = np.asarray(self.edge_index, np.int64).reshape(-1)
         if len(self.kind) != len(self.faces) or len(self.edge_index) != len(self.faces):
             raise ValueError("Roof: faces, edge_index and kind must have the same length")
+        self.pieces = list(self.pieces) or [None] * len(self.faces)
 
     def __len__(self) -> int:
         return len(self.faces)
@@ -557,6 +563,7 @@ def roof_shed(poly: np.ndarray, angle_deg: float, edge_index: int = 0, *,
     else:
         tops = [np.column_stack([ring, height(ring)])]
     faces, edges, kinds = tops, [int(src[hit[0]])] * len(tops), ["roof"] * len(tops)
+    pieces = [0 if fp.holes else None] * len(tops)  # with holes: the plane is one face
     for r, (rg, rsrc) in enumerate(zip(fp.rings, fp.src)):
         z, m = height(rg), len(rg)
         for j in range(m):
@@ -571,4 +578,4 @@ def roof_shed(poly: np.ndarray, angle_deg: float, edge_index: int = 0, *,
             faces.append(np.array(pts))
             edges.append(int(rsrc[j]))
             kinds.append("side" if r == 0 else "side.inner")
-    return Roof(faces, edges, kinds)
+    return Roof(faces, edges, kinds, pieces + [None] * (len(faces) - len(pieces)))

@@ -114,9 +114,7 @@ def _positions(index, length: int) -> tuple[np.ndarray, tuple]:
     """Integer positions an index selects (-1 where it is outside ``0…length-1``) and the shape
     of the result along that axis: ``()`` for one number."""
     if not isinstance(index, np.ndarray):
-        i = to_float(index, "array index")
-        k = int(i) if math.isfinite(i) and i >= 0 else -1
-        return np.array([k if k < length else -1]), ()
+        return np.array([_scalar_position(index, length)]), ()
     if index.dtype.kind == "b":
         picked = np.flatnonzero(index.reshape(-1))
         return np.where(picked < length, picked, -1), (len(picked),)

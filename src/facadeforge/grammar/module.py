@@ -243,8 +243,9 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
     Each import statement is its own instance of the imported file (CityEngine's "import"
     keyword): ``import a : "x.cga" (h = 5)`` and ``import b : "x.cga" (h = 7)`` give two
     modules whose attributes, import-statement overrides and redefined rules are their own.
-    A file is parsed once however often it is imported.  An imported file uses its Default
-    style, or the first style its import statement lists (``import id (Style) : "x.cga"``)."""
+    A file is parsed once however often it is imported.  An imported file uses the style chosen
+    for the main file when it has it (and its import statement lets it in), else the first
+    style the statement lists (``import id (Style) : "x.cga"``), else its Default style."""
     main = Module(parse_rules(text, path), style=style)
     parsed: dict[str, A.RuleFile] = {}
     pending = [(main, (os.path.realpath(path),))]

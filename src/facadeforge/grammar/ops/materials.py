@@ -63,11 +63,11 @@ def op_set_material(call):
 
 
 def _flat(m: dict) -> dict[str, str]:
-    """A material dict of the runtime (``color`` as a triple) as attribute name → text."""
+    """A material dict (``color``, ``ambient``… as triples) as attribute name → text."""
     out = {}
     for k, v in m.items():
-        if k == "color":
-            out.update({f"color.{c}": format_float(float(x)) for c, x in zip("rgb", v)})
+        if isinstance(v, tuple) and len(v) == 3:
+            out.update({f"{k}.{c}": format_float(float(x)) for c, x in zip("rgb", v)})
         elif isinstance(v, (int, float)) and not isinstance(v, bool):
             out[k] = format_float(float(v))
         else:
@@ -110,45 +110,11 @@ def _get_material(env, args):
     return np.array([[n, values[n]] for n in names], dtype=object).reshape(len(names), 2)
 
 
-_MTL = {"Kd": "color", "Ka": "ambient", "Ks": "specular", "Ke": "emissive"}
-_MTL_MAPS = {"map_kd": "colormap", "map_bump": "bumpmap", "bump": "bumpmap",
-             "map_ks": "specularmap", "map_d": "opacitymap", "norm": "normalmap",
-             "map_ke": "emissivemap", "map_pr": "roughnessmap", "map_pm": "metallicmap"}
+def _mtl_material(path: Path) -> dict[str, str]:
+    """The first material of a Wavefront ``.mtl`` as CGA material attributes and values."""
+    from ...geometry.assets import read_mtl
 
-
-def _read_mtl(path: Path) -> dict[str, str]:
-    """The first material of a Wavefront ``.mtl`` as CGA material attributes; texture paths
-    resolved beside the file (and kept inside its folder)."""
-    out: dict[str, str] = {}
-    seen = False
-    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
-            continue
-        key = parts[0]
-        if key == "newmtl":
-            if seen:
-                break
-            seen = True
-            out["name"] = " ".join(parts[1:])
-        elif key in _MTL and len(parts) >= 4:
-            out.update({f"{_MTL[key]}.{c}": format_float(float(x))
-                        for c, x in zip("rgb", parts[1:4])})
-        elif key == "d" and len(parts) >= 2:
-            out["opacity"] = format_float(float(parts[1]))
-        elif key == "Tr" and len(parts) >= 2:
-            out["opacity"] = format_float(1.0 - float(parts[1]))
-        elif key == "Ns" and len(parts) >= 2:
-            out["shininess"] = format_float(float(parts[1]))
-        elif key == "Pr" and len(parts) >= 2:
-            out["roughness"] = format_float(float(parts[1]))
-        elif key == "Pm" and len(parts) >= 2:
-            out["metallic"] = format_float(float(parts[1]))
-        elif key.lower() in _MTL_MAPS and len(parts) >= 2:
-            tex = (path.parent / parts[-1].replace("\\", "/")).resolve()
-            if path.parent.resolve() in tex.parents and tex.is_file():
-                out[_MTL_MAPS[key.lower()]] = str(tex)
-    return out
+    return _flat(next(iter(read_mtl(path).values()), {}))
 
 
 def _read_cgamat(path: Path) -> dict[str, str]:
@@ -185,7 +151,7 @@ def _read_material(env, args):
     if suffix not in (".mtl", ".cgamat"):
         raise CGARuntimeError(f"readMaterial reads .mtl and .cgamat files, not '{name}'")
     try:
-        values = _read_mtl(path) if suffix == ".mtl" else _read_cgamat(path)
+        values = _mtl_material(path) if suffix == ".mtl" else _read_cgamat(path)
     except (OSError, ValueError) as e:
         raise CGARuntimeError(f"readMaterial: cannot read '{name}': {e}") from None
     names = sorted(values)

@@ -68,10 +68,9 @@ def _roof(call, builder, holes_ok: bool = False):
             faces = getattr(built, "faces", built)
             roofs.extend(faces)
             kinds.extend(getattr(built, "kind", None) or [""] * len(faces))
-            tops = [k for k, kind in enumerate(getattr(built, "kind", []) or []) if kind == "roof"]
-            whole = holes and len(tops) > 1 and call.name == "roofShed"
-            piece_of.extend(("shed", f, len(roofs)) if whole and k in tops else None
-                            for k in range(len(faces)))
+            outline_no = len(roofs)  # tells this outline's faces with holes from the next's
+            piece_of.extend(None if k is None else (f, outline_no, k)
+                            for k in getattr(built, "pieces", None) or [None] * len(faces))
             edges = getattr(built, "edge_index", None)
             single = len(group) == 1 and edges is not None and len(edges) == len(faces)
             rose_from.extend(int(mesh.starts[f]) + int(e) if single and 0 <= e < len(xy) else -1
