@@ -71,3 +71,32 @@ def test_comp_face_edges_are_every_face_s_own():
     # a box: 6 quads have 24 face edges, 12 edges; 4 edges touch the top face, but as face
     # edges each is seen twice (from the top and from its wall), so 8 face edges
     assert out[:2] == ["24", "12"] and out.count("top edge") == 8
+
+
+def test_comp_connected_operator_gives_one_shape_per_connected_piece():
+    # CityEngine 2025.0's =: : the selected faces, one shape per connected piece of them
+    src = """Lot --> extrude(10) inline split(x){ 2 : A | 2 : NIL | 2 : A | ~1 : NIL } B
+             B --> comp(f){ side =: S | top = T | all : R }
+             S --> report("side", comp.index + "/" + comp.total) X."""
+    m = run(src, lot="10x10")
+    parts = by_symbol(m)
+    # two separate boxes: their 8 sides are two pieces of 4 faces, as two shapes
+    assert len(parts["X"]) == 2 and [p.mesh.n_faces for p in parts["X"]] == [4, 4]
+    assert sorted(m.reports["side"]) == ["0/2", "1/2"]
+    # = keeps everything selected in one shape, connected or not
+    assert len(parts["T"]) == 1 and parts["T"][0].mesh.n_faces == 2
+
+
+def test_comp_connected_operator_on_a_connected_mesh_is_one_shape():
+    m = run("Lot --> extrude(6) comp(f){ side =: S. }", poly=np.array(
+        [[0, 0, 0], [12, 0, 0], [12, 0, -4], [4, 0, -4], [4, 0, -10], [0, 0, -10]], float))
+    parts = by_symbol(m)
+    assert len(parts["S"]) == 1 and parts["S"][0].mesh.n_faces == 6
+
+
+def test_comp_function_with_the_connected_operator():
+    src = """Lot --> extrude(10) inline split(x){ 2 : A | 2 : NIL | 2 : A | ~1 : NIL } B
+             B --> report("pieces", str(comp(f){ side =: comp.index | all : -1 })) X."""
+    m = run(src, lot="10x10")
+    values = m.reports["pieces"][0].split("]")[0].split("[")[1].split(",")
+    assert sorted(values) == ["-1"] * 4 + ["0"] * 4 + ["1"] * 4

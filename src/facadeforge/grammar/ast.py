@@ -115,7 +115,8 @@ class Leaf(Node):
 @dataclass(frozen=True)
 class Branch(Node):
     selector: Node
-    mode: str  # ":" one shape per part, "=" all matching parts as one shape
+    mode: str  # ":" one shape per part, "=" all matching parts as one shape, "=:" one per
+    #            connected piece of them (CityEngine 2025.0)
     ops: tuple
     depth: Node | None = None  # ``length : depth : ops`` of splitAndSetbackPerimeter
 

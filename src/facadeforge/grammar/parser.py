@@ -101,6 +101,9 @@ class _ToAst(Transformer):
     def fn_all(self, meta, c):
         return A.Branch(c[0], "=", c[1], **_pos(meta))
 
+    def fn_connected(self, meta, c):
+        return A.Branch(c[0], "=:", c[1], **_pos(meta))
+
     def index(self, meta, c):
         return A.Index(c[0], tuple(c[1:]), **_pos(meta))
 
@@ -261,6 +264,9 @@ class _ToAst(Transformer):
 
     def branch_all(self, meta, c):
         return A.Branch(c[0], "=", c[1], **_pos(meta))
+
+    def branch_connected(self, meta, c):
+        return A.Branch(c[0], "=:", c[1], **_pos(meta))
 
     def perimeter_op(self, meta, c):
         # ``splitAndSetbackPerimeter(…){ length : depth : ops | … }[*] { remainder : ops }``:

@@ -619,8 +619,13 @@ def _comp_parts(call, st, kind: str):
         taken |= m
         idx = np.flatnonzero(m)
         sel_name = key if isinstance(key, str) else str(key)
-        groups = [np.concatenate([parts[i] for i in idx])] if branch.mode == "=" and len(idx) \
-            else [parts[i] for i in idx]
+        if branch.mode == "=" and len(idx):
+            groups = [np.concatenate([parts[i] for i in idx])]
+        elif branch.mode == "=:" and len(idx):
+            groups = [np.concatenate([parts[i] for i in g]) for g in
+                      connected_components(st.geometry, [parts[i] for i in idx], idx)]
+        else:
+            groups = [parts[i] for i in idx]
         for j, faces in enumerate(groups):
             ps = st.child(len(out))
             ps.geometry = st.geometry.subset(faces).without_columns(*OFFSET_COLUMNS)
@@ -630,6 +635,39 @@ def _comp_parts(call, st, kind: str):
             out.append((ps, branch.ops, {"sel": sel_name, "index": j,
                                          "components": faces.tolist()}))
     return out
+
+
+def connected_components(mesh: Mesh, members: list, ids) -> list[list]:
+    """``ids`` (one per component, whose faces are ``members``) grouped into the connected
+    pieces they form, each in component order, pieces in order of their first component: the
+    ``=:`` operator of ``comp`` (CityEngine 2025.0).  Components are connected when their
+    faces share an edge (coincident vertices welded)."""
+    weld = weld_ids(mesh.vertices)
+    parent = list(range(len(members)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    owner: dict = {}
+    for c, faces in enumerate(members):
+        for f in faces:
+            w = weld[mesh.face(f)]
+            for a, b in zip(w, np.roll(w, -1)):
+                if a == b:
+                    continue
+                k = (a, b) if a < b else (b, a)
+                other = owner.setdefault(k, c)
+                if other != c:
+                    ra, rb = root(other), root(c)
+                    if ra != rb:
+                        parent[max(ra, rb)] = min(ra, rb)
+    groups: dict = {}
+    for c, i in enumerate(ids):
+        groups.setdefault(root(c), []).append(int(i))
+    return list(groups.values())
 
 
 def _match(key, sel_table, n, extra=None, tags=None, states=None) -> np.ndarray:
@@ -707,15 +745,22 @@ def _comp_faces(call, st):
         if len(idx) == 0:
             continue
         sel_name = key if isinstance(key, str) else str(key)
-        if branch.mode == "=":
-            faces = [f for i in idx for f in members(i)]
-            ps = st.child(len(out))
-            ps.scope = comp_scope(idx[0])
-            ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
-            ps.fit_scope()
-            ps.trim = comp_trim(st, edges, np.array(faces), ps.scope)
-            ps.context = {**st.context, "comp.index": 0, "comp.total": 1, "comp.sel": sel_name}
-            out.append((ps, branch.ops, {"sel": sel_name, "components": idx.tolist()}))
+        if branch.mode in ("=", "=:"):
+            pieces = [idx.tolist()] if branch.mode == "=" else \
+                connected_components(mesh, [members(i) for i in idx], idx)
+            for j, group in enumerate(pieces):
+                faces = [f for i in group for f in members(i)]
+                ps = st.child(len(out))
+                ps.scope = comp_scope(group[0])
+                ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
+                ps.fit_scope()
+                ps.trim = comp_trim(st, edges, np.array(faces), ps.scope)
+                ps.context = {**st.context, "comp.index": j, "comp.total": len(pieces),
+                              "comp.sel": sel_name}
+                info = {"sel": sel_name, "components": group}
+                if branch.mode == "=:":
+                    info["index"] = j
+                out.append((ps, branch.ops, info))
             continue
         for j, i in enumerate(idx):
             faces = members(i)
@@ -808,6 +853,7 @@ def _comp_edges(call, st, per_face: bool = False):
         return ps
 
     for branch in call.branches:
+        _warn_unmerged(call, branch, "edge")
         k = _selector_key(call, branch)
         idx = np.flatnonzero(_match(k, table, n, None, tags, edge_state) & ~taken)
         taken[idx] = True
@@ -819,6 +865,14 @@ def _comp_edges(call, st, per_face: bool = False):
                           "comp.sel": str(k)}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(e)}))
     return out
+
+
+def _warn_unmerged(call, branch, kind: str) -> None:
+    """Edge and vertex shapes are scopes without geometry here, so ``=``/``=:`` cannot merge
+    them into one shape: each stays its own, with a warning (docs/cga-dialect.md)."""
+    if branch.mode != ":":
+        call.derivation.warn(f"comp: '{branch.mode}' does not merge {kind} components yet; each "
+                             f"{kind} is its own shape", branch, call.env.rule)
 
 
 def _roof_edges(mesh, normals, edges, edge_faces, unit) -> dict:
@@ -881,6 +935,7 @@ def _comp_vertices(call, st, per_face: bool = False):
     def tags(query, sub):
         return used_tags(query, sub)[rep]
     for branch in call.branches:
+        _warn_unmerged(call, branch, "vertex")
         k = _selector_key(call, branch)
         idx = np.flatnonzero(_match(k, table, n, None, tags) & ~taken)
         taken[idx] = True

@@ -1,0 +1,179 @@
+"""Robustness sweep: every ``.cga`` file under a folder, on odd footprints, with every choice.
+
+The compatibility survey (``cga_survey.py``) derives each file once, with its defaults, on one
+rectangle.  Production rules hide most of their code behind ``@Enum`` choices (a roof form, a
+building form, a representation) and behind the shape of the lot.  This sweep derives each file
+that loads on seven footprints (a rectangle, an L, a U, a courtyard block, a triangle, a thin
+strip, a large rotated concave block) with its defaults, then with each ``@Enum`` value and each
+``@Range`` end of its main-file attributes, one attribute at a time.
+
+What it counts are *runtime failures*: a derivation that raises, and warnings saying an
+operation "failed on this shape" (a Python error inside an operation, turned into a warning so
+that the derivation goes on).  CityEngine has no such failures, so each one is a bug of ours.
+CGA warnings a rule earns (missing assets, misuse) are tallied by cause but are not failures.
+
+Run: ``.venv/bin/python benchmarks/cga_sweep.py RULES_DIR [-o benchmarks/results/cga_sweep.json]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import subprocess
+import sys
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from facadeforge.evaluation.bench import provenance, save_result
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_VARIANTS = 40  # attribute settings per file (defaults first)
+
+
+def _ring(points) -> list:
+    pts = [list(map(float, p)) for p in points]
+    return pts + [pts[0]]
+
+
+def footprints() -> dict:
+    """Seven initial shapes as a GeoJSON FeatureCollection (x east, y north, metres)."""
+    c, s = math.cos(math.radians(27)), math.sin(math.radians(27))
+    concave = [(0, 0), (60, 0), (60, 45), (35, 45), (35, 20), (20, 20), (20, 45), (0, 45)]
+    rotated = [(100 + x * c - y * s, 100 + x * s + y * c) for x, y in concave]
+    shapes = {
+        "rectangle": [[(0, 0), (20, 0), (20, 15), (0, 15)]],
+        "l_shape": [[(0, 0), (30, 0), (30, 12), (12, 12), (12, 28), (0, 28)]],
+        "u_shape": [[(0, 0), (36, 0), (36, 24), (26, 24), (26, 10), (10, 10), (10, 24), (0, 24)]],
+        "courtyard": [[(0, 0), (40, 0), (40, 30), (0, 30)], [(12, 10), (12, 20), (28, 20), (28, 10)]],
+        "triangle": [[(0, 0), (25, 0), (8, 18)]],
+        "strip": [[(0, 0), (40, 0), (40, 3), (0, 3)]],
+        "rotated_block": [rotated],
+    }
+    return {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": name},
+         "geometry": {"type": "Polygon", "coordinates": [_ring(r) for r in rings]}}
+        for name, rings in shapes.items()]}
+
+
+_WORKER = r"""
+import json, sys
+from facadeforge import load_rules
+from facadeforge.engine import derive
+from facadeforge.geometry.footprints import load_footprints
+from facadeforge.grammar import ast as A
+path, fp_path, max_variants = sys.argv[1], sys.argv[2], int(sys.argv[3])
+out = {"file": path, "runs": 0, "failures": [], "warnings": []}
+try:
+    rules = load_rules(path)
+except Exception as e:
+    out["error"] = "load: " + f"{type(e).__name__}: {e}".splitlines()[0]
+    print(json.dumps(out)); sys.exit()
+def literal(n):
+    if isinstance(n, A.Num | A.Str | A.Bool):
+        return n.value
+    if isinstance(n, A.Unary) and n.op == "-" and isinstance(n.operand, A.Num):
+        return -n.operand.value
+    return None
+variants = [{}]
+for adef in rules.ruleset.main.attrs.values():
+    if adef.const:
+        continue
+    for ann in adef.annotations:
+        vals = [v for v in (literal(a) for a in ann.args) if v is not None]
+        if ann.name == "Enum":
+            variants += [{adef.name: v} for v in vals]
+        elif ann.name == "Range" and len(vals) >= 2 and all(isinstance(v, float) for v in vals[:2]):
+            variants += [{adef.name: vals[0]}, {adef.name: vals[1]}]
+variants = variants[:max_variants]
+out["variants"] = len(variants)
+fps = load_footprints(fp_path)
+seen = set()
+for attrs in variants:
+    try:
+        models = derive(rules, fps, attrs=attrs or None, workers=1, keep_tree=False)
+    except Exception as e:
+        out["failures"].append({"attrs": attrs, "error": f"{type(e).__name__}: {e}".splitlines()[0]})
+        continue
+    for fp, m in zip(fps, models):
+        out["runs"] += 1
+        for w in m.warnings:
+            if "failed on this shape" in w:
+                out["failures"].append({"attrs": attrs, "footprint": fp.name, "warning": w})
+            elif w not in seen:
+                seen.add(w)
+                out["warnings"].append(w)
+print(json.dumps(out))
+"""
+
+
+def sweep_one(path: Path, fp_path: Path, timeout: float, max_variants: int) -> dict:
+    try:
+        res = subprocess.run([sys.executable, "-c", _WORKER, str(path), str(fp_path),
+                              str(max_variants)], capture_output=True, text=True,
+                             timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return {"file": str(path), "error": f"timeout after {timeout:.0f} s"}
+    lines = [ln for ln in res.stdout.splitlines() if ln.startswith("{")]
+    if not lines:
+        tail = (res.stderr.strip().splitlines() or ["no output"])[-1]
+        return {"file": str(path), "error": f"crash: {tail}"}
+    return json.loads(lines[-1])
+
+
+def cause(message: str) -> str:
+    """A message without its location, quoted names and numbers: what the failure is."""
+    text = re.sub(r"^.*?:\d+:\d+: ", "", message)
+    text = re.sub(r"\(in rule [^)]*\)$", "", text)
+    text = re.sub(r"'[^']*'", "'…'", text)
+    return re.sub(r"\d+(\.\d+)?", "N", text).strip()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("rules_dir", type=Path)
+    ap.add_argument("-o", "--output", type=Path, default=ROOT / "benchmarks/results/cga_sweep.json")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--timeout", type=float, default=600.0, help="seconds per file")
+    ap.add_argument("--max-variants", type=int, default=MAX_VARIANTS)
+    args = ap.parse_args()
+    files = sorted(args.rules_dir.rglob("*.cga"))
+    tmp = Path("/tmp") / f"cga_sweep_{id(files)}.geojson"
+    tmp.write_text(json.dumps(footprints()))
+    with ThreadPoolExecutor(args.jobs) as pool:
+        results = list(pool.map(lambda p: sweep_one(p, tmp, args.timeout, args.max_variants),
+                                files))
+    tmp.unlink()
+    root = str(args.rules_dir.resolve()) + "/"
+    for r in results:
+        r["file"] = r["file"].replace(str(args.rules_dir) + "/", "").replace(root, "")
+        r["warnings"] = [w.replace(root, "") for w in r.get("warnings", [])]
+        for f in r.get("failures", []):
+            for k in ("warning", "error"):
+                if k in f:
+                    f[k] = f[k].replace(root, "")
+    failures = Counter(cause(f.get("warning") or f.get("error", "")) for r in results
+                       for f in r.get("failures", []))
+    warnings = Counter(cause(w) for r in results for w in r.get("warnings", []))
+    swept = [r for r in results if "runs" in r]
+    result = {
+        "benchmark": "cga_sweep",
+        "files": len(files),
+        "swept": len(swept),
+        "footprints": [f["properties"]["name"] for f in footprints()["features"]],
+        "derivations": sum(r["runs"] for r in swept),
+        "files_with_failures": sum(1 for r in swept if r["failures"]),
+        "failures": sum(len(r["failures"]) for r in swept),
+        "failure_causes": dict(failures.most_common()),
+        "warning_causes": dict(warnings.most_common(30)),
+        "per_file": results,
+        **provenance(),
+    }
+    save_result(result, args.output)
+
+
+
+if __name__ == "__main__":
+    main()
