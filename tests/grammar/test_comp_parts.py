@@ -100,3 +100,32 @@ def test_comp_function_with_the_connected_operator():
     m = run(src, lot="10x10")
     values = m.reports["pieces"][0].split("]")[0].split("[")[1].split(",")
     assert sorted(values) == ["-1"] * 4 + ["0"] * 4 + ["1"] * 4
+
+
+def test_edge_scope_has_the_face_normal_as_z_axis():
+    # comp's default zUp alignment: x along the edge, z the face's normal, y into the face
+    m = derive(load_rules("Lot --> comp(e) { all : E. }"), None, lot_size="10x8",
+               keep_tree=True)[0]
+    edges = [s for s in m.root.walk() if s.symbol == "E"]
+    assert len(edges) == 4
+    for e in edges:
+        x, y, z = e.scope.rotation.T
+        assert z == pytest.approx([0, 1, 0], abs=1e-9)
+        centre = np.mean([d.scope.origin for d in edges], axis=0)  # the lot's centre
+        middle = e.scope.origin + x * e.scope.size[0] / 2
+        assert np.linalg.norm(middle + y - centre) < np.linalg.norm(middle - centre)
+
+
+def test_esri_fence_pattern_on_edges_stands_on_the_ground():
+    # ESRI.lib Fence_On_Polygon_Simple: "rotate so that x is along edge, z is front to back",
+    # then a footprint quad extruded up; a tree turned by r(90, 0, yaw) stands upright
+    m = run("""Lot --> comp(e) { all : Edge Tree }
+               Edge --> rotateScope(90, 0, 180) s(scope.sx + 0.2, 0, 0.1) center(xz)
+                        primitiveQuad extrude(world.up, 1.5) Post.
+               Tree --> s(0, 5, 0) r(90, 0, 30) primitiveCube T.""")
+    parts = by_symbol(m)
+    for p in parts["Post"]:
+        assert p.mesh.vertices[:, 1].min() == pytest.approx(0, abs=1e-9)
+        assert p.mesh.vertices[:, 1].max() == pytest.approx(1.5)
+    for p in parts["T"]:  # upright: 5 m tall, on the ground
+        assert np.ptp(p.mesh.vertices[:, 1]) == pytest.approx(5)

@@ -25,11 +25,14 @@ def test_a_scaled_top_face_tapers_the_mass():
 
 def test_moving_a_ridge_edge_drags_the_roof_planes():
     before = only_part("Lot --> roofHip(40) R.", "12x8")
-    after = only_part("Lot --> roofHip(40) modify(e){ ridge : t(0, 0, 1.5) X. } R.", "12x8")
+    # the reference's "Modified Roof Ridge": t(0, 2, 0) moves the ridge "2 meters to the side"
+    # (an edge's scope: x along it, z the mean normal of its faces, so y is level on a ridge)
+    after = only_part("Lot --> roofHip(40) modify(e){ ridge : t(0, 2, 0) X. } R.", "12x8")
     assert after.n_faces == before.n_faces == 5 and after.is_closed()
     ridge = before.vertices[:, 1] > before.vertices[:, 1].max() - 1e-6
     moved = after.vertices[ridge] - before.vertices[ridge]
-    assert np.linalg.norm(moved, axis=1) == pytest.approx([1.5] * int(ridge.sum()))
+    assert np.linalg.norm(moved, axis=1) == pytest.approx([2] * int(ridge.sum()))
+    assert moved[:, 1] == pytest.approx([0] * int(ridge.sum()), abs=1e-9)  # sideways
     assert np.ptp(moved, axis=0) == pytest.approx([0, 0, 0], abs=1e-9)   # one rigid shift
     rest = ~ridge & (before.vertices[:, 1] < 1e-9)
     assert after.vertices[rest] == pytest.approx(before.vertices[rest])     # eaves stay

@@ -479,7 +479,7 @@ _TOKEN_WORDS = {
     "QNAME": "a dotted name", "NUMBER": "a number", "STRING": "a string", "PERCENT": "a percentage",
     "LPAR": "'('", "RPAR": "')'", "LBRACE": "'{'", "RBRACE": "'}'", "LSQB": "'['", "RSQB": "']'",
     "COLON": "':'", "COMMA": "','", "VBAR": "'|'", "EQUAL": "'='", "ELSE": "'else'",
-    "__ANON_0": "'-->'",
+    "__ANON_0": "'-->'", "_CONNECTED": "'=:'",
 }
 
 

@@ -12,7 +12,7 @@ sideways, the upper part follows suit").  Here a component whose operations only
 (``t``, ``r``, ``s``, ``center``, ``translate``, ``rotate``…: same faces, vertices moved) moves its
 vertices, and every face of the shape that shares one of them (coincident within 1e-6 m) follows:
 ``modify(f) { top : s('0.5, '1, '0.5) center(xz) X. }`` tapers a mass, ``modify(e) { ridge :
-t(0, 0, 2) X. }`` shifts a roof's ridge.  An edge or vertex moves with its scope (edge and vertex
+t(0, 2, 0) X. }`` shifts a roof's ridge sideways.  An edge or vertex moves with its scope (edge and vertex
 shapes carry no geometry here).  A face component whose operations build new faces (a split, an
 extrusion) is replaced by them and recomposed with the rest (``ops/inlining.recompose``).
 """

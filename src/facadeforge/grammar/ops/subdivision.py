@@ -838,14 +838,27 @@ def _comp_edges(call, st, per_face: bool = False):
             hit = welded(query, sub)
             return np.where(welded_of >= 0, hit[np.maximum(welded_of, 0)], False)
 
+    def edge_normal(e):
+        """The mean normal of the faces at edge ``e`` (its own face's for ``comp(fe)``)."""
+        own = edges[e][2]
+        if welded_of is not None or len(edge_faces[e]) < 2:
+            return own
+        mean = normals[edge_faces[e]].sum(axis=0)
+        return mean / np.linalg.norm(mean) if np.linalg.norm(mean) > 1e-6 else own
+
     def edge_scope(e):
-        """An edge shape's scope: x along the edge, y towards its face's normal."""
-        a, _, normal, _ = edges[e]
+        """An edge shape's scope (``zUp``, comp's default alignment): x along the edge, z the
+        mean normal of its faces, y = z × x (on a one-face edge: in the face, into it; on a
+        ridge: level, so ``t(0, 2, 0)`` moves it sideways as CityEngine's modify example
+        shows)."""
+        a = edges[e][0]
+        normal = edge_normal(e)
         up = normal if abs(unit[e] @ normal) < 0.99 else st.scope.rotation[:, 1]
-        y = up - unit[e] * (up @ unit[e])
-        if np.linalg.norm(y) < EPS:
-            y = np.array([0.0, 1.0, 0.0])
-        return Scope.from_axes(a, unit[e], y, (lengths[e], 0.0, 0.0))
+        z = up - unit[e] * (up @ unit[e])
+        if np.linalg.norm(z) < EPS:
+            z = np.array([0.0, 1.0, 0.0])
+        z = z / np.linalg.norm(z)
+        return Scope.from_axes(a, unit[e], cross3(z, unit[e]), (lengths[e], 0.0, 0.0))
 
     def edge_state(e):  # an edge's own shape, for logical selectors that read it
         ps = st.copy()
