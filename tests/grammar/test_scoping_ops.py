@@ -415,3 +415,35 @@ def test_comp_aligns_the_pivot_with_each_component_scope():
     m = run("Lot --> extrude(3) comp(f, noAlign) { right : " + show("scope.tx", "pivot.px")
             + " R. }")
     assert prints(m) == pytest.approx([10, 0], abs=1e-9)
+
+
+def _scope_of(src, symbol="S"):
+    m = derive(load_rules(src), None, lot_size="10x8", keep_tree=True)[0]
+    return next(s for s in m.root.walk() if s.symbol == symbol).scope
+
+
+def test_r_adds_angles_to_the_scope_rotation_in_the_pivot_frame():
+    # reference: r "adds the given angles to scope.r" (x, then y, then z about the pivot's axes),
+    # so the order of two calls does not matter as long as each turns one axis
+    one = _scope_of("Lot --> r(90, 45, 0) S.")
+    two = _scope_of("Lot --> r(90, 0, 0) r(0, 45, 0) S.")
+    swapped = _scope_of("Lot --> r(0, 45, 0) r(90, 0, 0) S.")
+    assert two.rotation == pytest.approx(one.rotation, abs=1e-9)
+    assert swapped.rotation == pytest.approx(one.rotation, abs=1e-9)
+    out = run("Lot --> r(0, 30, 0) r(0, 0, 20) print(scope.rx) print(scope.ry) print(scope.rz)")
+    assert prints(out) == pytest.approx([0, 30, 20])
+
+
+def test_rotate_abs_sets_and_rel_adds_angles_in_the_named_frame():
+    s = _scope_of("Lot --> r(0, 30, 0) rotate(abs, world, 0, 0, 0) S.")
+    assert s.rotation == pytest.approx(np.eye(3), abs=1e-9)
+    s = _scope_of("Lot --> rotate(rel, world, 0, 30, 0) rotate(rel, world, 0, 15, 0) S.")
+    assert s.rotation == pytest.approx(_scope_of("Lot --> r(0, 45, 0) S.").rotation, abs=1e-9)
+
+
+def test_rotate_scope_turns_about_the_pivot_axes_and_keeps_the_geometry():
+    m = run("Lot --> extrude(3) rotateScope(0, 90, 0) X.")
+    part = m.parts[0]
+    assert part.mesh.bounds() == pytest.approx(np.array([[0, 0, 0], [10, 3, 8]]), abs=1e-9)
+    s = _scope_of("Lot --> extrude(3) rotateScope(0, 90, 0) S.")
+    assert sorted(np.round(s.size, 9)) == [3, 8, 10]

@@ -48,9 +48,46 @@ def rotation_xyz(angles_deg) -> np.ndarray:
     return rz @ ry @ rx
 
 
+def turned(call, angles, frame: str = "pivot", mode: str = "rel") -> np.ndarray:
+    """The scope rotation after adding ``angles`` (degrees, CityEngine's x-then-y-then-z order)
+    to the scope's angles in ``frame`` (``rel``), or setting them (``abs``).  CityEngine keeps
+    ``scope.r`` as angles in the pivot's frame and ``r()`` "adds the given angles to
+    scope.r": ``r(90, 0, 0) r(0, 45, 0)`` is ``r(90, 45, 0)``, not a turn about the turned
+    axes.  The current angles are read back from the rotation (:func:`euler_xyz_deg`)."""
+    from .scoping import euler_xyz_deg, pivot_frame
+
+    st = call.state
+    if frame == "scope":
+        f = st.scope.rotation
+    elif frame == "world":
+        f = np.eye(3)
+    elif frame == "object":
+        f = call.derivation.object_scope.rotation
+    elif frame == "pivot":
+        f = pivot_frame(st, call.derivation)[1]
+    else:
+        raise CGARuntimeError(f"unknown coordinate system '{frame}'; use scope, pivot, object or "
+                              "world")
+    a = np.asarray(angles, float)
+    current = euler_xyz_deg(f.T @ st.scope.rotation) if frame != "scope" else np.zeros(3)
+    return f @ rotation_xyz(current + a if mode == "rel" else a)
+
+
+def _turn(st, new_rotation: np.ndarray, centre: np.ndarray) -> None:
+    """Scope and geometry turned about ``centre`` so that the scope gets ``new_rotation``."""
+    world_rot = new_rotation @ st.scope.rotation.T
+    st.own_scope().rotation = new_rotation
+    st.own_scope().origin = (st.scope.origin - centre) @ world_rot.T + centre
+    if st.geometry.n_faces:
+        st.geometry = st.geometry.with_vertices((st.geometry.vertices - centre) @ world_rot.T
+                                                + centre)
+
+
 @operation("r", 3, 4, selectors=(0,))
 def op_r(call):
-    """Rotate scope and geometry about the scope origin (or ``scopeCenter``), x then y then z."""
+    """``r([scopeOrigin|scopeCenter,] x, y, z)``: add the angles to the scope's rotation in the
+    pivot's frame (``rotate(rel, pivot, …)``), turning scope and geometry about the scope origin
+    or centre."""
     st = call.state
     pivot_mode = "scopeOrigin"
     args = call.args
@@ -59,20 +96,16 @@ def op_r(call):
         angles = [call.num(k) for k in (1, 2, 3)]
     else:
         angles = [call.num(k) for k in range(3)]
-    local_rot = rotation_xyz(angles)
-    world_rot = st.scope.rotation @ local_rot @ st.scope.rotation.T
-    pivot = st.scope.center if pivot_mode == "scopeCenter" else st.scope.origin.copy()
-    st.own_scope().rotation = st.scope.rotation @ local_rot
-    st.own_scope().origin = (st.scope.origin - pivot) @ world_rot.T + pivot
-    if st.geometry.n_faces:
-        st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
+    centre = st.scope.center if pivot_mode == "scopeCenter" else st.scope.origin.copy()
+    _turn(st, turned(call, angles), centre)
 
 
 @operation("rotateScope", 3)
 def op_rotate_scope(call):
-    """Rotate only the scope about its centre; the geometry stays, the scope is refitted."""
+    """Add the angles to the scope's rotation in the pivot's frame (as ``r``), the geometry
+    staying where it is and the scope refitted around it."""
     st = call.state
-    st.own_scope().rotation = st.scope.rotation @ rotation_xyz([call.num(k) for k in range(3)])
+    st.own_scope().rotation = turned(call, [call.num(k) for k in range(3)])
     if st.geometry.n_faces:
         st.fit_scope()
 
@@ -223,22 +256,16 @@ def op_translate(call):
 
 @operation("rotate", 5, selectors=(0, 1))
 def op_rotate(call):
-    """``rotate(rel|abs, scope|world|object, x, y, z)`` about the scope origin."""
+    """``rotate(rel|abs, scope|pivot|object|world, x, y, z)`` about the scope origin: the angles
+    are added to (``rel``) or replace (``abs``) the scope's angles in that frame."""
     st = call.state
-    frame = call.sel(1)
+    mode, frame = call.sel(0), call.sel(1)
+    if mode not in ("rel", "abs"):
+        raise CGARuntimeError(f"rotate: the mode is rel or abs, not '{mode}'")
+    if mode == "abs" and frame == "scope":
+        raise CGARuntimeError("rotate(abs, scope, …) is not meaningful; use rel")
     angles = [call.num(k) for k in (2, 3, 4)]
-    r = rotation_xyz(angles)
-    if frame == "world":
-        world_rot = r
-    elif frame == "object":
-        o = call.derivation.object_scope.rotation
-        world_rot = o @ r @ o.T
-    else:
-        world_rot = st.scope.rotation @ r @ st.scope.rotation.T
-    pivot = st.scope.origin.copy()
-    st.own_scope().rotation = world_rot @ st.scope.rotation
-    if st.geometry.n_faces:
-        st.geometry = st.geometry.with_vertices((st.geometry.vertices - pivot) @ world_rot.T + pivot)
+    _turn(st, turned(call, angles, frame, mode), st.scope.origin.copy())
 
 
 __all__ = ["Relative", "rotation_xyz"]
