@@ -129,3 +129,28 @@ def test_esri_fence_pattern_on_edges_stands_on_the_ground():
         assert p.mesh.vertices[:, 1].max() == pytest.approx(1.5)
     for p in parts["T"]:  # upright: 5 m tall, on the ground
         assert np.ptp(p.mesh.vertices[:, 1]) == pytest.approx(5)
+
+
+def test_edge_shapes_extrude_into_walls_facing_out():
+    # extrude reference: "Edges can also be extruded, e.g., when working on shapes created from
+    # comp(e|fe)"; default direction: the edge's normal (its face's), here up
+    m = run("Lot --> comp(e) { all : extrude(3) W. }", lot="10x6")
+    walls = by_symbol(m)["W"]
+    assert len(walls) == 4 and sum(w.mesh.area() for w in walls) == pytest.approx(96)
+    centre = np.array([5.0, 0.0, 3.0])
+    for w in walls:
+        v = w.mesh.vertices
+        assert v[:, 1].min() == pytest.approx(0) and v[:, 1].max() == pytest.approx(3)
+        n = w.mesh.face_normals()[0]
+        assert n @ (v.mean(axis=0) - centre) > 0  # away from the lot
+        assert w.mesh.triangle_count() == 2
+
+
+def test_edge_and_vertex_shapes_count_their_own_components_and_split_into_edges():
+    m = run("""Lot --> comp(e) { 0 : E } comp(v) { 0 : V }
+               E --> report("e", str(geometry.nFaces) + str(geometry.nEdges) + str(geometry.nVertices))
+                     split(x) { 4 : P }*
+               P --> report("p", geometry.nEdges) extrude(world.up, 1) report("pf", geometry.nFaces)
+               V --> report("v", str(geometry.nEdges) + str(geometry.nVertices))""", lot="10x6")
+    assert m.reports["e"] == ["012"] and m.reports["v"] == ["01"]
+    assert m.reports["p"] == [1, 1, 1] and m.reports["pf"] == [1, 1, 1]

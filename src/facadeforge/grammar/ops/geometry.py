@@ -22,7 +22,14 @@ from ...geometry.primitives import PRIMITIVES, unit_ring
 from ...model.scope import Scope
 from ..values import CGARuntimeError, to_bool, to_float, to_str
 from . import operation, shape_function
-from .subdivision import classify_faces, component_count, face_scope, hole_polygons
+from .subdivision import (
+    SHAPE_KIND,
+    classify_faces,
+    component_count,
+    edge_or_vertex,
+    face_scope,
+    hole_polygons,
+)
 from .tagging import VERTEX_TAGS, auto_tag, corner_tags, edges_with, faces_from_edges
 from .trimming import apply_trim, note_asset
 
@@ -154,7 +161,11 @@ def op_extrude(call):
         mode, dist = call.sel(0), call.num(1)
     else:
         mode, dist = "face.normal", call.num(0)
-    if abs(dist) < EPS or not st.geometry.n_faces:
+    if abs(dist) < EPS:
+        return
+    if not st.geometry.n_faces:
+        if edge_or_vertex(st) == "edge":
+            _extrude_edge(st, mode, dist)
         return
     if mode in ("world.y", "world.up", "world.up.flatTop"):
         def direction(n):
@@ -168,6 +179,30 @@ def op_extrude(call):
     st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
     st.geometry = auto_tag(st.geometry, "extrude", kinds)
     align_scope_y(st, direction(first_normal))
+    st.fit_scope()
+
+
+def _extrude_edge(st, mode: str, dist: float) -> None:
+    """An edge shape (from ``comp(e|fe)``) extruded: the quad it sweeps along world up
+    (``world.up…``) or along its normal (its scope's z axis, the mean normal of the faces it
+    bordered), facing away from the face it came from ("Edges can also be extruded, e.g., when
+    working on shapes created from comp(e|fe)", extrude reference)."""
+    if mode not in ("world.y", "world.up", "world.up.flatTop", "face.normal", "vertex.normal",
+                    "normal"):
+        raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or "
+                              "world.up")
+    sc = st.scope
+    length = sc.size[0]
+    if abs(length) < EPS:
+        return
+    a = sc.origin
+    b = a + sc.rotation[:, 0] * length
+    up = np.array([0.0, 1.0, 0.0]) if mode.startswith("world") else sc.rotation[:, 2]
+    d = up * dist
+    st.geometry = auto_tag(Mesh.from_polygons([np.array([a, b, b + d, a + d])]), "extrude",
+                           ["side.outer"])
+    st.context.pop(SHAPE_KIND, None)
+    align_scope_y(st, up if dist > 0 else -up)
     st.fit_scope()
 
 

@@ -443,9 +443,24 @@ def _selector_key(call, branch) -> object:
     return str(v)
 
 
+#: context key marking the shapes ``comp(e|fe)`` and ``comp(v|fv)`` make: their geometry is their
+#: scope (an edge along scope x, a vertex at the origin), not a mesh (docs/cga-dialect.md)
+SHAPE_KIND = "shape.kind"
+
+
+def edge_or_vertex(st) -> str | None:
+    """``"edge"`` or ``"vertex"`` for a shape ``comp(e|v)`` made (and its split pieces), while
+    it has no mesh of its own; else ``None``."""
+    return None if st.geometry.n_faces else st.context.get(SHAPE_KIND)
+
+
 def component_count(st, kind: str) -> int:
     """Number of components ``comp(kind)`` splits the shape into (the comp function's size)."""
     mesh = st.geometry
+    lower = edge_or_vertex(st)
+    if lower is not None:  # an edge: 0 faces, 1 edge, 2 vertices; a vertex: 1 vertex
+        return {"f": 0, "e": int(lower == "edge"), "fe": int(lower == "edge"),
+                "v": 1 + (lower == "edge"), "fv": 1 + (lower == "edge")}.get(kind, 0)
     if kind == "f":
         return len(face_groups(mesh)) if mesh.column("holed") is not None else mesh.n_faces
     if kind in ("v", "fv"):
@@ -875,15 +890,17 @@ def _comp_edges(call, st, per_face: bool = False):
             ps.scope = edge_scope(e)
             ps.geometry = Mesh()
             ps.context = {**st.context, "comp.index": j, "comp.total": len(idx),
-                          "comp.sel": str(k)}
+                          "comp.sel": str(k), SHAPE_KIND: "edge"}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(e)}))
     return out
 
 
 def _warn_unmerged(call, branch, kind: str) -> None:
     """Edge and vertex shapes are scopes without geometry here, so ``=``/``=:`` cannot merge
-    them into one shape: each stays its own, with a warning (docs/cga-dialect.md)."""
-    if branch.mode != ":":
+    them into one shape: each stays its own, with a warning (docs/cga-dialect.md).  The comp
+    function (``comp(fe){ street.back = 4 | … }``, a value per component) is not warned about:
+    the value reaches every selected component either way."""
+    if branch.mode != ":" and isinstance(branch.ops, tuple | list):
         call.derivation.warn(f"comp: '{branch.mode}' does not merge {kind} components yet; each "
                              f"{kind} is its own shape", branch, call.env.rule)
 
@@ -957,7 +974,7 @@ def _comp_vertices(call, st, per_face: bool = False):
             ps.scope = Scope(pts[v], st.scope.rotation.copy(), np.zeros(3))
             ps.geometry = Mesh()
             ps.context = {**st.context, "comp.index": j, "comp.total": len(idx),
-                          "comp.sel": str(k)}
+                          "comp.sel": str(k), SHAPE_KIND: "vertex"}
             out.append((ps, branch.ops, {"sel": str(k), "index": j, "component": int(v)}))
     return out
 
