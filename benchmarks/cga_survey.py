@@ -42,10 +42,12 @@ print(json.dumps(out))
 """
 
 
-def survey_one(path: Path, timeout: float) -> dict:
+def run_isolated(worker: str, path: Path, args: tuple, timeout: float) -> dict:
+    """Run ``worker`` (Python source printing one JSON line) on rule file ``path`` in its own
+    process with a time limit: the JSON, or ``{"file", "error"}`` on a timeout or crash."""
     try:
-        res = subprocess.run([sys.executable, "-c", _WORKER, str(path)], capture_output=True,
-                             text=True, timeout=timeout)
+        res = subprocess.run([sys.executable, "-c", worker, str(path), *map(str, args)],
+                             capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"file": str(path), "error": f"timeout after {timeout:.0f} s"}
     lines = [ln for ln in res.stdout.splitlines() if ln.startswith("{")]
@@ -95,7 +97,7 @@ def main() -> int:
         print(f"no .cga files under {args.rules}", file=sys.stderr)
         return 2
     with ThreadPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(lambda p: survey_one(p, args.timeout), files))
+        results = list(pool.map(lambda p: run_isolated(_WORKER, p, (), args.timeout), files))
     for r in results:
         r["file"] = str(Path(r["file"]).relative_to(args.rules))
     summary = summarise(results)

@@ -20,12 +20,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
-import subprocess
-import sys
+import tempfile
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+
+from cga_survey import run_isolated  # noqa: E402 - the sibling benchmark script
 
 from facadeforge.evaluation.bench import provenance, save_result
 
@@ -109,20 +111,6 @@ print(json.dumps(out))
 """
 
 
-def sweep_one(path: Path, fp_path: Path, timeout: float, max_variants: int) -> dict:
-    try:
-        res = subprocess.run([sys.executable, "-c", _WORKER, str(path), str(fp_path),
-                              str(max_variants)], capture_output=True, text=True,
-                             timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return {"file": str(path), "error": f"timeout after {timeout:.0f} s"}
-    lines = [ln for ln in res.stdout.splitlines() if ln.startswith("{")]
-    if not lines:
-        tail = (res.stderr.strip().splitlines() or ["no output"])[-1]
-        return {"file": str(path), "error": f"crash: {tail}"}
-    return json.loads(lines[-1])
-
-
 def cause(message: str) -> str:
     """A message without its location, quoted names and numbers: what the failure is."""
     text = re.sub(r"^.*?:\d+:\d+: ", "", message)
@@ -140,11 +128,13 @@ def main() -> None:
     ap.add_argument("--max-variants", type=int, default=MAX_VARIANTS)
     args = ap.parse_args()
     files = sorted(args.rules_dir.rglob("*.cga"))
-    tmp = Path("/tmp") / f"cga_sweep_{id(files)}.geojson"
-    tmp.write_text(json.dumps(footprints()))
+    fd, name = tempfile.mkstemp(suffix=".geojson")
+    tmp = Path(name)
+    with os.fdopen(fd, "w") as f:
+        json.dump(footprints(), f)
     with ThreadPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(lambda p: sweep_one(p, tmp, args.timeout, args.max_variants),
-                                files))
+        results = list(pool.map(
+            lambda p: run_isolated(_WORKER, p, (tmp, args.max_variants), args.timeout), files))
     tmp.unlink()
     root = str(args.rules_dir.resolve()) + "/"
     for r in results:

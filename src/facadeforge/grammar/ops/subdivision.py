@@ -657,31 +657,24 @@ def connected_components(mesh: Mesh, members: list, ids) -> list[list]:
     pieces they form, each in component order, pieces in order of their first component: the
     ``=:`` operator of ``comp`` (CityEngine 2025.0).  Components are connected when their
     faces share an edge (coincident vertices welded)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as graph_components
+
     weld = weld_ids(mesh.vertices)
-    parent = list(range(len(members)))
-
-    def root(i: int) -> int:
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
-
     owner: dict = {}
+    links = []
     for c, faces in enumerate(members):
         for f in faces:
             w = weld[mesh.face(f)]
             for a, b in zip(w, np.roll(w, -1)):
-                if a == b:
-                    continue
-                k = (a, b) if a < b else (b, a)
-                other = owner.setdefault(k, c)
-                if other != c:
-                    ra, rb = root(other), root(c)
-                    if ra != rb:
-                        parent[max(ra, rb)] = min(ra, rb)
+                if a != b:
+                    links.append((owner.setdefault((min(a, b), max(a, b)), c), c))
+    rows, cols = np.array(links, np.int64).reshape(-1, 2).T
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(members),) * 2)
+    labels = graph_components(graph, directed=False)[1]
     groups: dict = {}
-    for c, i in enumerate(ids):
-        groups.setdefault(root(c), []).append(int(i))
+    for label, i in zip(labels, ids):
+        groups.setdefault(label, []).append(int(i))
     return list(groups.values())
 
 
