@@ -21,13 +21,12 @@ import argparse
 import json
 import math
 import os
-import re
 import tempfile
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from cga_survey import run_isolated  # noqa: E402 - the sibling benchmark script
+from cga_survey import cause, run_isolated  # noqa: E402 - the sibling benchmark script
 
 from facadeforge.evaluation.bench import provenance, save_result
 
@@ -65,7 +64,7 @@ import json, sys
 from facadeforge import load_rules
 from facadeforge.engine import derive
 from facadeforge.geometry.footprints import load_footprints
-from facadeforge.grammar import ast as A
+from facadeforge.grammar.parameters import ParameterError, _literal
 path, fp_path, max_variants = sys.argv[1], sys.argv[2], int(sys.argv[3])
 out = {"file": path, "runs": 0, "failures": [], "warnings": []}
 try:
@@ -74,11 +73,10 @@ except Exception as e:
     out["error"] = "load: " + f"{type(e).__name__}: {e}".splitlines()[0]
     print(json.dumps(out)); sys.exit()
 def literal(n):
-    if isinstance(n, A.Num | A.Str | A.Bool):
-        return n.value
-    if isinstance(n, A.Unary) and n.op == "-" and isinstance(n.operand, A.Num):
-        return -n.operand.value
-    return None
+    try:
+        return _literal(n)
+    except ParameterError:
+        return None
 variants = [{}]
 for adef in rules.ruleset.main.attrs.values():
     if adef.const:
@@ -109,14 +107,6 @@ for attrs in variants:
                 out["warnings"].append(w)
 print(json.dumps(out))
 """
-
-
-def cause(message: str) -> str:
-    """A message without its location, quoted names and numbers: what the failure is."""
-    text = re.sub(r"^.*?:\d+:\d+: ", "", message)
-    text = re.sub(r"\(in rule [^)]*\)$", "", text)
-    text = re.sub(r"'[^']*'", "'…'", text)
-    return re.sub(r"\d+(\.\d+)?", "N", text).strip()
 
 
 def main() -> None:

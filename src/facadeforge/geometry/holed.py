@@ -46,11 +46,11 @@ def face_groups(mesh: Mesh, faces=None) -> list[list[int]]:
             groups.append(at[key])
     out = []
     for g in groups:
-        out.extend(_connected(mesh, g) if len(g) > 1 else [g])
+        out.extend(connected_faces(mesh, g) if len(g) > 1 else [g])
     return out
 
 
-def _connected(mesh: Mesh, faces: list[int]) -> list[list[int]]:
+def connected_faces(mesh: Mesh, faces: list[int]) -> list[list[int]]:
     """``faces`` in groups joined through shared edges (coincident vertices welded), each in
     face order, the groups in order of their first face."""
     corners = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in faces])

@@ -114,12 +114,7 @@ class Env:
                 raise CGARuntimeError(f"function '{name}' recurses deeper than {MAX_CALL_DEPTH} calls")
             env = Env(self.derivation, mod, {p.name: v for p, v in zip(fdef.params, args)},
                       self.state, self.rule, self.call_depth + 1)
-            d = self.derivation
-            caller_path, d.current_path = d.current_path, mod.path  # warnings name its file
-            try:
-                return env.evaluator(fdef.body)
-            finally:
-                d.current_path = caller_path
+            return env.evaluator(fdef.body)
         if not args:
             found_attr = self.module.attr(name)  # ``const c = …`` called as ``c()``
             if found_attr is not None:
@@ -287,12 +282,10 @@ class Derivation:
             if key in self._attr_busy:
                 raise CGARuntimeError(f"attribute '{adef.name}' depends on itself")
             self._attr_busy.add(key)
-            caller_path, self.current_path = self.current_path, module.path
             try:
                 value = Env(self, module, {}, self.initial.copy()).evaluator(adef.value)
             finally:
                 self._attr_busy.discard(key)
-                self.current_path = caller_path
         self._attr_cache[key] = value
         return value
 

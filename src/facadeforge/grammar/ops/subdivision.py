@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.holed import face_groups, outline, plane_polygon, rings, seams
+from ...geometry.holed import connected_faces, face_groups, outline, plane_polygon, rings, seams
 from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -636,9 +636,9 @@ def _comp_parts(call, st, kind: str):
         sel_name = key if isinstance(key, str) else str(key)
         if branch.mode == "=" and len(idx):
             groups = [np.concatenate([parts[i] for i in idx])]
-        elif branch.mode == "=:" and len(idx):
-            groups = [np.concatenate([parts[i] for i in g]) for g in
-                      connected_components(st.geometry, [parts[i] for i in idx], idx)]
+        elif branch.mode == "=:" and len(idx):  # the selected faces' connected pieces
+            groups = [np.array(g) for g in connected_faces(
+                st.geometry, np.concatenate([parts[i] for i in idx]).tolist())]
         else:
             groups = [parts[i] for i in idx]
         for j, faces in enumerate(groups):
@@ -650,32 +650,6 @@ def _comp_parts(call, st, kind: str):
             out.append((ps, branch.ops, {"sel": sel_name, "index": j,
                                          "components": faces.tolist()}))
     return out
-
-
-def connected_components(mesh: Mesh, members: list, ids) -> list[list]:
-    """``ids`` (one per component, whose faces are ``members``) grouped into the connected
-    pieces they form, each in component order, pieces in order of their first component: the
-    ``=:`` operator of ``comp`` (CityEngine 2025.0).  Components are connected when their
-    faces share an edge (coincident vertices welded)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components as graph_components
-
-    weld = weld_ids(mesh.vertices)
-    owner: dict = {}
-    links = []
-    for c, faces in enumerate(members):
-        for f in faces:
-            w = weld[mesh.face(f)]
-            for a, b in zip(w, np.roll(w, -1)):
-                if a != b:
-                    links.append((owner.setdefault((min(a, b), max(a, b)), c), c))
-    rows, cols = np.array(links, np.int64).reshape(-1, 2).T
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(len(members),) * 2)
-    labels = graph_components(graph, directed=False)[1]
-    groups: dict = {}
-    for label, i in zip(labels, ids):
-        groups.setdefault(label, []).append(int(i))
-    return list(groups.values())
 
 
 def _match(key, sel_table, n, extra=None, tags=None, states=None) -> np.ndarray:
@@ -754,10 +728,13 @@ def _comp_faces(call, st):
             continue
         sel_name = key if isinstance(key, str) else str(key)
         if branch.mode in ("=", "=:"):
-            pieces = [idx.tolist()] if branch.mode == "=" else \
-                connected_components(mesh, [members(i) for i in idx], idx)
-            for j, group in enumerate(pieces):
-                faces = [f for i in group for f in members(i)]
+            # "=": the selected faces as one shape; "=:" (CityEngine 2025.0): one shape per
+            # connected piece of them (faces sharing an edge, coincident vertices welded)
+            selected = [f for i in idx for f in members(i)]
+            pieces = [selected] if branch.mode == "=" else connected_faces(mesh, selected)
+            component_of = {f: int(i) for i in idx for f in members(i)}
+            for j, faces in enumerate(pieces):
+                group = list(dict.fromkeys(component_of[f] for f in faces))
                 ps = st.child(len(out))
                 ps.scope = comp_scope(group[0])
                 ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
