@@ -42,6 +42,24 @@ def test_inner_rectangle_of_a_right_triangle():
     assert a["S"] == pytest.approx(4, rel=1e-6) and a["R"] == pytest.approx(4, rel=1e-6)
 
 
+def test_inner_rectangle_of_a_trapezoid():
+    # symmetric trapezoid, base 10, top 4, height 6: a rectangle h high is 10 - h wide, so the
+    # largest is 5 x 5 (slanted sides: found on the grid, then pushed to the edges)
+    trap = np.array([[0, 0, 0], [10, 0, 0], [7, 0, -6], [3, 0, -6]], float)
+    a = areas(run(INNER.format(m="scope"), poly=trap))
+    assert a["S"] == pytest.approx(25, rel=2e-3) and a["S"] + a["R"] == pytest.approx(42)
+
+
+def test_inner_rectangle_of_a_rectilinear_u_is_exact():
+    # U of a 12 x 3 base and two 3 x 5 arms: the base (36) beats an arm with its base below (24)
+    u = np.array([[0, 0, 0], [12, 0, 0], [12, 0, -8], [9, 0, -8], [9, 0, -3], [3, 0, -3],
+                  [3, 0, -8], [0, 0, -8]], float)
+    m = run(INNER.format(m="scope"), poly=u)
+    assert areas(m)["S"] == 36.0
+    (s,) = [p for p in m.parts if p.symbol == "S"]
+    assert s.mesh.bounds()[0].tolist() == [0, 0, -3] and s.mesh.bounds()[1].tolist() == [12, 0, 0]
+
+
 def test_roof_ridge_by_angle():
     m = run("Lot --> roofRidge(byAngle, 30) R.", lot="12x8")
     (roof,) = m.parts

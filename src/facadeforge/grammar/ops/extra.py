@@ -19,7 +19,8 @@ from .tagging import without_tags
 
 # ---- innerRectangle -------------------------------------------------------------------------
 
-_GRID = 256  # raster cells along the longer side of a face
+_FINE = 64  # uniform grid lines along each axis for faces with slanted edges
+_REFINE = 24  # extra lines around each side of the rectangle found on that grid
 
 
 def _in_plane(axis: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
@@ -29,44 +30,86 @@ def _in_plane(axis: np.ndarray, normal: np.ndarray) -> np.ndarray | None:
     return a / n if n > 1e-6 else None
 
 
-def _max_histogram_rect(inside: np.ndarray, centre: np.ndarray):
-    """Largest all-True axis-aligned block of a boolean grid ``inside[row, col]``.
+def _grid_lines(values, lo, hi, tol, fine):
+    """Sorted grid lines through ``values`` (and ``fine`` + 1 uniform lines over [lo, hi]),
+    lines closer than ``tol`` merged."""
+    g = np.sort(np.concatenate([values, np.linspace(lo, hi, fine + 1)]) if fine else values)
+    keep = np.concatenate([[True], np.diff(g) > tol])
+    return g[keep]
 
-    Classic row-by-row histogram + monotone stack, O(rows × cols).  Ties (same cell count) go to
-    the block whose centre is closest to ``centre`` (in cell units, (col, row)).
-    Returns ``(col0, row0, col1, row1)`` half-open, or None when no cell is inside.
-    """
-    rows, cols = inside.shape
-    heights = np.zeros(cols, int)
-    best, best_d, best_rect = 0, math.inf, None
-    for r in range(rows):
-        heights = np.where(inside[r], heights + 1, 0)
-        stack: list[int] = []
-        for c in range(cols + 1):
-            h = heights[c] if c < cols else 0
-            while stack and heights[stack[-1]] >= h:
-                top = stack.pop()
-                height = heights[top]
-                left = stack[-1] + 1 if stack else 0
-                area = height * (c - left)
-                if area >= best and area > 0:
-                    rect = (left, r + 1 - height, c, r + 1)
-                    d = (0.5 * (rect[0] + rect[2]) - centre[0]) ** 2 + \
-                        (0.5 * (rect[1] + rect[3]) - centre[1]) ** 2
-                    if area > best or d < best_d:
-                        best, best_d, best_rect = area, d, rect
-            if c < cols:
-                stack.append(c)
+
+def _max_rect(inside, gx, gy, centre):
+    """Largest block of True cells of the grid with lines gx (columns) and gy (rows), by
+    area in metres; ties go to the block whose centre is nearest ``centre``.
+    Row-by-row maximal-rectangle recurrence (height, left, right), vectorised along the row."""
+    ny, nx = inside.shape
+    cols = np.arange(nx)
+    height = np.zeros(nx)
+    start = np.zeros(nx, np.int64)  # first row of the run ending at the current row
+    left = np.zeros(nx, np.int64)
+    right = np.full(nx, nx, np.int64)
+    best, best_d, best_rect = 0.0, math.inf, None
+    tol = 1e-9 * (gx[-1] - gx[0]) * (gy[-1] - gy[0])
+    for r in range(ny):
+        row = inside[r]
+        if not row.any():
+            height[:] = 0.0
+            left[:] = 0
+            right[:] = nx
+            continue
+        dy = gy[r + 1] - gy[r]
+        start = np.where(row & (height > 0), start, r)
+        height = np.where(row, height + dy, 0.0)
+        cur_left = np.maximum.accumulate(np.where(row, 0, cols + 1))
+        left = np.where(row, np.maximum(left, cur_left), 0)
+        cur_right = np.minimum.accumulate(np.where(row, nx, cols)[::-1])[::-1]
+        right = np.where(row, np.minimum(right, cur_right), nx)
+        area = np.where(row, height * (gx[right] - gx[left]), 0.0)
+        top = area.max()
+        if top < best - tol:
+            continue
+        for c in np.flatnonzero(area >= max(best, top) - tol):
+            rect = (left[c], start[c], right[c], r + 1)
+            d = (0.5 * (gx[rect[0]] + gx[rect[2]]) - centre[0]) ** 2 + \
+                (0.5 * (gy[rect[1]] + gy[rect[3]]) - centre[1]) ** 2
+            if area[c] > best + tol or d < best_d:
+                best, best_d, best_rect = max(best, area[c]), d, rect
     return best_rect
+
+
+def _covered_cells(poly, xy, gx, gy, tol):
+    """``[row, col]``: whether the cell of the grid (rows ``gy``, columns ``gx``) lies inside
+    the polygon: its centre is inside and no slanted edge crosses it (edges along grid lines
+    only bound cells)."""
+    import shapely
+
+    cx, cy = 0.5 * (gx[:-1] + gx[1:]), 0.5 * (gy[:-1] + gy[1:])
+    inside = shapely.contains_xy(poly, *np.meshgrid(cx, cy))
+    a, b = xy, np.roll(xy, -1, axis=0)
+    for (x0, y0), (x1, y1) in zip(a, b):
+        if abs(x1 - x0) <= tol or abs(y1 - y0) <= tol:
+            continue  # along a grid line: it bounds cells but crosses none
+        if x0 > x1:
+            x0, y0, x1, y1 = x1, y1, x0, y0
+        c0 = max(np.searchsorted(gx, x0, side="right") - 1, 0)
+        c1 = min(np.searchsorted(gx, x1, side="left"), len(gx) - 1)
+        xs = np.clip(gx[c0:c1 + 1], x0, x1)
+        ys = y0 + (xs - x0) * ((y1 - y0) / (x1 - x0))
+        ylo, yhi = np.minimum(ys[:-1], ys[1:]), np.maximum(ys[:-1], ys[1:])
+        crossed = (gy[1:][None, :] > ylo[:, None] + tol) & (gy[:-1][None, :] < yhi[:, None] - tol)
+        inside[:, c0:c1] &= ~crossed.T
+    return inside
 
 
 def _inner_rect_2d(xy: np.ndarray):
     """Largest rectangle aligned to the x/y axes inside the simple polygon ``xy`` (k, 2).
 
-    Rasterise on a grid of ``_GRID`` cells along the longer side (a cell counts when the polygon
-    covers it entirely), take the maximal all-inside block, then push each side of it outwards by
-    bisection as far as the rectangle stays covered by the polygon (containment is monotone in
-    each side), so the sides end on the polygon's edges and vertices.
+    The grid's lines are the polygon's vertex coordinates, so for a rectilinear polygon every
+    cell is wholly inside or outside and the largest block of inside cells is the exact answer.
+    With slanted edges, 64 uniform lines per axis are added (cells a slanted edge crosses do not
+    count), the search is repeated with 24 more lines around each side of the block found, and
+    each side is then pushed outwards by bisection as far as the rectangle stays covered
+    (containment is monotone in each side), so the sides end on the polygon's edges.
     Returns ``(x0, y0, x1, y1)`` or None.
     """
     import shapely
@@ -76,23 +119,32 @@ def _inner_rect_2d(xy: np.ndarray):
         return None
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     ext = hi - lo
-    h = max(ext) / _GRID
-    nx, ny = max(1, int(math.ceil(ext[0] / h - 1e-9))), max(1, int(math.ceil(ext[1] / h - 1e-9)))
     tol = 1e-9 * max(ext)
-    test = poly.buffer(tol)
-    shapely.prepare(test)
-    gx, gy = lo[0] + h * np.arange(nx + 1), lo[1] + h * np.arange(ny + 1)
-    gx[-1], gy[-1] = min(gx[-1], hi[0]), min(gy[-1], hi[1])
-    x0, y0 = np.meshgrid(gx[:-1], gy[:-1])
-    x1, y1 = np.meshgrid(gx[1:], gy[1:])
-    boxes = shapely.box(x0.ravel(), y0.ravel(), x1.ravel(), y1.ravel())
-    inside = shapely.covers(test, boxes).reshape(ny, nx)
+    e = np.roll(xy, -1, axis=0) - xy
+    slanted = bool(((np.abs(e[:, 0]) > tol) & (np.abs(e[:, 1]) > tol)).any())
+    fine = _FINE if slanted else 0
+    gx = _grid_lines(xy[:, 0], lo[0], hi[0], tol, fine)
+    gy = _grid_lines(xy[:, 1], lo[1], hi[1], tol, fine)
+    inside = _covered_cells(poly, xy, gx, gy, tol)
     c = np.asarray(poly.centroid.coords[0])
-    rect = _max_histogram_rect(inside, (c - lo) / h)
+    rect = _max_rect(inside, gx, gy, c)
     if rect is None:
         return None
     r = [gx[rect[0]], gy[rect[1]], gx[rect[2]], gy[rect[3]]]
+    if slanted:
+        h = 1.5 * ext / _FINE
+        gx, gy = (_grid_lines(np.concatenate(
+            [g, np.linspace(r[k] - h[k], r[k] + h[k], _REFINE),
+             np.linspace(r[k + 2] - h[k], r[k + 2] + h[k], _REFINE)]).clip(lo[k], hi[k]),
+            lo[k], hi[k], tol, 0) for k, g in ((0, gx), (1, gy)))
+        inside = _covered_cells(poly, xy, gx, gy, tol)
+        rect = _max_rect(inside, gx, gy, c)
+        r = [gx[rect[0]], gy[rect[1]], gx[rect[2]], gy[rect[3]]]
+    if not slanted:
+        return tuple(float(v) for v in r)
     limits = [lo[0], lo[1], hi[0], hi[1]]
+    test = poly.buffer(tol)
+    shapely.prepare(test)
 
     def fits(q):
         return q[2] - q[0] > 0 and q[3] - q[1] > 0 and test.covers(shapely.box(*q))
@@ -115,13 +167,12 @@ def _inner_rect_2d(xy: np.ndarray):
                 if abs(bad - good) <= tol:
                     break
             r[side] = good
-    # snap to polygon vertex coordinates within the tolerance (clean remainder, no slivers)
     for k in range(4):
         coords = xy[:, k % 2]
         j = np.argmin(np.abs(coords - r[k]))
         if abs(coords[j] - r[k]) <= 10 * tol:
             r[k] = float(coords[j])
-    return tuple(r)
+    return tuple(float(v) for v in r)
 
 
 @operation("innerRectangle", 1, 1, selectors=(0,), body=True)
@@ -134,8 +185,8 @@ def op_inner_rectangle(call):
     that gives the largest rectangle.  Ties go to the rectangle closest to the face centroid.
     ``shape`` receives the rectangles, ``remainder`` the rest of the faces (face minus
     rectangle); the scope orientation is kept and fitted to the new geometry.  The rectangle is
-    found on a raster of the face (256 cells along its longer side) and then pushed out to the
-    polygon edges, so it is exact for rectilinear faces and within the raster size otherwise.
+    found on a grid through the face's vertex coordinates (exact for rectilinear faces; finer
+    grids and a push to the edges otherwise, see :func:`_inner_rect_2d`).
     """
     import shapely
 
