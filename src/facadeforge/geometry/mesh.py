@@ -342,6 +342,24 @@ class Mesh:
                     corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel],
                     face_data=_take(self.face_data, idx), corner_data=_take(self.corner_data, sel))
 
+    def single_faces(self) -> list[Mesh]:
+        """Every face as a mesh of its own (``subset([i])`` for each ``i``, made in one go)."""
+        pos = self.vertices[self.corners]
+        bounds = self.starts.tolist()
+        ranges: dict = {}
+        out = []
+        for f in range(self.n_faces):
+            a, b = bounds[f], bounds[f + 1]
+            k = b - a
+            if k not in ranges:
+                ranges[k] = (np.arange(k, dtype=np.int64), np.array([0, k], np.int64))
+            corners, starts = ranges[k]
+            out.append(Mesh(pos[a:b], corners=corners, starts=starts,
+                            corner_uvs=None if self.corner_uvs is None else self.corner_uvs[a:b],
+                            face_data=_take(self.face_data, [f]),
+                            corner_data=_take(self.corner_data, slice(a, b))))
+        return out
+
     def with_vertices(self, vertices: np.ndarray) -> Mesh:
         """Same faces on moved vertices (topology, hence closedness, is kept)."""
         return Mesh(vertices, corners=self.corners, starts=self.starts, corner_uvs=self.corner_uvs,

@@ -347,6 +347,38 @@ def affine_uv_map(local: np.ndarray, uv: np.ndarray) -> np.ndarray | None:
     return coef
 
 
+class Payoff:
+    """Whether instancing a rule pays, judged from its first tries (per derivation).
+
+    A try costs about as much as deriving one shape (the cache key: the geometry in the scope
+    frame, rounded, and the UV map), and a hit saves the shapes of the recorded subtree.  A rule
+    whose shapes rarely repeat (every window opening a different size) or whose subtree is a
+    single leaf (a wall texture) loses time to instancing; after :data:`TRIES` tries, such a rule
+    is derived directly for the rest of the derivation.  The decision depends only on counts,
+    so a derivation stays deterministic."""
+
+    TRIES = 16
+    MIN_SAVED = 2.0  # shapes saved per try, on average, for instancing to pay
+
+    __slots__ = ("tries", "hits", "recorded", "records", "off")
+
+    def __init__(self):
+        self.tries = self.hits = self.recorded = self.records = 0
+        self.off = False
+
+    def note(self, hit: bool, shapes: int) -> None:
+        """One try: a hit, or a new recording of ``shapes`` shapes."""
+        self.tries += 1
+        if hit:
+            self.hits += 1
+        else:
+            self.records += 1
+            self.recorded += shapes + 1  # the subtree's shapes and its root
+        if self.tries >= self.TRIES and self.records:
+            saved = self.hits / self.tries * (self.recorded / self.records)
+            self.off = saved < self.MIN_SAVED
+
+
 @dataclass
 class Recording:
     """What a subtree produced, relative to its root's scope frame."""

@@ -22,7 +22,7 @@ from ..model.shape import Shape
 from . import ast as A
 from .expressions import Evaluator
 from .functions import FUNCTIONS
-from .instancing import Purity, Recording, instance_key
+from .instancing import Payoff, Purity, Recording, instance_key
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
@@ -251,6 +251,7 @@ class Derivation:
         # engine.derive finds them in a first pass over all initial shapes)
         self.neighbours = OccluderSet(neighbours or ())
         self._instances: dict = {}
+        self._payoff: dict = {}  # id(RuleInfo) -> instancing.Payoff
         self.sink: list | None = None  # collects leaf shapes while an ``inline`` derives
         self.inline_depth = 0
         self._purity = None
@@ -340,10 +341,15 @@ class Derivation:
         if self._purity is not None:
             info = self._purity.rule(module, name)  # as called: an override counts
             if info is not None and info.pure:
-                key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
-                if key is not None:
-                    self._instanced(key, uv_map, node, state, name, args, module, depth)
-                    return
+                payoff = self._payoff.get(id(info))
+                if payoff is None:
+                    payoff = self._payoff[id(info)] = Payoff()
+                if not payoff.off:
+                    key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
+                    if key is not None:
+                        self._instanced(key, uv_map, node, state, name, args, module, depth,
+                                        payoff)
+                        return
         self._run_rule(queue, node, state, name, args, mod, rdef, depth)
 
     def _run_rule(self, queue, node, state, name, args, mod, rdef, depth):
@@ -363,7 +369,7 @@ class Derivation:
                 parent.children.remove(node)
 
     # -- instancing (see instancing.py) -------------------------------------------------------
-    def _instanced(self, key, uv_map, node, state, name, args, module, depth) -> None:
+    def _instanced(self, key, uv_map, node, state, name, args, module, depth, payoff) -> None:
         rec = self._instances.get(key)
         scope0 = state.scope
         if rec is None:
@@ -391,8 +397,10 @@ class Derivation:
                             self.shape_count - count0, uv_map)
             self.parts, self.reports, self.prints, self._purity = saved
             self._instances[key] = rec
+            payoff.note(False, rec.shapes)
             self._replay(rec, scope0, uv_map, node, count=False)
             return
+        payoff.note(True, rec.shapes)
         self._replay(rec, scope0, uv_map, node, count=True)
 
     def _replay(self, rec, scope, uv_map, node, count: bool) -> None:

@@ -68,12 +68,13 @@ def _max_rect(inside, gx, gy, centre):
         top = area.max()
         if top < best - tol:
             continue
-        for c in np.flatnonzero(area >= max(best, top) - tol):
-            rect = (left[c], start[c], right[c], r + 1)
-            d = (0.5 * (gx[rect[0]] + gx[rect[2]]) - centre[0]) ** 2 + \
-                (0.5 * (gy[rect[1]] + gy[rect[3]]) - centre[1]) ** 2
-            if area[c] > best + tol or d < best_d:
-                best, best_d, best_rect = max(best, area[c]), d, rect
+        cand = np.flatnonzero(area >= max(best, top) - tol)
+        d = (0.5 * (gx[left[cand]] + gx[right[cand]]) - centre[0]) ** 2 + \
+            (0.5 * (gy[start[cand]] + gy[r + 1]) - centre[1]) ** 2
+        k = int(np.argmin(d))
+        if top > best + tol or d[k] < best_d:
+            c = cand[k]
+            best, best_d, best_rect = max(best, top), d[k], (left[c], start[c], right[c], r + 1)
     return best_rect
 
 

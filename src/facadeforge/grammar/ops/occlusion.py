@@ -21,7 +21,7 @@ TOUCH_TOL = 1e-3
 
 
 class Occluder:
-    __slots__ = ("id", "mesh", "bounds", "planes", "convex", "label")
+    __slots__ = ("id", "mesh", "bounds", "planes", "convex", "label", "_triangles")
 
     def __init__(self, oid: int, mesh: Mesh, label: str = ""):
         self.id = oid
@@ -33,6 +33,7 @@ class Occluder:
         self.planes = (n, d)
         # convex when every vertex lies behind every face plane
         self.convex = bool(np.all(mesh.vertices @ n.T - d <= 1e-6))
+        self._triangles = None  # ray-casting data, made on the first non-convex query
 
     def contains(self, pts: np.ndarray, strict: bool) -> np.ndarray:
         """(N,) whether points are inside (strictly, or within the touch tolerance)."""
@@ -44,7 +45,11 @@ class Occluder:
         if self.convex:
             n, d = self.planes
             return inbox & np.all(pts @ n.T - d <= tol, axis=1)
-        return inbox & _ray_inside(self.mesh, pts, strict)
+        if self._triangles is None:
+            self._triangles = _ray_triangles(self.mesh)
+        out = np.zeros(len(pts), bool)
+        out[inbox] = _ray_inside(self._triangles, pts[inbox], strict)
+        return out
 
 
 class OccluderSet:
@@ -92,25 +97,36 @@ class OccluderSet:
 _RAY = np.linalg.qr(np.array([[1.0, 0.0012345, 0.0023456], [0, 1, 0], [0, 0, 1]]).T)[0].T
 
 
-def _ray_inside(mesh: Mesh, pts: np.ndarray, strict: bool) -> np.ndarray:
-    """Even-odd ray casting (along :data:`_RAY`'s first axis) against the triangulated mesh."""
+def _ray_triangles(mesh: Mesh):
+    """The mesh's triangles in the ray frame (:data:`_RAY`), with what the crossing test needs:
+    corner ``a``, edges ``v0``, ``v1``, and the determinant across the ray (``ok`` where the
+    triangle is not edge-on to the ray)."""
     pos, _, _, _ = mesh.triangulate()
     tri = (pos @ _RAY.T).reshape(-1, 3, 3)
-    q = pts @ _RAY.T
-    out = np.zeros(len(pts), bool)
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    v0, v1 = b - a, c - a
+    a = tri[:, 0]
+    v0, v1 = tri[:, 1] - a, tri[:, 2] - a
     den = v0[:, 1] * v1[:, 2] - v0[:, 2] * v1[:, 1]
     ok = np.abs(den) > EPS
-    safe = np.where(ok, den, 1.0)
-    for k, p in enumerate(q):
-        # barycentric test in the plane across the ray, then the crossing beyond p
-        w = p - a
-        s = (w[:, 1] * v1[:, 2] - w[:, 2] * v1[:, 1]) / safe
-        t = (v0[:, 1] * w[:, 2] - v0[:, 2] * w[:, 1]) / safe
+    return a, v0, v1, np.where(ok, den, 1.0), ok
+
+
+def _ray_inside(triangles, pts: np.ndarray, strict: bool) -> np.ndarray:
+    """Even-odd ray casting along :data:`_RAY`'s first axis against :func:`_ray_triangles`:
+    per point, the triangles the ray crosses beyond it, all points against all triangles at once
+    (in blocks, to bound memory)."""
+    a, v0, v1, safe, ok = triangles
+    q = pts @ _RAY.T
+    out = np.zeros(len(pts), bool)
+    margin = TOUCH_TOL if strict else -TOUCH_TOL
+    step = max(1, 200_000 // max(len(a), 1))
+    for k in range(0, len(q), step):
+        # barycentric coordinates in the plane across the ray, then the crossing beyond p
+        w = q[k:k + step, None, :] - a[None]
+        s = (w[..., 1] * v1[:, 2] - w[..., 2] * v1[:, 1]) / safe
+        t = (v0[:, 1] * w[..., 2] - v0[:, 2] * w[..., 1]) / safe
         hit = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
         x = a[:, 0] + s * v0[:, 0] + t * v1[:, 0]
-        out[k] = np.count_nonzero(hit & (x > p[0] + (TOUCH_TOL if strict else -TOUCH_TOL))) % 2 == 1
+        out[k:k + step] = np.count_nonzero(hit & (x > q[k:k + step, :1] + margin), axis=1) % 2 == 1
     return out
 
 

@@ -341,6 +341,36 @@ def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
     return sc
 
 
+def face_scopes(mesh: Mesh, normals: np.ndarray) -> list[Scope]:
+    """:func:`face_scope` of every face of ``mesh`` (unit ``normals``), in one vectorised pass."""
+    starts = mesh.starts
+    sizes = np.diff(starts)
+    n_corners = int(starts[-1])
+    pos = mesh.vertices[mesh.corners]
+    face_of = np.repeat(np.arange(mesh.n_faces), sizes)
+    nxt = np.arange(1, n_corners + 1)
+    nxt[starts[1:] - 1] = starts[:-1]
+    nc = normals[face_of]
+    e = pos[nxt] - pos
+    e = e - nc * np.einsum("ij,ij->i", e, nc)[:, None]
+    length = np.sqrt(np.einsum("ij,ij->i", e, e))
+    first = np.minimum.reduceat(np.where(length > EPS, np.arange(n_corners), n_corners),
+                                starts[:-1])
+    good = (first < starts[1:]) & normals.any(axis=1)
+    rot = np.broadcast_to(np.eye(3), (mesh.n_faces, 3, 3)).copy()
+    if good.any():
+        x = e[first[good]] / length[first[good]][:, None]
+        z = normals[good]
+        rot[good] = np.stack([x, cross3(z, x), z], axis=2)
+    p0 = pos[starts[:-1]]
+    local = np.einsum("ci,cij->cj", pos - p0[face_of], rot[face_of])
+    lo = np.minimum.reduceat(local, starts[:-1], axis=0)
+    hi = np.maximum.reduceat(local, starts[:-1], axis=0)
+    origin = p0 + np.einsum("fij,fj->fi", rot, lo)
+    size = hi - lo
+    return [Scope.trusted(origin[f], rot[f], size[f]) for f in range(mesh.n_faces)]
+
+
 #: Selector keywords of comp, setback and their kin: a name among these is the selector even
 #: where a rule has an attribute of that name (``attr shape = "auto"`` beside ``{ shape : … }``)
 SELECTOR_WORDS = frozenset({
@@ -702,7 +732,16 @@ def _comp_faces(call, st):
     def members(i) -> list[int]:
         return groups[i] if groups is not None else [int(i)]
 
+    single: list = []  # per face: its scope and mesh, made for all faces at the first need
+
+    def singles(i):
+        if not single:
+            single.extend(zip(face_scopes(mesh, normals), mesh.single_faces()))
+        return single[i]
+
     def comp_scope(i):
+        if groups is None:
+            return singles(i)[0]
         faces = members(i)
         ring = mesh.vertices[mesh.face(faces[0])] if len(faces) == 1 else outline(mesh, faces)
         lead = next((f for f in faces if normals[f].any()), faces[0])
@@ -751,7 +790,8 @@ def _comp_faces(call, st):
             faces = members(i)
             ps = st.child(len(out))
             ps.scope = comp_scope(i)
-            ps.geometry = mesh.subset(faces).without_columns(*OFFSET_COLUMNS)
+            ps.geometry = (singles(i)[1] if groups is None else mesh.subset(faces)
+                           ).without_columns(*OFFSET_COLUMNS)
             if len(faces) > 1:
                 ps.fit_scope()
             ps.trim = comp_trim(st, edges, tuple(faces), ps.scope)
