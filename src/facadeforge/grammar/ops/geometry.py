@@ -428,6 +428,12 @@ def op_envelope(call):
 
 # ---- primitives and assets -------------------------------------------------------------------
 
+def _mirrored(rot: np.ndarray) -> bool:
+    """Whether a scope rotation is a mirror (negative determinant; ``mirrorScope``)."""
+    (a, b, c), (d, e, f), (g, h, i) = rot.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0
+
+
 def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     """Place a mesh given in its own frame into the scope, scaled to the scope size.
 
@@ -440,6 +446,12 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     lo, hi = bounds
     ext = hi - lo
     size = st.scope.size.copy()
+    if min(ext.tolist()) > EPS and min(size.tolist()) > EPS:  # the common case, in short
+        local = (mesh.vertices - lo) * (size / ext)
+        st.geometry = mesh.with_vertices(st.scope.to_world(local))
+        if _mirrored(st.scope.rotation):
+            st.geometry = st.geometry.reversed()
+        return
     factors = np.where((ext > EPS) & (size > EPS), size / np.where(ext > EPS, ext, 1.0), np.nan)
     known = factors[~np.isnan(factors)]
     fill = float(known.mean()) if len(known) else 1.0
@@ -452,7 +464,7 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
         sc.origin = sc.to_world((np.where(zero, lo * factors, 0.0))[None])[0]
     sc.size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
-    if np.linalg.det(st.scope.rotation) < 0:  # a mirrored scope (mirrorScope): faces stay outward
+    if _mirrored(st.scope.rotation):  # a mirrored scope (mirrorScope): faces stay outward
         st.geometry = st.geometry.reversed()
 
 
@@ -482,7 +494,14 @@ def op_insert(call):
     if up == "zUp":
         v = mesh.vertices
         mesh = mesh.with_vertices(np.column_stack([v[:, 0], v[:, 2], -v[:, 1]]))
-    bounds = mesh.bounds()
+        bounds = mesh.bounds()
+    else:
+        known = _BOUNDS.get(id(mesh))
+        if known is None or known[0] is not mesh:
+            if len(_BOUNDS) >= 1024:  # assets of many rule packages in one process: bounded
+                _BOUNDS.clear()
+            known = _BOUNDS[id(mesh)] = (mesh, mesh.bounds())
+        bounds = known[1]
     note_asset(name, bounds)
     if mode == "keepSizeAndPosition":
         st.own_scope().size = np.zeros(3)
@@ -503,16 +522,24 @@ def op_insert(call):
     st.context["inserted"] = (name, st.geometry)  # geometry.isInstanced (ops/queries.py)
 
 
+#: ``builtin:…`` meshes, made once (meshes are never changed in place)
+_BUILTIN: dict[str, Mesh] = {}
+#: id(asset mesh) -> (mesh, its bounds): inserted assets are a few meshes inserted many times
+_BOUNDS: dict[int, tuple] = {}
+
+
 def load_asset(call, name: str):
     """``(mesh, asset)`` of an asset argument: a ``builtin:…`` primitive (``asset`` None) or a
     file under the asset roots (``i``, ``insertAlongUV``)."""
     if name.startswith("builtin:"):
-        kind = name.split(":")[1]
-        make = PRIMITIVES.get(kind)
-        if make is None:
-            raise CGARuntimeError(f"unknown builtin asset '{name}'; use one of "
-                                  + ", ".join("builtin:" + k for k in sorted(PRIMITIVES)))
-        return make(), None
+        mesh = _BUILTIN.get(name)
+        if mesh is None:
+            make = PRIMITIVES.get(name.split(":")[1])
+            if make is None:
+                raise CGARuntimeError(f"unknown builtin asset '{name}'; use one of "
+                                      + ", ".join("builtin:" + k for k in sorted(PRIMITIVES)))
+            mesh = _BUILTIN[name] = make()
+        return mesh, None
     resolver = call.derivation.assets
     if resolver is None:
         raise CGARuntimeError(f"asset '{name}' cannot be inserted: no asset folder was given (--assets DIR)")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...geometry.mesh import EPS, cross3
@@ -40,12 +42,12 @@ def op_s(call):
 
 def rotation_xyz(angles_deg) -> np.ndarray:
     """Rotation matrix of successive rotations about x, then y, then z (degrees)."""
-    ax, ay, az = np.radians(angles_deg)
-    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
-    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return rz @ ry @ rx
+    ax, ay, az = (math.radians(float(a)) for a in angles_deg)
+    cx, sx, cy, sy, cz, sz = (math.cos(ax), math.sin(ax), math.cos(ay), math.sin(ay),
+                              math.cos(az), math.sin(az))
+    return np.array([[cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
+                     [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
+                     [-sy, cy * sx, cy * cx]])  # Rz @ Ry @ Rx
 
 
 def turned(call, angles, frame: str = "pivot", mode: str = "rel") -> np.ndarray:

@@ -268,8 +268,15 @@ def _trim_vertical(env, args):
 _PROPORTIONS: dict[str, np.ndarray] = {}
 
 
+_NOTED: dict[str, bytes] = {}  # per asset name, the bounds last noted (the usual repeat is free)
+
+
 def note_asset(name: str, bounds: np.ndarray) -> None:
     """Remember the proportions of an asset ``i()`` inserts (for :func:`trim_key`)."""
+    key = bounds.tobytes()
+    if _NOTED.get(name) == key:
+        return
+    _NOTED[name] = key
     ext = np.maximum(bounds[1] - bounds[0], 0.0)
     ratio = np.ones(3)
     for k in range(3):
