@@ -162,6 +162,8 @@ def cmd_derive(args) -> int:
 
     t0 = time.perf_counter()
     footprints = load_footprints(args.footprint) if args.footprint else None
+    if footprints and footprints[0].attributes.get("_projected"):
+        print(f"footprints projected: {footprints[0].attributes['_projected']}", file=sys.stderr)
     total = len(footprints) if footprints is not None else 1
     progress = sys.stderr.isatty() and total > 1  # a city takes a while: say how far it got
     derived = engine.derive_iter(args.rules, footprints, lot_size=args.lot,

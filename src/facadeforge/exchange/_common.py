@@ -140,9 +140,12 @@ def jsonable(obj: object) -> object:
 
 
 def scalar_attributes(attributes: dict) -> dict:
-    """The entries of ``attributes`` whose values are JSON scalars (str, number, bool, None)."""
+    """The entries of ``attributes`` whose values are JSON scalars (str, number, bool, None);
+    names starting with ``_`` are the runtime's own (a footprint's georeference), not data."""
     out = {}
     for key, value in attributes.items():
+        if str(key).startswith("_"):
+            continue
         value = jsonable(value)
         if value is None or isinstance(value, (str, int, float, bool)):
             out[str(key)] = value

@@ -28,6 +28,7 @@ Appearance
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -100,7 +101,7 @@ _TO_CJ = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
 def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
                     semantic_map: dict[str, str | None] | None = None,
                     reference_system: str | int | None = None, lod: str = "3",
-                    scale: float = 0.001, origin: Sequence[float] = (0.0, 0.0, 0.0),
+                    scale: float = 0.001, origin: Sequence[float] | None = None,
                     metadata: dict | None = None, textures: bool = True) -> list[Path]:
     """Write models as a CityJSON 2.0 file with LoD3 semantic surfaces.
 
@@ -117,13 +118,17 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
         standard types, Extension types (``"+Name"``) or ``None``.
     reference_system : str or int, optional
         CRS of the coordinates: an EPSG code (``7415``, ``"EPSG:7415"``) or an OGC URL; goes to
-        ``metadata.referenceSystem``.
+        ``metadata.referenceSystem``.  By default the first model's footprint CRS
+        (``_crs``: the file's ``crs``, or the UTM zone longitude/latitude footprints were
+        projected to), if known.
     lod : str
         Level of detail of the geometries (a CityGML/TU Delft LoD such as ``"3"`` or ``"2.2"``).
     scale : float
         Quantisation step of the integer vertices (``transform.scale``).
-    origin : (3,) float
-        Offset added to every vertex, in CityJSON axes (x east, y north, z up).
+    origin : (3,) float, optional
+        Offset added to every vertex, in CityJSON axes (x east, y north, z up).  By default
+        the first model's ``_origin_offset`` (by which its footprint file's far coordinates
+        were moved near zero), so the buildings go back to where the footprints were.
     metadata : dict, optional
         Extra ``metadata`` members (``title``, ``identifier``, ``pointOfContact``…).
     textures : bool
@@ -141,7 +146,7 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
 def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike, *,
                        semantic_map: dict[str, str | None] | None = None,
                        reference_system: str | int | None = None, lod: str = "3",
-                       scale: float = 0.001, origin: Sequence[float] = (0.0, 0.0, 0.0),
+                       scale: float = 0.001, origin: Sequence[float] | None = None,
                        metadata: dict | None = None, textures: bool = True) -> list[Path]:
     """Write models as CityJSON Text Sequences (``.city.jsonl``, CityJSONSeq 2.0): one line with
     the transform and metadata, then one ``CityJSONFeature`` a line, each building with its own
@@ -159,6 +164,14 @@ def _export(models, path, sequence: bool, semantic_map, reference_system, lod, s
         raise ExportError(f"lod {lod!r} is not a CityJSON level of detail ({sorted(LODS)})")
     if not scale > 0:
         raise ExportError(f"scale must be positive, got {scale}")
+    models = iter_models(models)
+    first = next(models)  # its footprint's georeference is the file's default
+    models = itertools.chain([first], models)
+    if origin is None:
+        offset = first.attributes.get("_origin_offset")
+        origin = _TO_CJ @ np.asarray(offset, float) if offset is not None else np.zeros(3)
+    if reference_system is None:
+        reference_system = first.attributes.get("_crs")
     writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
     out = Path(path)
     with Staging() as stage:
@@ -166,9 +179,9 @@ def _export(models, path, sequence: bool, semantic_map, reference_system, lod, s
         with open(final, "w", encoding="utf-8", newline="\n") as fh:
             meta = _metadata(reference_system, metadata)
             if sequence:
-                writer.write_sequence(fh, iter_models(models), meta)
+                writer.write_sequence(fh, models, meta)
             else:
-                writer.write(fh, iter_models(models), meta, spill_dir=final.parent)
+                writer.write(fh, models, meta, spill_dir=final.parent)
         for relative, data in writer.texture_files.items():
             stage.write_bytes(out.parent / relative, data)
     return [out, *(out.parent / r for r in writer.texture_files)]

@@ -284,6 +284,8 @@ def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> lis
     its neighbours joins.  The outline is kept up to date face by face (:func:`_grow`), so a
     region of F faces costs O(F), not O(F²)."""
     limit = max(max_angle, ANGLE_EPS)
+    if len(polys) < 2:
+        return polys
     normals = _faces(vertices, polys).face_normals()
     flat = ~normals.any(axis=1)  # no normal (degenerate): never merged
     edges = _edge_faces(polys)
@@ -338,16 +340,48 @@ def _straight(vertices, p: Poly, k: int, max_angle: float) -> bool:
     return bool(np.abs(p.uvs[k] - expect).max() <= UV_EPS)
 
 
+def _straight_corners(vertices, polys: list[Poly], max_angle: float) -> list[list[bool]]:
+    """:func:`_straight` of every corner of every face, in one vectorised pass (faces all with
+    texture coordinates or all without; otherwise corner by corner)."""
+    with_uvs = {p.uvs is not None for p in polys}
+    if len(with_uvs) > 1:
+        return [[_straight(vertices, p, k, max_angle) for k in range(len(p.verts))]
+                for p in polys]
+    sizes = np.array([len(p.verts) for p in polys], np.int64)
+    starts = np.concatenate([[0], np.cumsum(sizes)])
+    ids = np.fromiter((v for p in polys for v in p.verts), np.int64, int(starts[-1]))
+    local = np.arange(len(ids)) - np.repeat(starts[:-1], sizes)
+    n = np.repeat(sizes, sizes)
+    first = np.repeat(starts[:-1], sizes)
+    prev = first + (local - 1) % n
+    nxt = first + (local + 1) % n
+    a, b, c = vertices[ids[prev]], vertices[ids], vertices[ids[nxt]]
+    d1, d2 = b - a, c - b
+    l1 = np.sqrt(np.einsum("ij,ij->i", d1, d1))
+    l2 = np.sqrt(np.einsum("ij,ij->i", d2, d2))
+    ok = (l1 > EPS) & (l2 > EPS)
+    cos = np.einsum("ij,ij->i", d1, d2) / np.where(ok, l1 * l2, 1.0)
+    straight = ok & (np.arccos(np.clip(cos, -1.0, 1.0)) <= max_angle)
+    if with_uvs == {True}:
+        uv = np.concatenate([p.uvs for p in polys])
+        t = (l1 / np.where(ok, l1 + l2, 1.0))[:, None]
+        expect = uv[prev] * (1 - t) + uv[nxt] * t
+        straight &= np.abs(uv - expect).max(axis=1) <= UV_EPS
+    flags = straight.tolist()
+    bounds = starts.tolist()
+    return [flags[x:y] for x, y in zip(bounds, bounds[1:])]
+
+
 def drop_collinear(vertices, polys: list[Poly], max_angle: float) -> list[Poly]:
     """Remove corners on a straight edge.  A vertex goes only where it is straight in every face
     that uses it, so a neighbour never keeps it as a corner (no cracks); a face keeps at least
     three corners."""
     limit = max(max_angle, ANGLE_EPS)
+    if not polys:
+        return polys
+    straight = _straight_corners(vertices, polys, limit)
     bent = set()
-    straight = []
-    for p in polys:
-        flags = [_straight(vertices, p, k, limit) for k in range(len(p.verts))]
-        straight.append(flags)
+    for p, flags in zip(polys, straight):
         bent.update(v for v, s in zip(p.verts, flags) if not s)
     out = []
     for p, flags in zip(polys, straight):

@@ -2,6 +2,18 @@
 
 GeoJSON (x, y) maps to CGA (x, −z) with y up, as CityEngine does, so a counter-clockwise GeoJSON
 ring becomes a polygon whose normal points up.
+
+Coordinates are metres.  GeoJSON as RFC 7946 writes it, in longitude/latitude degrees (OSM
+exports, open building footprint datasets), is projected to the UTM zone of its centre, as
+CityEngine projects geographic data into a scene's projected coordinate system: a footprint
+file is in degrees when its ``crs`` member says so (``EPSG:4326``, ``CRS84``…), or when it has
+no ``crs`` member, every coordinate is a valid longitude/latitude and its footprints are
+typically smaller than 0.01 (a hundredth of a degree is about a kilometre; no building is a
+centimetre across).  A projected ``crs`` member is kept (and recorded; feet become metres).
+Far coordinates are moved near the origin (:func:`_center_far_coordinates`).  Each footprint
+records what puts it back on the map: ``_origin_offset`` (CGA axes) and ``_crs`` (EPSG code),
+which the CityJSON exporter turns into ``transform.translate`` and ``referenceSystem``.
+A third coordinate is the footprint's elevation (CGA y), the mean of its outline's.
 """
 
 from __future__ import annotations
@@ -107,7 +119,7 @@ def _geojson(p: Path) -> list[Footprint]:
         feats = [{"type": "Feature", "geometry": data, "properties": {}}]
     else:
         raise InputError(f"'{p}': expected a GeoJSON Polygon, Feature or FeatureCollection")
-    out = []
+    parts = []  # (name, properties, outline (k, 2 or 3), holes)
     for i, f in enumerate(feats[:MAX_FOOTPRINTS]):
         geom = (f or {}).get("geometry") or {}
         props = (f or {}).get("properties") or {}
@@ -121,33 +133,108 @@ def _geojson(p: Path) -> list[Footprint]:
             if not rings:
                 continue
             try:
-                ring = np.asarray(rings[0], float)[:, :2]
+                ring = _coordinates(rings[0])
+                holes = [_coordinates(h) for h in rings[1:]]
             except (ValueError, IndexError, TypeError):
                 raise InputError(f"'{p}': feature {i} has malformed coordinates") from None
-            ring = _clean_ring(ring)
-            if len(ring) < 3:
-                continue
-            poly = np.column_stack([ring[:, 0], np.zeros(len(ring)), -ring[:, 1]])
-            try:
-                poly = _upward(poly)
-            except InputError:
-                continue
-            holes = []
-            for h in rings[1:]:  # GeoJSON's inner rings: courtyards
-                try:
-                    hr = _clean_ring(np.asarray(h, float)[:, :2])
-                except (ValueError, IndexError, TypeError):
-                    raise InputError(f"'{p}': feature {i} has a malformed hole") from None
-                if len(hr) >= 3:
-                    holes.append(np.column_stack([hr[:, 0], np.zeros(len(hr)), -hr[:, 1]]))
-            holes = _usable_holes(ring, holes)
-            out.append(Footprint(name if len(polys) == 1 else f"{name}_{k}", poly,
-                                 {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))},
-                                 holes))
+            parts.append((name if len(polys) == 1 else f"{name}_{k}", props, ring, holes))
+    crs_name = ((data.get("crs") or {}).get("properties") or {}).get("name")
+    project, epsg, note = _georeference(p, crs_name, [ring for _, _, ring, _ in parts])
+    out = []
+    for name, props, ring, holes in parts:
+        ring, holes = project(ring), [project(h) for h in holes]
+        elevation = float(ring[:, 2].mean()) if ring.shape[1] > 2 else 0.0
+        ring = _clean_ring(ring[:, :2])
+        if len(ring) < 3:
+            continue
+        poly = np.column_stack([ring[:, 0], np.full(len(ring), elevation), -ring[:, 1]])
+        try:
+            poly = _upward(poly)
+        except InputError:
+            continue
+        kept = []
+        for h in holes:  # GeoJSON's inner rings: courtyards
+            hr = _clean_ring(h[:, :2])
+            if len(hr) >= 3:
+                kept.append(np.column_stack([hr[:, 0], np.full(len(hr), elevation), -hr[:, 1]]))
+        attrs = {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))}
+        if epsg is not None:
+            attrs["_crs"] = epsg
+        if note:
+            attrs["_projected"] = note
+        out.append(Footprint(name, poly, attrs, _usable_holes(ring, kept)))
     if not out:
         raise InputError(f"'{p}' holds no usable polygon")
     _center_far_coordinates(out)
     return out
+
+
+def _coordinates(ring) -> np.ndarray:
+    """A GeoJSON ring as (k, 2) or (k, 3) floats (positions beyond the third value dropped)."""
+    a = np.asarray(ring, float)
+    if a.ndim != 2 or a.shape[1] < 2:
+        raise ValueError("not a list of positions")
+    return a[:, :3]
+
+
+#: A footprint file is in degrees (without a ``crs`` member saying so) when its footprints are
+#: typically smaller than this many units across
+DEGREE_EXTENT = 0.01
+
+
+def _georeference(p: Path, crs_name, outlines: list) -> tuple:
+    """``(project, epsg, note)``: a function taking a ring's coordinates to metres (x east,
+    y north[, elevation]), the EPSG code of the result (None when unknown), and a note saying
+    what was projected (empty when nothing was)."""
+    def same(ring):
+        return ring
+
+    if not outlines:
+        return same, None, ""
+    if crs_name is not None:
+        from pyproj import CRS
+        from pyproj.exceptions import CRSError
+
+        try:
+            crs = CRS.from_user_input(str(crs_name))
+        except CRSError:
+            raise InputError(f"'{p}': unknown crs '{crs_name}'; give an EPSG code such as "
+                             "'EPSG:25832', or omit the crs member for longitude/latitude") from None
+        if crs.is_geographic:
+            return _to_utm(crs, outlines)
+        unit = crs.axis_info[0].unit_conversion_factor if crs.axis_info else 1.0
+        if abs(unit - 1.0) < 1e-12:
+            return same, crs.to_epsg(), ""
+
+        def scaled(ring):
+            return ring * unit
+        return scaled, crs.to_epsg(), f"{crs.axis_info[0].unit_name} to metres"
+    lon = np.concatenate([r[:, 0] for r in outlines])
+    lat = np.concatenate([r[:, 1] for r in outlines])
+    extent = np.median([float(np.ptp(r[:, :2], axis=0).max()) for r in outlines])
+    if np.abs(lon).max() <= 180 and np.abs(lat).max() <= 90 and extent < DEGREE_EXTENT:
+        from pyproj import CRS
+
+        return _to_utm(CRS.from_user_input("OGC:CRS84"), outlines)
+    return same, None, ""
+
+
+def _to_utm(source, outlines: list) -> tuple:
+    """Projection from the geographic ``source`` CRS to the WGS 84 UTM zone of the outlines'
+    centre (``always_xy``: longitude first, as GeoJSON writes it)."""
+    from pyproj import Transformer
+
+    allpts = np.concatenate([r[:, :2] for r in outlines])
+    lon, lat = (float(v) for v in (allpts.min(axis=0) + allpts.max(axis=0)) / 2)
+    zone = min(int((lon + 180.0) // 6.0) + 1, 60)
+    epsg = (32600 if lat >= 0 else 32700) + zone
+    transform = Transformer.from_crs(source, f"EPSG:{epsg}", always_xy=True).transform
+
+    def project(ring):
+        x, y = transform(ring[:, 0], ring[:, 1])
+        return np.column_stack([x, y, ring[:, 2:]])
+    hemisphere = "N" if lat >= 0 else "S"
+    return project, epsg, f"longitude/latitude to UTM zone {zone}{hemisphere} (EPSG:{epsg})"
 
 
 def _center_far_coordinates(fps: list[Footprint]) -> None:
@@ -157,7 +244,7 @@ def _center_far_coordinates(fps: list[Footprint]) -> None:
     first = fps[0].polygon[0]
     if np.max(np.abs(first)) < 1e5:
         return
-    shift = np.round(first, 0)
+    shift = np.round(first, 0) * [1.0, 0.0, 1.0]  # across the ground only: elevations stay
     for f in fps:
         f.polygon = f.polygon - shift
         f.holes = [h - shift for h in f.holes]

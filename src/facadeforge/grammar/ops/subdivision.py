@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -298,28 +299,71 @@ def _angle_class(local_y: np.ndarray) -> np.ndarray:
     return out
 
 
-def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.ndarray) -> dict:
-    """Selector keywords matching each face: {keyword: (F,) bool}."""
-    loc = normals @ scope_rot
-    d = _direction_index(loc)
-    sel = {name: d == i for i, name in enumerate(_DIRS)}
-    ang = _angle_class(loc[:, 1])
-    for k in ("vertical", "horizontal", "aslant", "nutant"):
-        sel[k] = ang == k
-    sel["side"] = ~sel["horizontal"]  # CityEngine: every face that is not horizontal
-    obj = _direction_index(normals @ object_rot)
-    for i, name in enumerate(_DIRS):
-        sel["object." + name] = obj == i
-    sel["object.side"] = (obj < 2) | (obj >= 4)
-    wd = _direction_index(normals)
-    for name, i in _WORLD.items():
-        sel[name] = wd == i
-    sel["world.side"] = (wd < 2) | (wd >= 4)
-    # street.* need street widths on the initial shape; without them CityEngine falls back to
-    # the object frame (reference, "comp operation")
-    _add_street_fallback(sel)
-    sel["all"] = np.ones(len(normals), bool)
-    return sel
+class FaceSelectors(Mapping):
+    """Selector keywords matching each face: ``{keyword: (F,) bool}``, each family of keywords
+    (the scope's directions and slopes, ``object.*`` and ``street.*``, ``world.*``) worked out
+    when one of its words is first asked for; a ``comp`` usually asks for a few."""
+
+    _SCOPE = (*_DIRS, "vertical", "horizontal", "aslant", "nutant", "side")
+    _OBJECT = (*("object." + d for d in _DIRS), "object.side", *("street." + d for d in _DIRS),
+               "street.side", "streetSide", "noStreetSide")
+    _WORLDS = (*_WORLD, "world.side")
+    _KEYS = (*_SCOPE, *_OBJECT, *_WORLDS, "all")
+    _FAMILY = {**{k: "scope" for k in _SCOPE}, **{k: "object" for k in _OBJECT},
+               **{k: "world" for k in _WORLDS}, "all": "all"}
+
+    def __init__(self, normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.ndarray):
+        self.normals, self.scope_rot, self.object_rot = normals, scope_rot, object_rot
+        self._sel: dict = {}
+
+    def __getitem__(self, key):
+        sel = self._sel
+        if key not in sel:
+            family = self._FAMILY[key]  # KeyError for an unknown word, as a dict
+            getattr(self, "_" + family)(sel)
+        return sel[key]
+
+    def __contains__(self, key) -> bool:
+        return key in self._FAMILY
+
+    def __iter__(self):
+        return iter(self._KEYS)
+
+    def __len__(self) -> int:
+        return len(self._KEYS)
+
+    def _scope(self, sel: dict) -> None:
+        loc = self.normals @ self.scope_rot
+        d = _direction_index(loc)
+        for i, name in enumerate(_DIRS):
+            sel[name] = d == i
+        ang = _angle_class(loc[:, 1])
+        for k in ("vertical", "horizontal", "aslant", "nutant"):
+            sel[k] = ang == k
+        sel["side"] = ~sel["horizontal"]  # CityEngine: every face that is not horizontal
+
+    def _object(self, sel: dict) -> None:
+        obj = _direction_index(self.normals @ self.object_rot)
+        for i, name in enumerate(_DIRS):
+            sel["object." + name] = obj == i
+        sel["object.side"] = (obj < 2) | (obj >= 4)
+        # street.* need street widths on the initial shape; without them CityEngine falls back
+        # to the object frame (reference, "comp operation")
+        _add_street_fallback(sel)
+
+    def _world(self, sel: dict) -> None:
+        wd = _direction_index(self.normals)
+        for name, i in _WORLD.items():
+            sel[name] = wd == i
+        sel["world.side"] = (wd < 2) | (wd >= 4)
+
+    def _all(self, sel: dict) -> None:
+        sel["all"] = np.ones(len(self.normals), bool)
+
+
+def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.ndarray):
+    """Selector keywords matching each face (:class:`FaceSelectors`)."""
+    return FaceSelectors(normals, scope_rot, object_rot)
 
 
 def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
