@@ -85,6 +85,19 @@ def test_split_group_without_repeat_is_inlined_once():
                   for p in m.parts) == [("A", 1.0), ("B", 7.0), ("C", 2.0)]
 
 
+def test_setback_pieces_keep_the_lot_scope():
+    """Esri's International City splits setback pieces along z, reads their scope.sz and turns
+    the remainder about y: the pieces keep the lot's scope (y up), fitted to them."""
+    m = _parts("Lot --> setback(30){ front : Row | remainder : rotateScope(0, 180, 0) Row }\n"
+               "Row --> print(scope.sz) split(z){ '0.5 : A | ~1 : B }", lot="90x70")
+    assert not m.warnings and m.attributes["prints"] == ["30", "40"]
+    depths = sorted(round(float(np.ptp(p.mesh.vertices[:, 2])), 3) for p in m.parts)
+    assert depths == [15.0, 15.0, 20.0, 20.0]
+    # the turned remainder splits from its far side: its A half lies next to the front band
+    (a,) = [p for p in m.parts if p.symbol == "A" and p.mesh.vertices[:, 2].max() < 45]
+    assert a.mesh.vertices[:, 2].min() == pytest.approx(20.0)
+
+
 def test_setback_with_one_width_per_edge():
     """``setback(comp(fe){…})``: the front band 4 m deep, the others 1 m (on a 20 × 10 lot)."""
     m = _parts("Lot --> setback(comp(fe){ front : 4 | all : 1 }){ all : A | remainder : B }",

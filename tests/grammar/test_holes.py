@@ -207,8 +207,8 @@ def test_per_edge_setbacks_and_tag_selectors_on_a_face_with_holes(block):
                         'R --> setback(1){ isTagged("setback.back") : A. | remainder : B. }', block))
     assert a["A"] == pytest.approx(30 * 1 + 10 * 1)
     m = derive_on("Lot --> setback(2){ front : S. | remainder : R }\n"
-                  "R --> print(scope.sx) print(scope.sy) X.", block)
-    assert m.attributes["prints"] == ["30", "18"]
+                  "R --> print(scope.sx) print(scope.sy) print(scope.sz) X.", block)
+    assert m.attributes["prints"] == ["30", "0", "18"]  # the lot's scope, y up, fitted
 
 
 def test_comp_holes_gives_the_courtyards(block):

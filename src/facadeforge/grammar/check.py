@@ -52,7 +52,7 @@ class _Checker:
     def known_name(self, name, scope) -> bool:
         return (name in scope or name in BUILTIN_NAMES or name.startswith("material.")
                 or self.m.attr(name) is not None or self.m.function(name, 0) is not None
-                or name in self.shape_fns)
+                or name in self.shape_fns or FUNCTIONS.get(name, (None, 1))[1] == 0)
 
     def expr(self, node, scope, selector_ok=False):
         t = type(node)

@@ -205,7 +205,7 @@ class Purity:
             n = stack.pop()
             t = type(n)
             if t is A.Name:
-                if n.name in IMPURE_NAMES:
+                if n.name in IMPURE_NAMES or n.name in IMPURE_CALLS:  # rand without ()
                     info.pure = False
                 elif n.name in CONTEXT_NAMES:
                     info.reads.add(n.name)

@@ -79,6 +79,9 @@ class Env:
             return self.derivation.attr_value(found[0], found[1], self.state)
         if self.module.function(name, 0) is not None:  # CGA calls 0-ary functions without ()
             return self.call(name, [], node)
+        builtin = FUNCTIONS.get(name)
+        if builtin is not None and builtin[1] == 0:  # so are built-ins: ~(rand) in Esri's rules
+            return self.call(name, [], node)
         if name in _SHAPE_FUNCTIONS:  # geometry.uMin and friends read like attributes
             return _SHAPE_FUNCTIONS[name](self, [])
         if name.startswith("material."):

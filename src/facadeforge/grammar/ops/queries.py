@@ -218,6 +218,9 @@ def _asset_metadata(env, args):
 
 
 _AXES = ("x", "y", "z", "xy", "xz", "yz", "xyz")
+#: axes of a ratio: the first axis is the width's, the second the height's, so "yx" is the
+#: transposed "xy" (Esri's International City rule picks ground textures with "yx")
+_RATIO_AXES = ("xy", "xz", "yz", "yx", "zx", "zy")
 
 
 def _axes(args, k: int, what: str, allowed=_AXES) -> str:
@@ -257,14 +260,14 @@ def _asset_best_ratio(env, args):
     """``assetBestRatio(searchQuery, axesRatio)``: the asset whose size ratio on ``axesRatio``
     ("xy", "xz", "yz", "xyz") is closest to the scope's (celib/assetBestRatio.html).  The ratio
     compares the first two axes, as ``assetsSortRatio`` does."""
-    return _pick(env, _by_ratio(env, args[0], _axes(args, 1, "assetBestRatio", _AXES[3:]), False), 1)
+    return _pick(env, _by_ratio(env, args[0], _axes(args, 1, "assetBestRatio", (*_RATIO_AXES, "xyz")), False), 1)
 
 
 @shape_function("assetApproxRatio")
 def _asset_approx_ratio(env, args):
     """``assetApproxRatio(searchQuery, axesRatio, n)``: one of the ``n`` best ratio fits, picked
     at random (celib/assetApproxRatio.html); n = 1 is ``assetBestRatio``."""
-    axes = _axes(args, 1, "assetApproxRatio", _AXES[3:])
+    axes = _axes(args, 1, "assetApproxRatio", (*_RATIO_AXES, "xyz"))
     return _pick(env, _by_ratio(env, args[0], axes, False), args[2] if len(args) > 2 else 1.0)
 
 
@@ -300,15 +303,16 @@ def _asset_fit_size(env, args):
 @shape_function("imageBestRatio")
 def _image_best_ratio(env, args):
     """``imageBestRatio(searchQuery, axesRatio)``: the image whose width / height is closest to
-    the scope's ratio on ``axesRatio`` ("xy", "xz", "yz"; celib/imageBestRatio.html)."""
-    return _pick(env, _by_ratio(env, args[0], _axes(args, 1, "imageBestRatio", _AXES[3:6]), True), 1)
+    the scope's ratio on ``axesRatio`` ("xy", "xz", "yz" or transposed, "yx"…;
+    celib/imageBestRatio.html)."""
+    return _pick(env, _by_ratio(env, args[0], _axes(args, 1, "imageBestRatio", _RATIO_AXES), True), 1)
 
 
 @shape_function("imageApproxRatio")
 def _image_approx_ratio(env, args):
     """``imageApproxRatio(searchQuery, axesRatio, n)``: one of the ``n`` best image ratio fits,
     picked at random (celib/imageApproxRatio.html)."""
-    axes = _axes(args, 1, "imageApproxRatio", _AXES[3:6])
+    axes = _axes(args, 1, "imageApproxRatio", _RATIO_AXES)
     return _pick(env, _by_ratio(env, args[0], axes, True), args[2] if len(args) > 2 else 1.0)
 
 

@@ -1239,15 +1239,12 @@ class _PlanarEdges:
             ps = st.child(i)
             mesh = Mesh.from_polygons(faces).inherit(st.geometry, [0] * len(faces),
                                                      drop=OFFSET_COLUMNS)
-            scope_ring = faces[0]
-            if len(faces) > 1:  # the scope of a piece with holes starts on its outline
-                biggest = max(getattr(geom, "geoms", [geom]), key=lambda g: g.area)
-                ring = np.asarray(biggest.exterior.coords)[:-1]
-                scope_ring = self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))]))
             if selected is not None:
                 mesh = self.setback_tags(st.geometry, mesh, selected, branch is remainder)
             ps.geometry = mesh
-            ps.scope = face_scope(scope_ring, self.normal)
+            # the piece keeps the shape's scope orientation, fitted to it (as split pieces
+            # do): Esri's International City splits setback pieces along z and reads their
+            # scope.sz, on lots whose scope has y up
             ps.fit_scope()
             result.append((ps, branch.ops, {"index": i}))
         return result
