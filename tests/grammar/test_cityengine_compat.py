@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from facadeforge import RuleError, derive, load_rules
+from facadeforge.geometry.footprints import Footprint
 
 
 def _parts(rules: str, lot: str = "10x10"):
@@ -224,3 +225,23 @@ def test_setback_to_area_out_of_reach_keeps_the_closest():
     m = _parts("Lot --> setbackToArea(1000){ all = G | remainder = X }", lot="20x20")
     assert sum(float(p.mesh.face_areas().sum()) for p in m.parts if p.symbol == "X") == \
         pytest.approx(400.0)
+
+
+def test_cuts_through_a_vertex_leave_no_repeated_corner():
+    """A split of a concave lot through its corners (done in the plane by an overlay) gives
+    pieces without zero-length edges; edge keywords of alignScopeToGeometry skip such edges
+    anyway (Esri's Facade_Textures aligns every facade with world.lowest)."""
+    c, s = np.cos(np.radians(27)), np.sin(np.radians(27))
+    concave = [(0, 0), (60, 0), (60, 45), (35, 45), (35, 20), (20, 20), (20, 45), (0, 45)]
+    block = np.array([[x * c - y * s, 0, -(x * s + y * c)] for x, y in concave])
+    m = derive(load_rules("Lot --> split(x){ ~7 : A. }*"), [Footprint("b", block)])[0]
+    assert len(m.parts) == 9
+    for p in m.parts:
+        for f in range(p.mesh.n_faces):
+            poly = p.mesh.vertices[p.mesh.face(f)]
+            assert np.linalg.norm(np.roll(poly, -1, axis=0) - poly, axis=1).min() > 1e-6
+    # a wall standing on a corner that is there twice: the lowest real edge is chosen
+    wall = np.array([[0, 0, 0], [0, 0, 0], [4, 6, 0], [-4, 6, 0]], float)
+    m = derive(load_rules("Lot --> alignScopeToGeometry(zUp, 0, world.lowest) X."),
+               [Footprint("w", wall)])[0]
+    assert not m.warnings

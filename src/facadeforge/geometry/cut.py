@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .mesh import EPS, Mesh, cross3, plane_basis, polygon_normal
+from .polygon import ring_points, simple_pieces
 
 _OTHER = {0: (1, 2), 1: (2, 0), 2: (0, 1)}  # right-handed (u, v) for the cap plane of each axis
 
@@ -270,12 +271,10 @@ def _clip_slab_shapely(p, uv, axis, lo, hi, normal):
     for g in geoms:
         if g.geom_type != "Polygon" or g.area <= EPS:
             continue
-        ring = np.asarray(g.exterior.coords)[:-1]
-        if not g.exterior.is_ccw:
-            ring = ring[::-1]
-        q = origin + ring @ basis[:, :2].T
-        quv = None if affine is None else np.column_stack([ring, np.ones(len(ring))]) @ affine
-        pieces.append((q, quv))
+        for ring in simple_pieces(g):
+            q = origin + ring @ basis[:, :2].T
+            quv = None if affine is None else np.column_stack([ring, np.ones(len(ring))]) @ affine
+            pieces.append((q, quv))
     return pieces
 
 
@@ -353,7 +352,7 @@ def _cap_mesh(polys, axis, value, sign, with_uv) -> Mesh:
     u, v = _OTHER[axis]
     out = []
     for g in polys:
-        rings = [np.asarray(g.exterior.coords)[:-1]] + [np.asarray(r.coords)[:-1] for r in g.interiors]
+        rings = [ring_points(g.exterior)] + [ring_points(r) for r in g.interiors]
         if len(rings) == 1:
             ring = rings[0]
             if (shapely_ccw(ring)) != (sign > 0):

@@ -14,6 +14,7 @@ import itertools
 import numpy as np
 
 from .mesh import EPS, Mesh, plane_basis, weld_ids
+from .polygon import ring_points
 
 HOLED = "holed"
 _IDS = itertools.count()
@@ -160,12 +161,12 @@ def rings(polygon) -> list[tuple[np.ndarray, list[np.ndarray]]]:
     for g in getattr(polygon, "geoms", [polygon]):
         if g.geom_type != "Polygon" or g.area <= EPS:
             continue
-        outer = np.asarray(g.exterior.coords)[:-1]
+        outer = ring_points(g.exterior)
         if not g.exterior.is_ccw:
             outer = outer[::-1]
         holes = []
         for r in g.interiors:
-            h = np.asarray(r.coords)[:-1]
+            h = ring_points(r)
             holes.append(h[::-1] if r.is_ccw else h)
         out.append((outer, holes))
     return out

@@ -5,13 +5,24 @@ from __future__ import annotations
 import numpy as np
 
 
+def ring_points(ring) -> np.ndarray:
+    """A shapely ring's points (k, 2) without the closing point and without points repeating the
+    one before (an overlay cut through a vertex can leave it twice in a row: a repeated corner
+    would be an edge of no length)."""
+    pts = np.asarray(ring.coords)[:-1]
+    step = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1)
+    return pts[step > 1e-9] if len(pts) and (step <= 1e-9).any() else pts
+
+
 def simple_pieces(g) -> list[np.ndarray]:
     """Counter-clockwise rings (k, 2) covering a shapely Polygon: the polygon itself when it has
     no holes, else its constrained Delaunay triangles (our meshes hold simple polygons only).
     Earcut, used before, could cover part of a hole on the bands ``setback`` cuts; the
     constrained triangulation keeps to the polygon."""
-    ext = np.asarray(g.exterior.coords)[:-1]
     if not g.interiors:
+        ext = ring_points(g.exterior)
+        if len(ext) < 3:
+            return []
         return [ext if g.exterior.is_ccw else ext[::-1]]
     import shapely
 

@@ -171,19 +171,24 @@ def op_align_scope_to_geometry(call):
         mid_y = np.round((poly[:, 1] + nxt[:, 1]) / 2, 9)
         if not isinstance(esel, str):
             return int(esel) % len(poly), 0.0
+        # edges of no length (repeated corners) are never chosen by a keyword
+        real = np.flatnonzero(lengths > EPS)
+        if not len(real):
+            return 0, 0.0
+        lengths, mid_y = lengths[real], mid_y[real]
         if esel == "longest":
             e = int(np.argmax(lengths))
-            return e, -float(lengths[e])
+            return int(real[e]), -float(lengths[e])
         if esel == "shortest":
             e = int(np.argmin(lengths))
-            return e, float(lengths[e])
+            return int(real[e]), float(lengths[e])
         if esel in ("world.lowest", "lowest"):         # the bottom edge (the longest of ties)
             e = int(np.lexsort((-lengths, mid_y))[0])
-            return e, float(mid_y[e])
+            return int(real[e]), float(mid_y[e])
         if esel in ("world.highest", "highest"):
             e = int(np.lexsort((-lengths, -mid_y))[0])
-            return e, -float(mid_y[e])
-        return 0, 0.0                                  # "any": the first edge
+            return int(real[e]), -float(mid_y[e])
+        return int(real[0]), 0.0                       # "any": the first edge
 
     faces = [mesh.vertices[mesh.face(i)] for i in range(mesh.n_faces)]
     if fsel == "any" and isinstance(esel, str) and esel != "any":
