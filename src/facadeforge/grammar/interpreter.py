@@ -328,6 +328,10 @@ class Derivation:
         if found is None:
             if module.has_rule_name(name):
                 self.warn(f"rule '{name}' has no overload with {len(args)} parameters; shape left as is")
+            elif "." in name:
+                prefix = name.rsplit(".", 1)[0]
+                why = "no such import" if module.resolve(name) is None else "no such rule there"
+                self.warn(f"rule '{name}' is not defined ({why}: '{prefix}'); the shape is a leaf")
             self._output(node, state, name)
             return
         mod, rdef = found
