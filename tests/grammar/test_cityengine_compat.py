@@ -245,3 +245,13 @@ def test_cuts_through_a_vertex_leave_no_repeated_corner():
     m = derive(load_rules("Lot --> alignScopeToGeometry(zUp, 0, world.lowest) X."),
                [Footprint("w", wall)])[0]
     assert not m.warnings
+
+
+def test_functions_may_recurse_a_thousand_calls_deep():
+    """Rules walk lists by recursion (Esri's Plant_Distributor sums a 127-plant list so): a
+    chain of 990 calls derives, a runaway one stops with a warning at 1,000 calls."""
+    src = "f(n) = case n <= 0 : 0 else : 1 + f(n - 1)\nLot --> print(f({n})) X."
+    m = derive(load_rules(src.format(n=990)), None, lot_size="4x4")[0]
+    assert m.attributes["prints"] == ["990"] and not m.warnings
+    m = derive(load_rules(src.format(n=10**6)), None, lot_size="4x4")[0]
+    assert m.warnings == ["<rules>:2:9: function 'f' recurses deeper than 1000 calls (in rule Lot)"]
