@@ -16,13 +16,9 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from cga_survey import run_isolated  # noqa: E402 - the sibling benchmark scripts
-from cga_sweep import footprints  # noqa: E402
+from cga_sweep import footprints, run_on_lots  # noqa: E402 - the sibling benchmark script
 
 from facadeforge.evaluation.bench import provenance, save_result
 
@@ -63,19 +59,9 @@ def main() -> None:
                     help="files making at least this many faces count in the summary")
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per file")
     args = ap.parse_args()
-    files = sorted(args.rules_dir.rglob("*.cga"))
-    fd, name = tempfile.mkstemp(suffix=".geojson")
-    tmp = Path(name)
-    with os.fdopen(fd, "w") as f:
-        json.dump(footprints(), f)
-    with ThreadPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(
-            lambda p: run_isolated(_WORKER, p, (tmp, args.runs), args.timeout), files))
-    tmp.unlink()
-    root = str(args.rules_dir.resolve()) + "/"
+    results = run_on_lots(_WORKER, args.rules_dir, (args.runs,), args.jobs, args.timeout)
     timed = []
     for r in results:
-        r["file"] = r["file"].replace(str(args.rules_dir) + "/", "").replace(root, "")
         if "seconds" in r:
             r["faces_per_second"] = round(r["faces"] / r["seconds"]) if r["seconds"] else None
             timed.append(r)

@@ -109,6 +109,27 @@ print(json.dumps(out))
 """
 
 
+def run_on_lots(worker: str, rules_dir: Path, extra: tuple, jobs: int, timeout: float) -> list:
+    """``worker`` (see :func:`cga_survey.run_isolated`) on every ``.cga`` file under
+    ``rules_dir``, given the seven lots (a GeoJSON file) and ``extra`` as arguments, ``jobs``
+    files at a time; each result's ``file`` relative to ``rules_dir``."""
+    files = sorted(rules_dir.rglob("*.cga"))
+    fd, name = tempfile.mkstemp(suffix=".geojson")
+    tmp = Path(name)
+    with os.fdopen(fd, "w") as f:
+        json.dump(footprints(), f)
+    try:
+        with ThreadPoolExecutor(jobs) as pool:
+            results = list(pool.map(
+                lambda p: run_isolated(worker, p, (tmp, *extra), timeout), files))
+    finally:
+        tmp.unlink()
+    root = str(rules_dir.resolve()) + "/"
+    for r in results:
+        r["file"] = r["file"].replace(str(rules_dir) + "/", "").replace(root, "")
+    return results
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("rules_dir", type=Path)
@@ -117,18 +138,9 @@ def main() -> None:
     ap.add_argument("--timeout", type=float, default=600.0, help="seconds per file")
     ap.add_argument("--max-variants", type=int, default=MAX_VARIANTS)
     args = ap.parse_args()
-    files = sorted(args.rules_dir.rglob("*.cga"))
-    fd, name = tempfile.mkstemp(suffix=".geojson")
-    tmp = Path(name)
-    with os.fdopen(fd, "w") as f:
-        json.dump(footprints(), f)
-    with ThreadPoolExecutor(args.jobs) as pool:
-        results = list(pool.map(
-            lambda p: run_isolated(_WORKER, p, (tmp, args.max_variants), args.timeout), files))
-    tmp.unlink()
+    results = run_on_lots(_WORKER, args.rules_dir, (args.max_variants,), args.jobs, args.timeout)
     root = str(args.rules_dir.resolve()) + "/"
     for r in results:
-        r["file"] = r["file"].replace(str(args.rules_dir) + "/", "").replace(root, "")
         r["warnings"] = [w.replace(root, "") for w in r.get("warnings", [])]
         for f in r.get("failures", []):
             for k in ("warning", "error"):
@@ -140,7 +152,7 @@ def main() -> None:
     swept = [r for r in results if "error" not in r]  # the files that load
     result = {
         "benchmark": "cga_sweep",
-        "files": len(files),
+        "files": len(results),
         "swept": len(swept),
         "footprints": [f["properties"]["name"] for f in footprints()["features"]],
         "derivations": sum(r["runs"] for r in swept),
