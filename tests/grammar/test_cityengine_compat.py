@@ -255,3 +255,27 @@ def test_functions_may_recurse_a_thousand_calls_deep():
     assert m.attributes["prints"] == ["990"] and not m.warnings
     m = derive(load_rules(src.format(n=10**6)), None, lot_size="4x4")[0]
     assert m.warnings == ["<rules>:2:9: function 'f' recurses deeper than 1000 calls (in rule Lot)"]
+
+
+def test_esri_international_city_idioms(tmp_path):
+    """Three things Esri's International City relies on: ``rand`` without parentheses, a
+    scatter whose count comes out 0 (nothing, no warning), and transposed ratio axes."""
+    m = derive(load_rules("Lot --> split(x){ ~(rand) : A. | ~(rand) : B. }"), None,
+               lot_size="10x8")[0]
+    widths = sorted(float(np.ptp(p.mesh.vertices[:, 0])) for p in m.parts)
+    assert not m.warnings and len(widths) == 2 and sum(widths) == pytest.approx(10)
+    assert widths[0] != pytest.approx(5)  # two different draws, not 1 and 1
+    m = derive(load_rules("Lot --> scatter(surface, floor(geometry.area / 400), uniform){ T. }"),
+               None, lot_size="10x8")[0]
+    assert not m.warnings and not m.parts
+    from PIL import Image
+
+    (tmp_path / "t").mkdir()
+    Image.new("RGB", (100, 50)).save(tmp_path / "t" / "wide.png")
+    Image.new("RGB", (50, 100)).save(tmp_path / "t" / "tall.png")
+    rules = tmp_path / "r.cga"
+    rules.write_text('Lot --> extrude(6) comp(f){ front : F }\n'
+                     'F --> print(imageBestRatio("t/*.png", "xy")) '
+                     'print(imageBestRatio("t/*.png", "yx")) X.\n')
+    m = derive(load_rules(rules), None, lot_size="10x8")[0]  # the wall: 10 wide, 6 high
+    assert not m.warnings and m.attributes["prints"] == ["t/wide.png", "t/tall.png"]

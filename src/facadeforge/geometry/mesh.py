@@ -342,14 +342,15 @@ class Mesh:
                     corner_uvs=None if self.corner_uvs is None else self.corner_uvs[sel],
                     face_data=_take(self.face_data, idx), corner_data=_take(self.corner_data, sel))
 
-    def single_faces(self) -> list[Mesh]:
-        """Every face as a mesh of its own (``subset([i])`` for each ``i``, made in one go)."""
+    def single_faces(self, indices: Iterable[int]) -> list[Mesh]:
+        """The faces ``indices``, each as a mesh of its own (``subset([i])`` for each, made in
+        one go)."""
         pos = self.vertices[self.corners]
-        bounds = self.starts.tolist()
+        bounds = self.starts
         ranges: dict = {}
         out = []
-        for f in range(self.n_faces):
-            a, b = bounds[f], bounds[f + 1]
+        for f in np.asarray(indices, np.int64).tolist():
+            a, b = int(bounds[f]), int(bounds[f + 1])
             k = b - a
             if k not in ranges:
                 ranges[k] = (np.arange(k, dtype=np.int64), np.array([0, k], np.int64))

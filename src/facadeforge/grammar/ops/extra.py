@@ -132,17 +132,16 @@ def _inner_rect_2d(xy: np.ndarray):
     if rect is None:
         return None
     r = [gx[rect[0]], gy[rect[1]], gx[rect[2]], gy[rect[3]]]
-    if slanted:
-        h = 1.5 * ext / _FINE
-        gx, gy = (_grid_lines(np.concatenate(
-            [g, np.linspace(r[k] - h[k], r[k] + h[k], _REFINE),
-             np.linspace(r[k + 2] - h[k], r[k + 2] + h[k], _REFINE)]).clip(lo[k], hi[k]),
-            lo[k], hi[k], tol, 0) for k, g in ((0, gx), (1, gy)))
-        inside = _covered_cells(poly, xy, gx, gy, tol)
-        rect = _max_rect(inside, gx, gy, c)
-        r = [gx[rect[0]], gy[rect[1]], gx[rect[2]], gy[rect[3]]]
-    if not slanted:
+    if not slanted:  # the grid is the polygon's own: the block is the answer
         return tuple(float(v) for v in r)
+    h = 1.5 * ext / _FINE
+    gx, gy = (_grid_lines(np.concatenate(
+        [g, np.linspace(r[k] - h[k], r[k] + h[k], _REFINE),
+         np.linspace(r[k + 2] - h[k], r[k + 2] + h[k], _REFINE)]).clip(lo[k], hi[k]),
+        lo[k], hi[k], tol, 0) for k, g in ((0, gx), (1, gy)))
+    inside = _covered_cells(poly, xy, gx, gy, tol)
+    rect = _max_rect(inside, gx, gy, c)  # the finer grid holds the first: a block is found
+    r = [gx[rect[0]], gy[rect[1]], gx[rect[2]], gy[rect[3]]]
     limits = [lo[0], lo[1], hi[0], hi[1]]
     test = poly.buffer(tol)
     shapely.prepare(test)
@@ -168,6 +167,7 @@ def _inner_rect_2d(xy: np.ndarray):
                 if abs(bad - good) <= tol:
                     break
             r[side] = good
+    # snap to polygon vertex coordinates within the tolerance (clean remainder, no slivers)
     for k in range(4):
         coords = xy[:, k % 2]
         j = np.argmin(np.abs(coords - r[k]))

@@ -445,24 +445,22 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     """
     lo, hi = bounds
     ext = hi - lo
-    size = st.scope.size.copy()
-    if min(ext.tolist()) > EPS and min(size.tolist()) > EPS:  # the common case, in short
+    size = st.scope.size
+    if min(ext.tolist()) > EPS and min(size.tolist()) > EPS:  # the usual case: the scope stays
         local = (mesh.vertices - lo) * (size / ext)
-        st.geometry = mesh.with_vertices(st.scope.to_world(local))
-        if _mirrored(st.scope.rotation):
-            st.geometry = st.geometry.reversed()
-        return
-    factors = np.where((ext > EPS) & (size > EPS), size / np.where(ext > EPS, ext, 1.0), np.nan)
-    known = factors[~np.isnan(factors)]
-    fill = float(known.mean()) if len(known) else 1.0
-    zero = np.isnan(factors) & (size <= EPS)
-    factors = np.where(np.isnan(factors), fill, factors)
-    new_size = np.where(ext > EPS, ext * factors, size)
-    local = (mesh.vertices - lo) * factors
-    sc = st.own_scope()
-    if zero.sum() >= 2:  # line or point scopes move by the asset's own offset
-        sc.origin = sc.to_world((np.where(zero, lo * factors, 0.0))[None])[0]
-    sc.size = new_size
+    else:
+        factors = np.where((ext > EPS) & (size > EPS), size / np.where(ext > EPS, ext, 1.0),
+                           np.nan)
+        known = factors[~np.isnan(factors)]
+        fill = float(known.mean()) if len(known) else 1.0
+        zero = np.isnan(factors) & (size <= EPS)
+        factors = np.where(np.isnan(factors), fill, factors)
+        new_size = np.where(ext > EPS, ext * factors, size)
+        local = (mesh.vertices - lo) * factors
+        sc = st.own_scope()
+        if zero.sum() >= 2:  # line or point scopes move by the asset's own offset
+            sc.origin = sc.to_world((np.where(zero, lo * factors, 0.0))[None])[0]
+        sc.size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
     if _mirrored(st.scope.rotation):  # a mirrored scope (mirrorScope): faces stay outward
         st.geometry = st.geometry.reversed()

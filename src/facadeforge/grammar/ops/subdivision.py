@@ -368,25 +368,15 @@ def classify_faces(normals: np.ndarray, scope_rot: np.ndarray, object_rot: np.nd
 
 def face_scope(poly: np.ndarray, normal: np.ndarray) -> Scope:
     """Scope of a face: x along its first edge, z along its normal, fitted to the face."""
-    x = None
-    for k in range(len(poly)):
-        e = poly[(k + 1) % len(poly)] - poly[k]
-        e = e - normal * (e @ normal)
-        if np.linalg.norm(e) > EPS:
-            x = e
-            break
-    if x is None or not normal.any():
-        sc = Scope(poly.min(axis=0), np.eye(3), np.ptp(poly, axis=0))
-        return sc
-    x = x / np.linalg.norm(x)
-    y = cross3(normal, x)
-    sc = Scope(poly[0], np.column_stack([x, y, normal]), np.zeros(3))
-    sc.fit_to(poly)
-    return sc
+    origin, rot, size = face_frames(Mesh.from_polygons([poly]), np.asarray(normal, float)[None])
+    return Scope.trusted(origin[0], rot[0], size[0])
 
 
-def face_scopes(mesh: Mesh, normals: np.ndarray) -> list[Scope]:
-    """:func:`face_scope` of every face of ``mesh`` (unit ``normals``), in one vectorised pass."""
+def face_frames(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The scope of every face of ``mesh`` (unit ``normals``) in one vectorised pass, as
+    origins (F, 3), rotations (F, 3, 3) and sizes (F, 3): x along the face's first edge that is
+    not of zero length, z along its normal, fitted to the face; a face without normal or such
+    an edge gets the world axes and its bounding box."""
     starts = mesh.starts
     sizes = np.diff(starts)
     n_corners = int(starts[-1])
@@ -410,9 +400,7 @@ def face_scopes(mesh: Mesh, normals: np.ndarray) -> list[Scope]:
     local = np.einsum("ci,cij->cj", pos - p0[face_of], rot[face_of])
     lo = np.minimum.reduceat(local, starts[:-1], axis=0)
     hi = np.maximum.reduceat(local, starts[:-1], axis=0)
-    origin = p0 + np.einsum("fij,fj->fi", rot, lo)
-    size = hi - lo
-    return [Scope.trusted(origin[f], rot[f], size[f]) for f in range(mesh.n_faces)]
+    return p0 + np.einsum("fij,fj->fi", rot, lo), rot, hi - lo
 
 
 #: Selector keywords of comp, setback and their kin: a name among these is the selector even
@@ -776,16 +764,13 @@ def _comp_faces(call, st):
     def members(i) -> list[int]:
         return groups[i] if groups is not None else [int(i)]
 
-    single: list = []  # per face: its scope and mesh, made for all faces at the first need
-
-    def singles(i):
-        if not single:
-            single.extend(zip(face_scopes(mesh, normals), mesh.single_faces()))
-        return single[i]
+    frames: list = []  # every face's scope frame, worked out at the first need
 
     def comp_scope(i):
         if groups is None:
-            return singles(i)[0]
+            if not frames:
+                frames.extend(face_frames(mesh, normals))
+            return Scope.trusted(frames[0][i], frames[1][i], frames[2][i])
         faces = members(i)
         ring = mesh.vertices[mesh.face(faces[0])] if len(faces) == 1 else outline(mesh, faces)
         lead = next((f for f in faces if normals[f].any()), faces[0])
@@ -830,11 +815,12 @@ def _comp_faces(call, st):
                     info["index"] = j
                 out.append((ps, branch.ops, info))
             continue
+        geoms = mesh.single_faces(idx) if groups is None else None
         for j, i in enumerate(idx):
             faces = members(i)
             ps = st.child(len(out))
             ps.scope = comp_scope(i)
-            ps.geometry = (singles(i)[1] if groups is None else mesh.subset(faces)
+            ps.geometry = (geoms[j] if geoms is not None else mesh.subset(faces)
                            ).without_columns(*OFFSET_COLUMNS)
             if len(faces) > 1:
                 ps.fit_scope()
