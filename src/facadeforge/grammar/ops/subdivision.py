@@ -397,10 +397,12 @@ def face_frames(mesh: Mesh, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray
         z = normals[good]
         rot[good] = np.stack([x, cross3(z, x), z], axis=2)
     p0 = pos[starts[:-1]]
-    local = np.einsum("ci,cij->cj", pos - p0[face_of], rot[face_of])
+    # (row vector) @ matrix, as Scope.fit_to computes it, so a face's scope is bit for bit the
+    # one face_scope gave when it was a loop of its own
+    local = np.matmul((pos - p0[face_of])[:, None, :], rot[face_of])[:, 0]
     lo = np.minimum.reduceat(local, starts[:-1], axis=0)
     hi = np.maximum.reduceat(local, starts[:-1], axis=0)
-    return p0 + np.einsum("fij,fj->fi", rot, lo), rot, hi - lo
+    return np.matmul(lo[:, None, :], rot.transpose(0, 2, 1))[:, 0] + p0, rot, hi - lo
 
 
 #: Selector keywords of comp, setback and their kin: a name among these is the selector even
