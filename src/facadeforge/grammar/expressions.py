@@ -87,19 +87,22 @@ def _compare(op, a, b):
 
 
 class Evaluator:
-    """Expression evaluator bound to an environment.
+    """Expression evaluation, mixed into an environment class.
 
-    The environment provides ``lookup(name, node)``, ``call(name, args, node)`` and
-    ``random_float()`` (the per-shape random stream).
+    The environment provides ``lookup(name, node)``, ``call(name, args, node)``,
+    ``random_float()`` (the per-shape random stream) and ``comp_function(node)``.  It is a base
+    class, not an object holding its environment: an environment and an evaluator pointing at
+    each other would be a reference cycle per rule application, left for the cyclic garbage
+    collector (see ``interpreter.paused_gc``).
     """
 
-    __slots__ = ("env",)
+    __slots__ = ()
 
-    def __init__(self, env):
-        self.env = env
-
-    def __call__(self, node):
+    def evaluate(self, node):
+        """The value of the expression ``node``."""
         return _DISPATCH[type(node)](self, node)
+
+    __call__ = evaluate
 
     def num(self, node) -> float:
         return to_float(self(node))
@@ -114,18 +117,18 @@ class Evaluator:
         return node.value
 
     def _name(self, node):
-        return self.env.lookup(node.name, node)
+        return self.lookup(node.name, node)
 
     def _call(self, node):
         if node.name in SELECTOR_FUNCTIONS:
             # shape queries take selector keywords (``geometry.area(top)``, ``imageInfo(f, sx)``)
-            return self.env.call(node.name, [self._selector(a) for a in node.args], node)
-        return self.env.call(node.name, [self(a) for a in node.args], node)
+            return self.call(node.name, [self._selector(a) for a in node.args], node)
+        return self.call(node.name, [self(a) for a in node.args], node)
 
     def _selector(self, node):
         if type(node) is A.Name:
             try:
-                return self.env.lookup(node.name, node)
+                return self.lookup(node.name, node)
             except CGARuntimeError:
                 return node.name
         return self(node)
@@ -179,10 +182,10 @@ class Evaluator:
         return self(node.otherwise)
 
     def _comp_function(self, node):
-        return self.env.comp_function(node)
+        return self.comp_function(node)
 
     def _stochastic(self, node):
-        r = self.env.random_float() * 100.0
+        r = self.random_float() * 100.0
         acc = 0.0
         for pct, value in node.branches:
             acc += pct

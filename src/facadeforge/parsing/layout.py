@@ -85,17 +85,16 @@ class Layout:
     height: float
 
 
-class _Env:
+class _Env(Evaluator):
     """What the expression evaluator asks of an environment, for the 2D subset."""
 
-    __slots__ = ("layout", "locals", "sx", "sy", "evaluator")
+    __slots__ = ("layout", "locals", "sx", "sy")
 
     def __init__(self, layout: SplitLayout, local_vars: Mapping[str, Any], sx: float, sy: float):
         self.layout = layout
         self.locals = local_vars
         self.sx = sx
         self.sy = sy
-        self.evaluator = Evaluator(self)
 
     def random_float(self) -> float:
         raise CGARuntimeError("parse grammars must be deterministic: rand() is not supported")
@@ -119,7 +118,7 @@ class _Env:
             fdef = self.layout.functions[name]
             env = _Env(self.layout, {p.name: v for p, v in zip(fdef.params, args)}, self.sx,
                        self.sy)
-            return env.evaluator(fdef.body)
+            return env.evaluate(fdef.body)
         if name in ("rand", "p"):
             raise CGARuntimeError(f"parse grammars must be deterministic: {name}() is not "
                                   "supported")
@@ -183,7 +182,7 @@ class SplitLayout:
         else:
             self._attr_cache[name] = _EVALUATING  # cycle guard
             try:
-                value = _Env(self, {}, 0.0, 0.0).evaluator(adef.value)
+                value = _Env(self, {}, 0.0, 0.0).evaluate(adef.value)
             except BaseException:
                 del self._attr_cache[name]
                 raise
@@ -339,7 +338,7 @@ class SplitLayout:
         for i, op in enumerate(ops):
             last = i == len(ops) - 1
             if isinstance(op, A.Successor) and op.name == "label":
-                label = to_str(env.evaluator(op.args[0])) if op.args else label
+                label = to_str(env.evaluate(op.args[0])) if op.args else label
                 continue
             if isinstance(op, A.Successor) and op.name in _APPEARANCE_OPS:
                 continue
@@ -347,11 +346,11 @@ class SplitLayout:
                 return []
             if isinstance(op, A.Leaf) or (isinstance(op, A.Successor) and last
                                            and op.name not in OPERATIONS):
-                args = tuple(env.evaluator(a) for a in getattr(op, "args", ()))
+                args = tuple(env.evaluate(a) for a in getattr(op, "args", ()))
                 return self._rule(op.name, args, sx, sy, label, depth + 1)
             if isinstance(op, A.CaseOps):
                 for cond, body in op.branches:
-                    if to_bool(env.evaluator(cond)):
+                    if to_bool(env.evaluate(cond)):
                         return self._ops(body, env, name, sx, sy, label, depth, line)
                 return self._ops(op.otherwise, env, name, sx, sy, label, depth, line)
             if isinstance(op, A.BodyOp) and op.name == "split" and last:
@@ -395,7 +394,7 @@ class SplitLayout:
             if call is not None:  # the common piece, one successor rule: no ops loop
                 rule, arg_nodes = call
                 if arg_nodes:
-                    ev = _Env(self, env.locals, w, h).evaluator
+                    ev = _Env(self, env.locals, w, h).evaluate
                     args = tuple(ev(a) for a in arg_nodes)
                 else:
                     args = ()

@@ -103,7 +103,7 @@ def _sections(call, pattern, total):
 
 
 def _depth(call, branch) -> float:
-    depth = to_float(call.env.evaluator(branch.depth), f"{_NAME} depth")
+    depth = to_float(call.env.evaluate(branch.depth), f"{_NAME} depth")
     if not np.isfinite(depth) or depth < 0:
         raise CGARuntimeError(f"{_NAME}: section depth must be a number >= 0, got {depth}")
     return depth

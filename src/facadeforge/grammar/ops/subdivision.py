@@ -131,7 +131,7 @@ def _size_items(branches, env) -> list:
         if isinstance(b, A.RepeatGroup):
             items.append(RepeatItem(_size_items(b.branches, env)))
             continue
-        v = env.evaluator(b.selector)
+        v = env.evaluate(b.selector)
         if isinstance(v, Relative):
             items.append(SizeItem("rel", v.value, b))
         elif isinstance(v, Floating):
@@ -456,7 +456,7 @@ class LogicalSelector:
         own = states is not None and reads_shape
         return np.array([to_bool(component_env(self.env, i, words, masks, index,
                                                states(i) if own else None)
-                                 .evaluator(self.expr)) for i in range(n)], bool)
+                                 .evaluate(self.expr)) for i in range(n)], bool)
 
     def __str__(self) -> str:  # comp.sel
         return _selector_text(self.expr)
@@ -499,7 +499,7 @@ def _selector_key(call, branch) -> object:
             s.name in env.locals or env.module.attr(s.name) is not None
             or env.module.function(s.name, 0) is not None)):
         return s.name   # a selector keyword; a parameter or attribute is its value (an index)
-    v = env.evaluator(s)
+    v = env.evaluate(s)
     if isinstance(v, bool):
         return v
     if isinstance(v, (int, float)):

@@ -1,0 +1,57 @@
+"""Derivations run with Python's cyclic garbage collector paused (``interpreter.paused_gc``):
+they must make no cyclic garbage of their own but the shape tree, and must leave the collector
+as they found it."""
+
+import gc
+
+import pytest
+from cga_helpers import run
+
+from facadeforge.grammar.interpreter import Env, paused_gc
+from facadeforge.grammar.state import ShapeState
+
+RULES = """
+attr h = 9
+Lot --> extrude(h) comp(f){ side : Facade | top : Roof. }
+Facade --> split(y){ ~3 : Floor }*
+Floor --> split(x){ ~2 : Tile(rand(1)) }*
+Tile(r) --> case r > 0.5 : s('0.8, '1, 0.2) center(x) i("builtin:cube") Win.
+            else : color(f(scope.sx)) Wall.
+f(x) = case x > 1 : "#808080" else : "#a0a0a0"
+"""
+
+
+@pytest.fixture
+def saved_garbage():
+    gc.collect()
+    gc.set_debug(gc.DEBUG_SAVEALL)
+    try:
+        yield
+    finally:
+        gc.set_debug(0)
+        gc.garbage.clear()
+
+
+def test_a_derivation_leaves_no_cycles_but_its_tree(saved_garbage):
+    model = run(RULES, lot="12x8")  # the model (and its tree) stays referenced
+    assert len(model.parts) > 20
+    gc.collect()
+    kinds = {type(o) for o in gc.garbage}
+    assert Env not in kinds and ShapeState not in kinds, "an environment or state is in a cycle"
+
+
+def test_the_collector_comes_back_as_it_was():
+    assert gc.isenabled()
+    run(RULES)
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        run(RULES)
+        assert not gc.isenabled()  # a caller that switched it off keeps it off
+    finally:
+        gc.enable()
+    with paused_gc():
+        with paused_gc():
+            assert not gc.isenabled()
+        assert not gc.isenabled()  # the outer derivation is still running
+    assert gc.isenabled()
