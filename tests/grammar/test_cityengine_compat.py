@@ -113,9 +113,55 @@ def test_setback_with_one_width_per_edge():
     assert not m.warnings
     band = next(p for p in m.parts if p.symbol == "A")
     assert np.ptp(band.mesh.vertices[:, 2]) == pytest.approx(4.0)
-    # a width array of the wrong length is a clear warning
-    m = _parts("Lot --> setback([1, 2]){ all : A | remainder : B }")
-    assert any("one number per edge" in w for w in m.warnings)
+    # reference: a short array sets back only the face edges it reaches; extra values are
+    # ignored (FHNW's rules pass a fixed-length array to lots of any shape)
+    def area(src, symbol):
+        m = _parts(src, lot="20x10")
+        assert not m.warnings
+        return sum(p.mesh.area() for p in m.parts if p.symbol == symbol)
+
+    rest = area("Lot --> setback([1, 2]){ all : A | remainder : B }", "B")
+    assert rest == pytest.approx(19 * 8) or rest == pytest.approx(18 * 9)
+    assert area("Lot --> setback([1, 2]){ all : A | remainder : B }", "A") == pytest.approx(200 - rest)
+    four = area("Lot --> setback([1, 2, 1, 2]){ all : A | remainder : B }", "B")
+    assert four == pytest.approx(16 * 8) or four == pytest.approx(18 * 6)
+    assert area("Lot --> setback([1, 2, 1, 2, 5, 5]){ all : A | remainder : B }", "B") == \
+        pytest.approx(four)
+
+
+def test_setback_operator_puts_each_polygon_in_a_shape_or_combines_them():
+    """Reference (setback's operator): ``:`` puts each polygon into a new shape, ``=`` combines
+    all polygons of the selector into one.  Bands along the two short sides of a 20 × 10 lot are
+    two polygons."""
+    widths = "comp(fe){ left : 2 | right : 2 | all : 0 }"  # the short sides only
+    both = _parts(f"Lot --> setback({widths}){{ all : A | remainder : B }}", lot="20x10")
+    sides = [p for p in both.parts if p.symbol == "A"]
+    assert len(sides) == 2 and sum(p.mesh.area() for p in sides) == pytest.approx(40.0)
+    one = _parts(f"Lot --> setback({widths}){{ all = A | remainder : B }}", lot="20x10")
+    (combined,) = [p for p in one.parts if p.symbol == "A"]
+    assert combined.mesh.n_faces == 2 and combined.mesh.area() == pytest.approx(40.0)
+
+
+def test_setback_works_on_every_face_of_a_shape():
+    """A shape of four wall faces (``comp(f){ side = … }``): each face gets its band, and a
+    width array runs in face-edge order over all of them (reference: "the first element is the
+    distance of the first edge of the first face…")."""
+    rules = ("Lot --> extrude(10) comp(f){ side = Walls }\n"
+             "Walls --> setback(1){ top {op} Cornice | remainder = Wall }")
+    m = _parts(rules.replace("{op}", ":"), lot="20x10")
+    assert not m.warnings
+    cornices = [p for p in m.parts if p.symbol == "Cornice"]
+    assert len(cornices) == 4
+    assert sum(p.mesh.area() for p in cornices) == pytest.approx(60.0)  # perimeter 60 × 1 m
+    (wall,) = [p for p in m.parts if p.symbol == "Wall"]
+    assert wall.mesh.area() == pytest.approx(60.0 * 9)
+    assert np.ptp(wall.mesh.vertices[:, 1]) == pytest.approx(9.0)
+    m = _parts(rules.replace("{op}", "="), lot="20x10")
+    assert [p.symbol for p in m.parts].count("Cornice") == 1
+    # widths for the first face's four edges only: the other faces are not set back
+    m = _parts("Lot --> extrude(10) comp(f){ side = Walls }\n"
+               "Walls --> setback([1, 1, 1, 1]){ top : Cornice | remainder = Wall }", lot="20x10")
+    assert len([p for p in m.parts if p.symbol == "Cornice"]) == 1
 
 
 @pytest.mark.parametrize("edge, sx, sy", [("world.lowest", 10.0, 20.0), ("longest", 20.0, 10.0),

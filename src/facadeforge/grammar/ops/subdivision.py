@@ -1029,10 +1029,10 @@ class _PlanarEdges:
     selectors (front/back/left/right/side/all) relative to the shape's scope.  Edges are the
     outline's, then each hole's (``seg_a`` → ``seg_b``, the face on their left)."""
 
-    def __init__(self, st, opname: str, object_rot=None):
+    def __init__(self, st, opname: str, object_rot=None, mesh: Mesh | None = None):
         import shapely
 
-        mesh = st.geometry
+        mesh = st.geometry if mesh is None else mesh  # one face of the shape (:func:`_faces_of`)
         groups = face_groups(mesh)
         if len(groups) != 1:
             raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
@@ -1206,36 +1206,82 @@ class _PlanarEdges:
         parts = [p for p in parts if p.is_valid and p.area > 0]
         return shapely.union_all(parts) if parts else shapely.Polygon()
 
-    def shapes(self, st, pieces, selected=None, remainder=None) -> list:
-        """``[(branch, shapely geometry)]`` → successor states on this face's plane.  The pieces
-        keep the face's data and the tags of the edges they keep; with ``selected`` (the
-        original edges the bands run along) their edges get the setback family's auto-tags,
-        those of the ``remainder`` branch's piece as a remainder."""
-        result = []
-        for i, (branch, geom) in enumerate(pieces):
-            faces = []
-            for g in getattr(geom, "geoms", [geom]):
-                if g.geom_type != "Polygon" or g.area <= EPS:
-                    continue
-                for ring in simple_pieces(g):
-                    x, y = ring[:, 0], ring[:, 1]
-                    if abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) <= 1e-9:
-                        continue  # a sliver the cut left along a straight edge
-                    faces.append(self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
-            if not faces:
+    def polygons(self, geom) -> list[list[np.ndarray]]:
+        """The polygons of a piece (shapely geometry in this face's frame), each as its simple
+        faces in world coordinates (a polygon with holes is several); slivers are left out."""
+        out = []
+        for g in getattr(geom, "geoms", [geom]):
+            if g.geom_type != "Polygon" or g.area <= EPS:
                 continue
-            ps = st.child(i)
-            mesh = Mesh.from_polygons(faces).inherit(st.geometry, [0] * len(faces),
-                                                     drop=OFFSET_COLUMNS)
-            if selected is not None:
-                mesh = self.setback_tags(st.geometry, mesh, selected, branch is remainder)
-            ps.geometry = mesh
-            # the piece keeps the shape's scope orientation, fitted to it (as split pieces
-            # do): Esri's International City splits setback pieces along z and reads their
-            # scope.sz, on lots whose scope has y up
+            faces = []
+            for ring in simple_pieces(g):
+                x, y = ring[:, 0], ring[:, 1]
+                if abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)) <= 1e-9:
+                    continue  # a sliver the cut left along a straight edge
+                faces.append(self.sc.to_world(np.column_stack([ring, np.zeros(len(ring))])))
+            if faces:
+                out.append(faces)
+        return out
+
+    def piece_mesh(self, faces: list[np.ndarray], selected=None, remainder=False) -> Mesh:
+        """A piece of this face as a mesh: the face's data, the tags of the edges it keeps and,
+        with ``selected`` (the original edges the bands run along), the setback family's
+        auto-tags (those of a remainder when ``remainder``)."""
+        mesh = Mesh.from_polygons(faces).inherit(self.mesh, [0] * len(faces), drop=OFFSET_COLUMNS)
+        if selected is not None:
+            mesh = self.setback_tags(self.mesh, mesh, selected, remainder)
+        return mesh
+
+    def shapes(self, st, pieces, selected=None, remainder=None) -> list:
+        """``[(branch, shapely geometry)]`` → successor states, one per branch (all its
+        polygons in one shape): :func:`_successors` of this face alone."""
+        return _successors(st, [(self, pieces, selected, remainder)], by_polygon=False)
+
+
+def _faces_of(st, opname: str, object_rot) -> list[_PlanarEdges]:
+    """Every face of the shape (a face with holes being one), for the setback family, which
+    works on each face of a shape with several (reference: the operator "also applies to shapes
+    with more than one face"; distance arrays are "in face-edge order")."""
+    groups = face_groups(st.geometry)
+    if len(groups) <= 1:
+        return [_PlanarEdges(st, opname, object_rot)]
+    return [_PlanarEdges(st, opname, object_rot, st.geometry.subset(g)) for g in groups]
+
+
+def _successors(st, per_face, by_polygon: bool = True) -> list:
+    """Successor states of a setback-family operation from ``per_face``: for each face
+    ``(edges, [(branch, shapely piece)], selected edges or None, remainder branch or None)``.
+
+    Branches come in the order the faces list them.  With ``by_polygon``, as the reference's
+    operators say, a ``:`` branch makes one shape of each polygon ("each polygon is put into a
+    new shape") and a ``=`` branch one shape of all its polygons over every face ("combined into
+    one new shape"); otherwise one shape per branch and face.  Each piece keeps the shape's
+    scope orientation, fitted to it (as split pieces do): Esri's International City splits
+    setback pieces along z and reads their ``scope.sz``, on lots whose scope has y up."""
+    groups: dict[int, tuple] = {}  # id(branch) -> (branch, the meshes of each of its shapes)
+    for pe, pieces, selected, remainder in per_face:
+        for branch, geom in pieces:
+            meshes = [pe.piece_mesh(faces, selected, branch is remainder)
+                      for faces in pe.polygons(geom)]
+            if not meshes:
+                continue
+            shapes = groups.setdefault(id(branch), (branch, []))[1]
+            if not by_polygon:
+                shapes.append(meshes)
+            elif getattr(branch, "mode", ":") == ":":
+                shapes.extend([m] for m in meshes)
+            elif shapes:  # "=": one shape over every face
+                shapes[0].extend(meshes)
+            else:
+                shapes.append(meshes)
+    result = []
+    for branch, parts in groups.values():
+        for meshes in parts:
+            ps = st.child(len(result))
+            ps.geometry = Mesh.merge(meshes) if len(meshes) > 1 else meshes[0]
             ps.fit_scope()
-            result.append((ps, branch.ops, {"index": i}))
-        return result
+            result.append((ps, branch.ops, {"index": len(result)}))
+    return result
 
 
 @operation("setback", 1, 1, body=True)
@@ -1247,8 +1293,9 @@ def op_setback(call):
     ``d`` may be an array with one width per edge (``setback(comp(fe){ front : 4 | all : 1 })``).
     """
     st = call.state
-    pe = _PlanarEdges(st, "setback", call.derivation.object_scope.rotation)
-    return pe.shapes(st, *_setback_pieces(call, pe, pe.from_face_edges(_edge_widths(call, pe.k))))
+    faces = _faces_of(st, "setback", call.derivation.object_scope.rotation)
+    widths = _face_edge_widths(_edge_widths(call), faces)
+    return _successors(st, [(pe, *_setback_pieces(call, pe, w)) for pe, w in zip(faces, widths)])
 
 
 def _setback_pieces(call, pe, widths) -> tuple:
@@ -1336,52 +1383,74 @@ def op_setback_to_area(call):
             break
         mid = (a + b) / 2
         a, b = (mid, b) if remainder(mid) > target else (a, mid)
-    return pe.shapes(st, *_setback_pieces(call, pe, widths((a + b) / 2)))
+    return _successors(st, [(pe, *_setback_pieces(call, pe, widths((a + b) / 2)))])
 
 
-def _edge_widths(call, k: int):
-    """The width argument of a per-edge operation: one number, or an array of ``k`` numbers."""
+def _edge_widths(call):
+    """The width argument of a per-edge operation: one number, or an array of numbers in
+    face-edge order (``comp(fe)``)."""
     arg = call.args[0] if call.args else None
     if isinstance(arg, np.ndarray):
-        if arg.dtype.kind not in "fi" or arg.size != k:
-            raise CGARuntimeError(f"{call.name}: the width array has {arg.size} "
-                                  f"{'values' if arg.dtype.kind in 'fi' else 'non-numbers'}; give "
-                                  f"one number per edge ({k}), e.g. comp(fe){{ front : 4 | all : 1 }}")
+        if arg.dtype.kind not in "fi":
+            raise CGARuntimeError(f"{call.name}: the width array holds non-numbers; give one "
+                                  "number per face edge, e.g. comp(fe){ front : 4 | all : 1 }")
         return arg.astype(float).reshape(-1)
     return call.num(0)
 
 
+def _face_edge_widths(widths, faces: list[_PlanarEdges]) -> list:
+    """Per face, its edges' widths from ``widths``: one number for all, or an array in
+    face-edge order, the first face's edges first.  As the reference says, "if the array does
+    not contain enough elements no setback is performed on the respective missing face edges",
+    and elements past the last face edge are ignored."""
+    if not isinstance(widths, np.ndarray):
+        return [widths] * len(faces)
+    out, at = [], 0
+    for pe in faces:
+        mine = np.zeros(pe.k)
+        got = widths[at:at + pe.k]
+        mine[:len(got)] = got
+        out.append(pe.from_face_edges(mine))
+        at += pe.k
+    return out
+
+
+def _letter_pieces(call, pe: _PlanarEdges, sides: tuple[str, ...]) -> tuple:
+    """``(pieces, selected edges, remainder branch)`` of ``shapeL/U/O`` on one face."""
+    import shapely
+
+    shape = shapely.Polygon()
+    widths = np.zeros(pe.k)
+    for k, side in enumerate(sides):
+        widths[pe.table[side] & (widths == 0)] = max(call.num(k), 0.0)
+    for k, side in enumerate(sides):
+        if call.num(k) > 0:
+            shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), widths, widths > 0))
+    shape = pe.shape.intersection(shape)
+    remainder = pe.shape.difference(shape)
+    selected = np.zeros(pe.k, bool)
+    for k, side in enumerate(sides):
+        if call.num(k) > 0:
+            selected |= pe.table[side]
+    out, rest = [], None
+    for branch in call.branches:
+        key = _selector_key(call, branch)
+        geom = shape if key == "shape" else remainder if key == "remainder" else None
+        if geom is None:
+            raise CGARuntimeError(f"{call.name} selectors are shape and remainder, not '{key}'")
+        rest = branch if key == "remainder" else rest
+        if geom.area > EPS:
+            out.append((branch, geom))
+    return out, selected, rest
+
+
 def _shape_letter(sides: tuple[str, ...]):
     def op(call):
-        """``shapeL/U/O(widths…){ shape : A | remainder : B }``: bands along the named sides."""
+        """``shapeL/U/O(widths…){ shape : A | remainder : B }``: bands along the named sides of
+        each face."""
         st = call.state
-        pe = _PlanarEdges(st, call.name, call.derivation.object_scope.rotation)
-        import shapely
-
-        shape = shapely.Polygon()
-        widths = np.zeros(pe.k)
-        for k, side in enumerate(sides):
-            widths[pe.table[side] & (widths == 0)] = max(call.num(k), 0.0)
-        for k, side in enumerate(sides):
-            w = call.num(k)
-            if w > 0:
-                shape = shape.union(pe.band(np.flatnonzero(pe.table[side]), widths, widths > 0))
-        shape = pe.shape.intersection(shape)
-        remainder = pe.shape.difference(shape)
-        selected = np.zeros(pe.k, bool)
-        for k, side in enumerate(sides):
-            if call.num(k) > 0:
-                selected |= pe.table[side]
-        out, rest = [], None
-        for branch in call.branches:
-            key = _selector_key(call, branch)
-            geom = shape if key == "shape" else remainder if key == "remainder" else None
-            if geom is None:
-                raise CGARuntimeError(f"{call.name} selectors are shape and remainder, not '{key}'")
-            rest = branch if key == "remainder" else rest
-            if geom.area > EPS:
-                out.append((branch, geom))
-        return pe.shapes(st, out, selected, rest)
+        faces = _faces_of(st, call.name, call.derivation.object_scope.rotation)
+        return _successors(st, [(pe, *_letter_pieces(call, pe, sides)) for pe in faces])
     return op
 
 
