@@ -447,3 +447,22 @@ def test_rotate_scope_turns_about_the_pivot_axes_and_keeps_the_geometry():
     assert part.mesh.bounds() == pytest.approx(np.array([[0, 0, 0], [10, 3, 8]]), abs=1e-9)
     s = _scope_of("Lot --> extrude(3) rotateScope(0, 90, 0) S.")
     assert sorted(np.round(s.size, 9)) == [3, 8, 10]
+
+
+@pytest.mark.parametrize("turn", ["r(0, 0, 0)", "rotateScope(0, 0, 0)", "r(scopeCenter, 0, 0, 0)"])
+def test_turning_a_mirrored_scope_keeps_it_mirrored(turn):
+    """After ``mirrorScope`` the scope is a mirror; adding zero angles changes nothing (the
+    angles are read back through the mirror, not as if the scope were a proper rotation, which
+    turned the mass upside down and inside out)."""
+    base = "Lot --> extrude(3) t(20, 0, 0) mirrorScope(true, false, false) {} X."
+    plain, turned = run(base.format("")), run(base.format(turn))
+    assert np.allclose(np.array(bounds(turned)), np.array(bounds(plain)), atol=1e-9)
+    assert sum(p.mesh.volume() for p in turned.parts) == pytest.approx(240.0)
+    (leaf,) = [s for s in turned.root.walk() if s.symbol == "X"]
+    assert np.linalg.det(leaf.scope.rotation) < 0
+
+
+def test_rotate_scope_on_a_mirrored_scope_stays_a_mirror():
+    m = run("Lot --> extrude(3) mirrorScope(true, false, false) rotateScope(0, 30, 0) X.")
+    (leaf,) = [s for s in m.root.walk() if s.symbol == "X"]
+    assert np.linalg.det(leaf.scope.rotation) == pytest.approx(-1.0)

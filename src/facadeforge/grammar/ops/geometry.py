@@ -31,6 +31,7 @@ from .subdivision import (
     hole_polygons,
 )
 from .tagging import VERTEX_TAGS, auto_tag, corner_tags, edges_with, faces_from_edges
+from .transform import mirrored
 from .trimming import apply_trim, note_asset
 
 # ---- extrude ----------------------------------------------------------------------------------
@@ -428,12 +429,6 @@ def op_envelope(call):
 
 # ---- primitives and assets -------------------------------------------------------------------
 
-def _mirrored(rot: np.ndarray) -> bool:
-    """Whether a scope rotation is a mirror (negative determinant; ``mirrorScope``)."""
-    (a, b, c), (d, e, f), (g, h, i) = rot.tolist()
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0
-
-
 def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
     """Place a mesh given in its own frame into the scope, scaled to the scope size.
 
@@ -462,7 +457,7 @@ def _fit_unit_mesh(st, mesh: Mesh, bounds: np.ndarray) -> None:
             sc.origin = sc.to_world((np.where(zero, lo * factors, 0.0))[None])[0]
         sc.size = new_size
     st.geometry = mesh.with_vertices(st.scope.to_world(local))
-    if _mirrored(st.scope.rotation):  # a mirrored scope (mirrorScope): faces stay outward
+    if mirrored(st.scope.rotation):  # a mirrored scope (mirrorScope): faces stay outward
         st.geometry = st.geometry.reversed()
 
 

@@ -40,6 +40,12 @@ def op_s(call):
     st.own_scope().size = new
 
 
+def mirrored(rot: np.ndarray) -> bool:
+    """Whether a scope rotation is a mirror (negative determinant; ``mirrorScope``)."""
+    (a, b, c), (d, e, f), (g, h, i) = rot.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) < 0
+
+
 def rotation_xyz(angles_deg) -> np.ndarray:
     """Rotation matrix of successive rotations about x, then y, then z (degrees)."""
     ax, ay, az = (math.radians(float(a)) for a in angles_deg)
@@ -71,8 +77,17 @@ def turned(call, angles, frame: str = "pivot", mode: str = "rel") -> np.ndarray:
         raise CGARuntimeError(f"unknown coordinate system '{frame}'; use scope, pivot, object or "
                               "world")
     a = np.asarray(angles, float)
-    current = euler_xyz_deg(f.T @ st.scope.rotation) if frame != "scope" else np.zeros(3)
-    return f @ rotation_xyz(current + a if mode == "rel" else a)
+    if frame == "scope":  # the scope's own axes: a mirrored scope stays mirrored
+        return f @ rotation_xyz(a)
+    # angles describe a proper rotation: a mirrored scope (mirrorScope) is read and rebuilt
+    # through its z flip, so it stays mirrored and r(0, 0, 0) changes nothing
+    flip = _Z_FLIP if mirrored(st.scope.rotation) else _SAME
+    current = euler_xyz_deg(f.T @ st.scope.rotation @ flip)
+    return f @ rotation_xyz(current + a if mode == "rel" else a) @ flip
+
+
+_Z_FLIP = np.diag([1.0, 1.0, -1.0])
+_SAME = np.eye(3)
 
 
 def _turn(st, new_rotation: np.ndarray, centre: np.ndarray) -> None:
