@@ -104,3 +104,16 @@ E --> report("in", inside())
     assert not info["B"].pure and not info["C"].pure and not info["D"].pure
     assert not info["E"].pure and p.uses_occlusion
     assert not info["Lot"].pure
+
+
+def test_a_bare_rand_is_impure_but_a_parameter_named_like_a_function_is_not():
+    """``~(rand)`` calls ``rand``; a parameter ``p`` (or ``convert``) is a value, not a call of
+    the one-argument built-in of that name, and keeps its rule instanceable."""
+    src = """Lot --> T(1) R
+T(p) --> s(p, 1, 1) X.
+R --> split(x){ ~(rand) : X. }
+"""
+    r = load_rules(src).ruleset
+    p = Purity(r)
+    assert p.rule(r.main, "T").pure
+    assert not p.rule(r.main, "R").pure

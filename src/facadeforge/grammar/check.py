@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import RuleError
 from . import ast as A
-from .functions import FUNCTIONS
+from .functions import FUNCTIONS, bare_call
 from .module import BUILTIN_NAMES, Module, RuleSet
 from .ops import OPERATIONS, operation_of
 
@@ -52,7 +52,7 @@ class _Checker:
     def known_name(self, name, scope) -> bool:
         return (name in scope or name in BUILTIN_NAMES or name.startswith("material.")
                 or self.m.attr(name) is not None or self.m.function(name, 0) is not None
-                or name in self.shape_fns or FUNCTIONS.get(name, (None, 1))[1] == 0)
+                or name in self.shape_fns or bare_call(name))
 
     def expr(self, node, scope, selector_ok=False):
         t = type(node)

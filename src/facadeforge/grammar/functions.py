@@ -24,6 +24,13 @@ from .values import (
 FUNCTIONS: dict[str, tuple] = {}
 
 
+def bare_call(name: str) -> bool:
+    """Whether a bare name calls a built-in function: one that takes no arguments, which CGA
+    calls without parentheses as it does user functions (``~(rand)`` in Esri's rules)."""
+    entry = FUNCTIONS.get(name)
+    return entry is not None and entry[1] == 0
+
+
 def builtin(name: str, min_args: int, max_args: int | None = None):
     def deco(fn):
         FUNCTIONS[name] = (fn, min_args, min_args if max_args is None else max_args)

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import ast as A
+from .functions import bare_call
 from .module import Module, RuleSet
 from .ops.trimming import trim_key
 
@@ -205,7 +206,7 @@ class Purity:
             n = stack.pop()
             t = type(n)
             if t is A.Name:
-                if n.name in IMPURE_NAMES or n.name in IMPURE_CALLS:  # rand without ()
+                if n.name in IMPURE_NAMES or (n.name in IMPURE_CALLS and bare_call(n.name)):
                     info.pure = False
                 elif n.name in CONTEXT_NAMES:
                     info.reads.add(n.name)

@@ -25,7 +25,7 @@ from ..model.model import Material, Model, Part
 from ..model.shape import Shape
 from . import ast as A
 from .expressions import Evaluator
-from .functions import FUNCTIONS
+from .functions import FUNCTIONS, bare_call
 from .instancing import Payoff, Purity, Recording, instance_key
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
@@ -116,8 +116,7 @@ class Env(Evaluator):
             return self.derivation.attr_value(found[0], found[1], self.state)
         if self.module.function(name, 0) is not None:  # CGA calls 0-ary functions without ()
             return self.call(name, [], node)
-        builtin = FUNCTIONS.get(name)
-        if builtin is not None and builtin[1] == 0:  # so are built-ins: ~(rand) in Esri's rules
+        if bare_call(name):  # so are built-ins: ~(rand) in Esri's rules
             return self.call(name, [], node)
         if name in _SHAPE_FUNCTIONS:  # geometry.uMin and friends read like attributes
             return _SHAPE_FUNCTIONS[name](self, [])
