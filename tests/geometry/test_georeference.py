@@ -94,3 +94,22 @@ def test_cityjson_puts_the_buildings_back_on_the_map(tmp_path):
     # every footprint corner is a ground vertex of the building, to the millimetre
     assert np.abs(ground[None] - corners[:, None]).max(axis=2).min(axis=1).max() < 2e-3
     assert pts[:, 2].max() == pytest.approx(10)
+
+
+def test_cityjson_of_feet_footprints_is_in_feet(tmp_path):
+    """A file in US survey feet (EPSG:2263) derives in metres, and its CityJSON, which names
+    EPSG:2263, has coordinates in feet again: the footprint corners where the file had them,
+    a 10 m tall building 32.8 ft tall."""
+    models = derive(load_rules("Lot --> extrude(10) X."),
+                    str(_write(tmp_path, [_square(980_000, 200_000, 100)], crs="EPSG:2263")),
+                    workers=1)
+    (path, *_) = export(models, tmp_path / "ny.city.json")
+    doc = json.loads(path.read_text())
+    assert doc["metadata"]["referenceSystem"].endswith("/EPSG/0/2263")
+    pts = np.array(doc["vertices"]) * doc["transform"]["scale"] + doc["transform"]["translate"]
+    corners = np.array(_square(980_000, 200_000, 100)[:4], float)
+    ground = pts[pts[:, 2] < 0.5][:, :2]
+    assert np.abs(ground[None] - corners[:, None]).max(axis=2).min(axis=1).max() < 1e-2
+    assert pts[:, 2].max() == pytest.approx(10 / 0.3048006, rel=1e-5)
+    extent = doc["metadata"]["geographicalExtent"]
+    assert extent[0] == pytest.approx(980_000, abs=1e-2) and extent[4] == pytest.approx(200_100, abs=1e-2)

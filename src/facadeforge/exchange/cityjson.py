@@ -170,9 +170,12 @@ def _export(models, path, sequence: bool, semantic_map, reference_system, lod, s
     if origin is None:
         offset = first.attributes.get("_origin_offset")
         origin = _TO_CJ @ np.asarray(offset, float) if offset is not None else np.zeros(3)
+    unit = 1.0  # metres per unit of the reference system: the transform is in its units
     if reference_system is None:
         reference_system = first.attributes.get("_crs")
-    writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures)
+        unit = float(first.attributes.get("_unit", 1.0))
+    writer = _CityJsonWriter(types, str(lod), float(scale), np.asarray(origin, float), textures,
+                             unit)
     out = Path(path)
     with Staging() as stage:
         final = stage.path(out)
@@ -268,8 +271,9 @@ def _surface_rings(mesh: Mesh):
 
 class _CityJsonWriter:
     def __init__(self, types: dict, lod: str, scale: float, origin: np.ndarray,
-                 textures: bool) -> None:
+                 textures: bool, unit: float = 1.0) -> None:
         self.types, self.lod, self.scale, self.origin = types, lod, scale, origin
+        self.unit = unit  # metres per unit of the reference system (feet: 0.3048…)
         self.with_textures = textures
         self.materials: dict[tuple, int] = {}
         self.material_list: list[dict] = []
@@ -318,9 +322,9 @@ class _CityJsonWriter:
             shutil.copyfileobj(vertices, fh, 1 << 20)
             translate = self.origin if translate is None else translate
             if count:
-                metadata = {"geographicalExtent": [*lo.tolist(), *hi.tolist()], **metadata}
-            tail = {"transform": {"scale": [self.scale] * 3, "translate": translate.tolist()},
-                    "metadata": metadata}
+                metadata = {"geographicalExtent": [*(lo / self.unit).tolist(),
+                                                   *(hi / self.unit).tolist()], **metadata}
+            tail = {"transform": self._transform(translate), "metadata": metadata}
             fh.write("]," + json.dumps(tail, separators=(",", ":"))[1:-1])
             appearance = self._appearance(with_uvs=False)
             if appearance:
@@ -345,8 +349,7 @@ class _CityJsonWriter:
             if not header_done:
                 translate = f.points.min(axis=0) if len(f.points) else self.origin
                 head = {"type": "CityJSON", "version": "2.0",
-                        "transform": {"scale": [self.scale] * 3,
-                                      "translate": translate.tolist()},
+                        "transform": self._transform(translate),
                         "CityObjects": {}, "vertices": [], "metadata": metadata}
                 fh.write(json.dumps(head, separators=(",", ":")) + "\n")
                 header_done = True
@@ -361,6 +364,11 @@ class _CityJsonWriter:
             if appearance:
                 feature["appearance"] = appearance
             fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
+
+    def _transform(self, translate: np.ndarray) -> dict:
+        """``transform`` of the integer vertices, which are metres / ``scale`` from
+        ``translate`` (metres): in the reference system's units."""
+        return {"scale": [self.scale / self.unit] * 3, "translate": (translate / self.unit).tolist()}
 
     def _quantized(self, f: _Faces, translate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A building's integer vertices (coincident ones once) and each corner's index."""

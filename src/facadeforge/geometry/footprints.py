@@ -11,8 +11,9 @@ no ``crs`` member, every coordinate is a valid longitude/latitude and its footpr
 typically smaller than 0.01 (a hundredth of a degree is about a kilometre; no building is a
 centimetre across).  A projected ``crs`` member is kept (and recorded; feet become metres).
 Far coordinates are moved near the origin (:func:`_center_far_coordinates`).  Each footprint
-records what puts it back on the map: ``_origin_offset`` (CGA axes) and ``_crs`` (EPSG code),
-which the CityJSON exporter turns into ``transform.translate`` and ``referenceSystem``.
+records what puts it back on the map: ``_origin_offset`` (CGA axes, metres), ``_crs`` (EPSG
+code) and, for a CRS in feet, ``_unit`` (metres per foot), which the CityJSON exporter turns
+into ``transform`` (in the CRS's units) and ``referenceSystem``.
 A third coordinate is the footprint's elevation (CGA y), the mean of its outline's.
 """
 
@@ -139,7 +140,7 @@ def _geojson(p: Path) -> list[Footprint]:
                 raise InputError(f"'{p}': feature {i} has malformed coordinates") from None
             parts.append((name if len(polys) == 1 else f"{name}_{k}", props, ring, holes))
     crs_name = ((data.get("crs") or {}).get("properties") or {}).get("name")
-    project, epsg, note = _georeference(p, crs_name, [ring for _, _, ring, _ in parts])
+    project, epsg, note, unit = _georeference(p, crs_name, [ring for _, _, ring, _ in parts])
     out = []
     for name, props, ring, holes in parts:
         ring, holes = project(ring), [project(h) for h in holes]
@@ -160,6 +161,8 @@ def _geojson(p: Path) -> list[Footprint]:
         attrs = {k2: v for k2, v in props.items() if isinstance(v, (int, float, str, bool))}
         if epsg is not None:
             attrs["_crs"] = epsg
+            if unit != 1.0:  # metres per unit of that CRS: exports write its units back
+                attrs["_unit"] = unit
         if note:
             attrs["_projected"] = note
         out.append(Footprint(name, poly, attrs, _usable_holes(ring, kept)))
@@ -183,14 +186,15 @@ DEGREE_EXTENT = 0.01
 
 
 def _georeference(p: Path, crs_name, outlines: list) -> tuple:
-    """``(project, epsg, note)``: a function taking a ring's coordinates to metres (x east,
-    y north[, elevation]), the EPSG code of the result (None when unknown), and a note saying
-    what was projected (empty when nothing was)."""
+    """``(project, epsg, note, unit)``: a function taking a ring's coordinates to metres (x
+    east, y north[, elevation]), the EPSG code of the CRS the file is in or was projected to
+    (None when unknown), a note saying what was projected (empty when nothing was), and the
+    metres per unit of that CRS (1 but for feet)."""
     def same(ring):
         return ring
 
     if not outlines:
-        return same, None, ""
+        return same, None, "", 1.0
     if crs_name is not None:
         from pyproj import CRS
         from pyproj.exceptions import CRSError
@@ -204,11 +208,11 @@ def _georeference(p: Path, crs_name, outlines: list) -> tuple:
             return _to_utm(crs, outlines)
         unit = crs.axis_info[0].unit_conversion_factor if crs.axis_info else 1.0
         if abs(unit - 1.0) < 1e-12:
-            return same, crs.to_epsg(), ""
+            return same, crs.to_epsg(), "", 1.0
 
         def scaled(ring):
             return ring * unit
-        return scaled, crs.to_epsg(), f"{crs.axis_info[0].unit_name} to metres"
+        return scaled, crs.to_epsg(), f"{crs.axis_info[0].unit_name} to metres", unit
     lon = np.concatenate([r[:, 0] for r in outlines])
     lat = np.concatenate([r[:, 1] for r in outlines])
     extent = np.median([float(np.ptp(r[:, :2], axis=0).max()) for r in outlines])
@@ -216,7 +220,7 @@ def _georeference(p: Path, crs_name, outlines: list) -> tuple:
         from pyproj import CRS
 
         return _to_utm(CRS.from_user_input("OGC:CRS84"), outlines)
-    return same, None, ""
+    return same, None, "", 1.0
 
 
 def _to_utm(source, outlines: list) -> tuple:
@@ -234,7 +238,7 @@ def _to_utm(source, outlines: list) -> tuple:
         x, y = transform(ring[:, 0], ring[:, 1])
         return np.column_stack([x, y, ring[:, 2:]])
     hemisphere = "N" if lat >= 0 else "S"
-    return project, epsg, f"longitude/latitude to UTM zone {zone}{hemisphere} (EPSG:{epsg})"
+    return project, epsg, f"longitude/latitude to UTM zone {zone}{hemisphere} (EPSG:{epsg})", 1.0
 
 
 def _center_far_coordinates(fps: list[Footprint]) -> None:
