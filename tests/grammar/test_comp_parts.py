@@ -94,6 +94,21 @@ def test_comp_connected_operator_on_a_connected_mesh_is_one_shape():
     assert len(parts["S"]) == 1 and parts["S"][0].mesh.n_faces == 6
 
 
+def test_comp_connected_operator_joins_components_and_never_splits_one():
+    """``=:`` on materials: connected components join, a component is one shape even when its
+    own faces do not touch (one material on two separate boxes)."""
+    two_boxes = "Lot --> extrude(10) inline split(x){ 2 : A | 2 : NIL | 2 : A | ~1 : NIL } B\n"
+    m = run(two_boxes + 'A --> color("#ff0000")\nB --> comp(m){ all =: X. }', lot="10x10")
+    assert [p.mesh.n_faces for p in by_symbol(m)["X"]] == [12]
+    # two materials on one box touch: one shape; on two boxes apart: two
+    m = run('Lot --> extrude(10) inline comp(f){ top : color("#ff0000") F. | all : F. } B\n'
+            'B --> comp(m){ all =: X }\nX --> report("total", comp.total) Y.', lot="10x10")
+    assert m.reports["total"] == [1.0] and sum(p.mesh.n_faces for p in m.parts) == 6
+    apart = ("Lot --> extrude(10) inline split(x){ 2 : A | 2 : NIL | 2 : C | ~1 : NIL } B\n"
+             'A --> color("#ff0000")\nC --> color("#0000ff")\nB --> comp(m){ all =: X. }')
+    assert sorted(p.mesh.n_faces for p in by_symbol(run(apart, lot="10x10"))["X"]) == [6, 6]
+
+
 def test_comp_function_with_the_connected_operator():
     src = """Lot --> extrude(10) inline split(x){ 2 : A | 2 : NIL | 2 : A | ~1 : NIL } B
              B --> report("pieces", str(comp(f){ side =: comp.index | all : -1 })) X."""

@@ -84,6 +84,36 @@ def connected_faces(mesh: Mesh, faces: list[int]) -> list[list[int]]:
     return list(comps.values())
 
 
+def connected_parts(mesh: Mesh, parts: list) -> list[list[int]]:
+    """The ``parts`` (lists of face indices) joined where a face of one shares an edge with a
+    face of another (``=:``): groups of part indices, each in order, the groups in order of
+    their first part.  A part is never split, even when its own faces do not touch (a
+    material on two separate walls)."""
+    owner: dict[int, int] = {}
+    for k, p in enumerate(parts):
+        for f in p:
+            owner.setdefault(int(f), k)
+    parent = list(range(len(parts)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for piece in connected_faces(mesh, list(owner)):
+        first = root(owner[piece[0]])
+        for f in piece[1:]:
+            other = root(owner[f])
+            if other != first:
+                parent[max(first, other)] = min(first, other)
+                first = min(first, other)
+    groups: dict = {}
+    for k in range(len(parts)):
+        groups.setdefault(root(k), []).append(k)
+    return list(groups.values())
+
+
 def seams(mesh: Mesh, weld: np.ndarray) -> set:
     """The edges inside faces with holes (between two of their pieces): welded vertex pairs
     ``(min, max)`` of ``weld`` (per vertex), which ``comp(e)`` and tag queries do not see."""

@@ -9,7 +9,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.cut import split_along_axis
-from ...geometry.holed import connected_faces, face_groups, outline, plane_polygon, rings, seams
+from ...geometry.holed import (
+    connected_faces,
+    connected_parts,
+    face_groups,
+    outline,
+    plane_polygon,
+    rings,
+    seams,
+)
 from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, weld_ids
 from ...geometry.polygon import simple_pieces
 from ...model.scope import Scope
@@ -700,9 +708,10 @@ def _comp_parts(call, st, kind: str):
         sel_name = key if isinstance(key, str) else str(key)
         if branch.mode == "=" and len(idx):
             groups = [np.concatenate([parts[i] for i in idx])]
-        elif branch.mode == "=:" and len(idx):  # the selected faces' connected pieces
-            groups = [np.array(g) for g in connected_faces(
-                st.geometry, np.concatenate([parts[i] for i in idx]).tolist())]
+        elif branch.mode == "=:" and len(idx):  # the selected components that connect
+            chosen = [parts[i] for i in idx]
+            groups = [np.concatenate([chosen[k] for k in g])
+                      for g in connected_parts(st.geometry, chosen)]
         else:
             groups = [parts[i] for i in idx]
         for j, faces in enumerate(groups):
