@@ -324,29 +324,10 @@ def merge_coplanar(vertices, polys: list[Poly], max_angle: float, groups) -> lis
 
 # -- collinear corners ------------------------------------------------------------------------------
 
-def _straight(vertices, p: Poly, k: int, max_angle: float) -> bool:
-    """Whether corner ``k`` lies on the straight line through its neighbours (turn angle within
-    ``max_angle``) and its texture coordinate on the line between theirs."""
-    n = len(p.verts)
-    a, b, c = vertices[p.verts[k - 1]], vertices[p.verts[k]], vertices[p.verts[(k + 1) % n]]
-    d1, d2 = b - a, c - b
-    l1, l2 = np.linalg.norm(d1), np.linalg.norm(d2)
-    if l1 <= EPS or l2 <= EPS or _angle(d1 / l1, d2 / l2) > max_angle:
-        return False
-    if p.uvs is None:
-        return True
-    t = l1 / (l1 + l2)
-    expect = p.uvs[k - 1] * (1 - t) + p.uvs[(k + 1) % n] * t
-    return bool(np.abs(p.uvs[k] - expect).max() <= UV_EPS)
-
-
 def _straight_corners(vertices, polys: list[Poly], max_angle: float) -> list[list[bool]]:
-    """:func:`_straight` of every corner of every face, in one vectorised pass (faces all with
-    texture coordinates or all without; otherwise corner by corner)."""
-    with_uvs = {p.uvs is not None for p in polys}
-    if len(with_uvs) > 1:
-        return [[_straight(vertices, p, k, max_angle) for k in range(len(p.verts))]
-                for p in polys]
+    """Per face, whether each corner lies on the straight line through its neighbours (turn
+    angle within ``max_angle``) and, where the face has texture coordinates, its coordinate on
+    the line between theirs: every corner of every face in one vectorised pass."""
     sizes = np.array([len(p.verts) for p in polys], np.int64)
     starts = np.concatenate([[0], np.cumsum(sizes)])
     ids = np.fromiter((v for p in polys for v in p.verts), np.int64, int(starts[-1]))
@@ -362,8 +343,9 @@ def _straight_corners(vertices, polys: list[Poly], max_angle: float) -> list[lis
     ok = (l1 > EPS) & (l2 > EPS)
     cos = np.einsum("ij,ij->i", d1, d2) / np.where(ok, l1 * l2, 1.0)
     straight = ok & (np.arccos(np.clip(cos, -1.0, 1.0)) <= max_angle)
-    if with_uvs == {True}:
-        uv = np.concatenate([p.uvs for p in polys])
+    if any(p.uvs is not None for p in polys):  # faces without: zeros, which always fit
+        uv = np.concatenate([np.zeros((len(p.verts), 2)) if p.uvs is None else p.uvs
+                             for p in polys])
         t = (l1 / np.where(ok, l1 + l2, 1.0))[:, None]
         expect = uv[prev] * (1 - t) + uv[nxt] * t
         straight &= np.abs(uv - expect).max(axis=1) <= UV_EPS

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import InputError
 from .mesh import EPS, polygon_normal
+from .polygon import without_repeats
 
 MAX_FOOTPRINTS = 1_000_000
 
@@ -44,13 +45,10 @@ class Footprint:
 
 
 def _clean_ring(ring: np.ndarray) -> np.ndarray:
+    """A file's ring without its closing point (GeoJSON repeats the first) and repeated points."""
     if len(ring) > 1 and np.allclose(ring[0], ring[-1]):
         ring = ring[:-1]
-    keep = np.ones(len(ring), bool)
-    for i in range(len(ring)):
-        if np.linalg.norm(ring[i] - ring[i - 1]) < 1e-9:
-            keep[i] = False
-    return ring[keep]
+    return without_repeats(ring)
 
 
 def _usable_holes(ring: np.ndarray, holes: list) -> list:

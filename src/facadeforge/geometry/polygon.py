@@ -5,13 +5,17 @@ from __future__ import annotations
 import numpy as np
 
 
-def ring_points(ring) -> np.ndarray:
-    """A shapely ring's points (k, 2) without the closing point and without points repeating the
-    one before (an overlay cut through a vertex can leave it twice in a row: a repeated corner
-    would be an edge of no length)."""
-    pts = np.asarray(ring.coords)[:-1]
+def without_repeats(pts: np.ndarray) -> np.ndarray:
+    """The points (k, d) of a closed ring without those repeating the one before (the last
+    counting as before the first): a repeated corner would be an edge of no length."""
     step = np.linalg.norm(pts - np.roll(pts, 1, axis=0), axis=1)
     return pts[step > 1e-9] if len(pts) and (step <= 1e-9).any() else pts
+
+
+def ring_points(ring) -> np.ndarray:
+    """A shapely ring's points (k, 2) without the closing point and without repeated points (an
+    overlay cut through a vertex can leave it twice in a row)."""
+    return without_repeats(np.asarray(ring.coords)[:-1])
 
 
 def simple_pieces(g) -> list[np.ndarray]:

@@ -753,17 +753,18 @@ def _comp_faces(call, st):
     if mesh.n_faces == 0:
         return []
     normals = mesh.face_normals()
-    table = classify_faces(normals, st.scope.rotation, call.derivation.object_scope.rotation)
+    groups = face_groups(mesh) if mesh.column("holed") is not None else None
+    # selectors per face with holes: its first piece's (all coplanar); still worked out lazily
+    firsts = np.array([g[0] for g in groups]) if groups is not None else None
+    table = classify_faces(normals if firsts is None else normals[firsts], st.scope.rotation,
+                           call.derivation.object_scope.rotation)
     kinds = mesh.column("kind")
     if kinds is not None:
         extra = {"inside": kinds == "inside", "border": kinds == "border"}
     else:
         extra = {"inside": np.zeros(mesh.n_faces, bool), "border": np.zeros(mesh.n_faces, bool)}
     tags = _tag_masks(mesh, "f")
-    groups = face_groups(mesh) if mesh.column("holed") is not None else None
-    if groups is not None:  # selectors per face with holes: its first piece's (all coplanar)
-        firsts = np.array([g[0] for g in groups])
-        table = {k: v[firsts] for k, v in table.items()}
+    if groups is not None:
         extra = {k: v[firsts] for k, v in extra.items()}
         face_tags = tags
 
