@@ -154,6 +154,10 @@ def _paired_walls(sides: list) -> set:
     return {sides[i][0] for i, js in enumerate(hits) if any(j != i for j in js)}
 
 
+_WORLD_UP = ("world.y", "world.up", "world.up.flatTop")  # extrude directions
+_NORMAL = ("face.normal", "vertex.normal", "normal")
+
+
 @operation("extrude", 1, 2, selectors=(0,), selector_min_args=2)
 def op_extrude(call):
     """Extrude each face along its normal (or ``world.y``); the scope keeps its orientation."""
@@ -164,18 +168,19 @@ def op_extrude(call):
         mode, dist = "face.normal", call.num(0)
     if abs(dist) < EPS:
         return
+    if mode not in _WORLD_UP + _NORMAL:
+        raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or "
+                              "world.up")
     if not st.geometry.n_faces:
         if edge_or_vertex(st) == "edge":
             _extrude_edge(st, mode, dist)
         return
-    if mode in ("world.y", "world.up", "world.up.flatTop"):
+    if mode in _WORLD_UP:
         def direction(n):
             return np.array([0.0, 1.0 if n[1] >= 0 else -1.0, 0.0])
-    elif mode in ("face.normal", "vertex.normal", "normal", "world.up.flatTop"):
+    else:
         def direction(n):
             return n
-    else:
-        raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or world.y")
     first_normal = st.geometry.face_normals()[0]
     st.geometry, kinds = extrude_mesh(st.geometry, direction, dist)
     st.geometry = auto_tag(st.geometry, "extrude", kinds)
@@ -188,10 +193,6 @@ def _extrude_edge(st, mode: str, dist: float) -> None:
     (``world.up…``) or along its normal (its scope's z axis, the mean normal of the faces it
     bordered), facing away from the face it came from ("Edges can also be extruded, e.g., when
     working on shapes created from comp(e|fe)", extrude reference)."""
-    if mode not in ("world.y", "world.up", "world.up.flatTop", "face.normal", "vertex.normal",
-                    "normal"):
-        raise CGARuntimeError(f"extrude direction '{mode}' is not supported; use face.normal or "
-                              "world.up")
     sc = st.scope
     length = sc.size[0]
     if abs(length) < EPS:
