@@ -14,7 +14,7 @@ from .errors import InputError, RuleError
 from .geometry.assets import AssetResolver
 from .geometry.footprints import Footprint, load_footprints, lot
 from .geometry.mesh import Mesh, plane_basis, polygon_normal
-from .grammar.interpreter import Derivation, Limits, paused_gc
+from .grammar.interpreter import Derivation, Limits, deriving
 from .grammar.module import RuleSet, link
 from .grammar.state import ShapeState
 from .model.model import Model
@@ -207,9 +207,9 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
     around = [Occluder(-1 - k, mesh, label) for k, (mesh, label) in enumerate(neighbours or ())]
     d = Derivation(rules.ruleset, initial_state(fp), fp.name, overrides, seed, strict,
                    rules.assets, limits, start, instancing=not keep_tree, neighbours=around)
-    with paused_gc():  # the statistics merge the model's meshes: as many objects again
+    with deriving():  # the statistics merge the model's meshes: as many objects again
         model = d.run()
-        model.occluders = [(o.mesh, o.label) for o in d.occluders] if d.leaf_occluders else []
+        model.occluders = [(o.mesh, o.label) for o in d.occluders] if d.keeps_occluders else []
         model.attributes.update({k: v for k, v in fp.attributes.items()})
         model.attributes["seconds"] = time.perf_counter() - t0
         model.attributes["shapes"] = d.shape_count + 1

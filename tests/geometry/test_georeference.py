@@ -9,6 +9,7 @@ from pyproj import Geod, Transformer
 
 from facadeforge import derive, export, load_rules
 from facadeforge.errors import InputError
+from facadeforge.exchange import load
 from facadeforge.geometry.footprints import load_footprints
 
 
@@ -113,3 +114,31 @@ def test_cityjson_of_feet_footprints_is_in_feet(tmp_path):
     assert pts[:, 2].max() == pytest.approx(10 / 0.3048006, rel=1e-5)
     extent = doc["metadata"]["geographicalExtent"]
     assert extent[0] == pytest.approx(980_000, abs=1e-2) and extent[4] == pytest.approx(200_100, abs=1e-2)
+
+
+@pytest.mark.parametrize("suffix", [".glb", ".obj"])
+def test_glb_and_obj_keep_the_georeference_apart_from_the_data(tmp_path, suffix):
+    """Formats without a reference system hold the georeference in an entry of its own (not
+    among the building's attributes), and the reloaded model writes the same CityJSON."""
+    models = derive(load_rules("Lot --> extrude(10) X."),
+                    str(_write(tmp_path, [_square(980_000, 200_000, 100)], crs="EPSG:2263")),
+                    workers=1)
+    (path, *_) = export(models, tmp_path / ("b" + suffix))
+    if suffix == ".glb":
+        from pygltflib import GLTF2
+
+        extras = GLTF2().load(str(path)).nodes[0].extras
+        assert not any(k.startswith("_") for k in extras["attributes"])
+        assert extras["georeference"]["crs"] == 2263
+        assert extras["georeference"]["unit"] == pytest.approx(0.3048006)
+    else:
+        text = path.read_text()
+        assert '"_crs"' not in text and "# facadeforge georeference {" in text
+    (again,) = load(path)
+    assert again.attributes["_crs"] == 2263
+    first = json.loads(export(models, tmp_path / "a.city.json")[0].read_text())
+    second = json.loads(export([again], tmp_path / "b.city.json")[0].read_text())
+    assert second["metadata"]["referenceSystem"] == first["metadata"]["referenceSystem"]
+    assert second["transform"]["translate"] == pytest.approx(first["transform"]["translate"])
+    assert second["metadata"]["geographicalExtent"] == pytest.approx(
+        first["metadata"]["geographicalExtent"], abs=1e-3)

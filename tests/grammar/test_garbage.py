@@ -1,13 +1,14 @@
-"""Derivations run with Python's cyclic garbage collector paused (``interpreter.paused_gc``):
-they must make no cyclic garbage of their own but the shape tree, and must leave the collector
-as they found it."""
+"""Derivations run with Python's cyclic garbage collector paused and its recursion limit raised
+(``interpreter.deriving``): they must make no cyclic garbage of their own but the shape tree,
+and must leave the collector and the limit as they found them."""
 
 import gc
+import sys
 
 import pytest
 from cga_helpers import run
 
-from facadeforge.grammar.interpreter import Env, paused_gc
+from facadeforge.grammar.interpreter import PYTHON_RECURSION_LIMIT, Env, deriving
 from facadeforge.grammar.state import ShapeState
 
 RULES = """
@@ -50,8 +51,23 @@ def test_the_collector_comes_back_as_it_was():
         assert not gc.isenabled()  # a caller that switched it off keeps it off
     finally:
         gc.enable()
-    with paused_gc():
-        with paused_gc():
+    with deriving():
+        with deriving():
             assert not gc.isenabled()
         assert not gc.isenabled()  # the outer derivation is still running
     assert gc.isenabled()
+
+
+def test_the_recursion_limit_comes_back_as_it_was():
+    before = sys.getrecursionlimit()
+    assert before < PYTHON_RECURSION_LIMIT
+    # a CGA function recursing 900 levels needs the raised limit (about ten frames a call)
+    model = run("sum(n) = case n <= 0 : 0 else : 1 + sum(n - 1)\n"
+                "Lot --> report(\"n\", sum(900)) X.")
+    assert model.reports["n"] == [900.0]
+    assert sys.getrecursionlimit() == before
+    with deriving():
+        with deriving():
+            assert sys.getrecursionlimit() == PYTHON_RECURSION_LIMIT
+        assert sys.getrecursionlimit() == PYTHON_RECURSION_LIMIT  # the outer one still runs
+    assert sys.getrecursionlimit() == before

@@ -107,6 +107,22 @@ def test_fuzz_unicode(text):
         pass
 
 
+def test_a_misspelt_rule_of_an_import_gets_a_suggestion(tmp_path):
+    from facadeforge import derive, load_rules
+
+    (tmp_path / "lib.cga").write_text('Facade --> color("#ff0000") X.\nRoof --> Y.\n')
+    (tmp_path / "main.cga").write_text(
+        'import SU : "lib.cga"\nimport Deep : "mid.cga"\n'
+        'Lot --> extrude(5) comp(f){ side: SU.Facde | top: Deep.Sx.Roof }\n')
+    (tmp_path / "mid.cga").write_text('import SU : "lib.cga"\nM --> X.\n')
+    m = derive(load_rules(tmp_path / "main.cga"), None, lot_size="10x8")[0]
+    assert sorted(m.warnings) == [
+        "rule 'Deep.Sx.Roof' is not defined (no such import: 'Deep.Sx'; did you mean "
+        "'Deep.SU.Roof'?); the shape is a leaf",
+        "rule 'SU.Facde' is not defined (no such rule there: 'SU'; did you mean "
+        "'SU.Facade'?); the shape is a leaf"]
+
+
 def test_semantic_errors_name_file_line_and_suggest():
     from facadeforge import derive, load_rules
 

@@ -139,6 +139,28 @@ def jsonable(obj: object) -> object:
     return str(obj)
 
 
+#: a footprint's georeference, as ``geometry.footprints`` records it among the model's attributes
+GEOREFERENCE = {"_crs": "crs", "_origin_offset": "origin_offset", "_unit": "unit"}
+
+
+def split_attributes(attributes: dict) -> tuple[dict, dict]:
+    """``(data, georeference)``: the model's attributes without the runtime's own (names starting
+    with ``_``), and its georeference under plain names (``crs``, ``origin_offset``, ``unit``),
+    which formats without a reference system (glTF extras, OBJ comments) keep apart from the
+    data, so that a reloaded model can still be written georeferenced."""
+    data = {k: v for k, v in attributes.items() if not str(k).startswith("_")}
+    geo = {GEOREFERENCE[k]: v for k, v in attributes.items() if k in GEOREFERENCE}
+    return jsonable(data), jsonable(geo)
+
+
+def joined_attributes(data: dict | None, georeference: dict | None) -> dict:
+    """:func:`split_attributes` undone."""
+    names = {v: k for k, v in GEOREFERENCE.items()}
+    out = dict(data or {})
+    out.update({names[k]: v for k, v in (georeference or {}).items() if k in names})
+    return out
+
+
 def scalar_attributes(attributes: dict) -> dict:
     """The entries of ``attributes`` whose values are JSON scalars (str, number, bool, None);
     names starting with ``_`` are the runtime's own (a footprint's georeference), not data."""

@@ -48,9 +48,11 @@ from ._common import (
     face_corners,
     image_extension,
     iter_models,
+    joined_attributes,
     jsonable,
     mesh_from_flat,
     read_texture,
+    split_attributes,
     triangulate_corners,
 )
 from .errors import ExportError, LoadError
@@ -209,8 +211,11 @@ class _GlbBuilder:
             prim = self._primitive(parts, label)
             if prim is not None:
                 primitives.append(prim)
-        extras = jsonable({"facadeforge_model": True, "attributes": model.attributes,
+        data, geo = split_attributes(model.attributes)
+        extras = jsonable({"facadeforge_model": True, "attributes": data,
                            "reports": model.reports, "warnings": model.warnings})
+        if geo:
+            extras["georeference"] = geo
         node = {"name": model.name, "extras": extras}
         if primitives:
             self.json["meshes"].append({"name": model.name, "primitives": primitives})
@@ -401,7 +406,8 @@ class _GlbReader:
         if node.mesh is None and not extras.get("facadeforge_model"):
             return None
         model = Model(name=node.name or f"node{idx}",
-                      attributes=dict(extras.get("attributes") or {}),
+                      attributes=joined_attributes(extras.get("attributes"),
+                                                   extras.get("georeference")),
                       reports={k: list(v) for k, v in (extras.get("reports") or {}).items()},
                       warnings=list(extras.get("warnings") or []))
         if node.mesh is not None:

@@ -39,10 +39,11 @@ from ._common import (
     corner_uvs,
     face_corners,
     iter_models,
-    jsonable,
+    joined_attributes,
     log,
     mesh_from_flat,
     safe_name,
+    split_attributes,
 )
 from .errors import LoadError
 
@@ -149,8 +150,11 @@ def _write_obj(out, models, library: _MaterialLibrary, mtl_name: str, precision:
     counters = [0, 0]  # vertices and texture vertices written so far
     for i, model in enumerate(models):
         out.write(f"o {safe_name(model.name, f'model{i}')}\n")
-        if model.attributes:
-            out.write(f"{_TAG} attributes {json.dumps(jsonable(model.attributes))}\n")
+        data, geo = split_attributes(model.attributes)
+        if data:
+            out.write(f"{_TAG} attributes {json.dumps(data)}\n")
+        if geo:
+            out.write(f"{_TAG} georeference {json.dumps(geo)}\n")
         for j, part in enumerate(model.parts):
             if part.mesh.n_faces:
                 _write_part(out, part, library.name(part.material), j, counters, precision)
@@ -269,6 +273,9 @@ def _parse_line(state: _ObjState, line: str, default_name: str) -> None:
 def _parse_tag(state: _ObjState, text: str) -> None:
     if text.startswith("attributes ") and state.models:
         state.models[-1][0].attributes.update(json.loads(text[len("attributes "):]))
+    elif text.startswith("georeference ") and state.models:
+        state.models[-1][0].attributes.update(
+            joined_attributes(None, json.loads(text[len("georeference "):])))
     elif text.startswith("label="):
         fields = dict(item.split("=", 1) for item in text.split() if "=" in item)
         state.current = None

@@ -177,12 +177,13 @@ class Mesh:
     """
 
     __slots__ = ("vertices", "corners", "starts", "corner_uvs", "closed", "face_data",
-                 "corner_data")
+                 "corner_data", "_newell_cache")
 
     def __init__(self, vertices=None, faces: Sequence | None = None, uvs: Sequence | None = None,
                  *, corners=None, starts=None, corner_uvs=None, closed: bool | None = None,
                  face_data: dict | None = None, corner_data: dict | None = None):
         self.closed = closed  # cached topology: None = not yet known
+        self._newell_cache = None  # (F, 3) Newell vectors, read-only, at the first need
         self.face_data = face_data or None  # column -> (F,) object array; see FACE_COLUMNS
         self.corner_data = corner_data or None  # column -> (C,) object array; CORNER_COLUMNS
         self.vertices = (np.zeros((0, 3)) if vertices is None
@@ -403,7 +404,14 @@ class Mesh:
         return self.n_faces == 0
 
     def _newell(self) -> np.ndarray:
-        """(F, 3) Newell vectors: twice the area times the unit normal of each face."""
+        """(F, 3) Newell vectors: twice the area times the unit normal of each face (worked
+        out once: a mesh's arrays are never changed in place, every edit makes a new mesh)."""
+        if self._newell_cache is None:
+            self._newell_cache = self._compute_newell()
+            self._newell_cache.flags.writeable = False
+        return self._newell_cache
+
+    def _compute_newell(self) -> np.ndarray:
         if not self.n_faces:
             return np.zeros((0, 3))
         p = self.vertices[self.corners]

@@ -93,7 +93,7 @@ class Evaluator:
     ``random_float()`` (the per-shape random stream) and ``comp_function(node)``.  It is a base
     class, not an object holding its environment: an environment and an evaluator pointing at
     each other would be a reference cycle per rule application, left for the cyclic garbage
-    collector (see ``interpreter.paused_gc``).
+    collector (see ``interpreter.deriving``).
     """
 
     __slots__ = ()

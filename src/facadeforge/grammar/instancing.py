@@ -100,6 +100,8 @@ class Purity:
                 for fdef in overloads.values():
                     self._expr(m, fdef.body, info)
                 self.info[(id(m), "fn:" + name)] = info
+            for adef in m.attrs.values():  # an attribute may ask an occlusion query too
+                self._expr(m, adef.value, RuleInfo())
         changed = True
         while changed:  # propagate impurity and reads along calls
             changed = False

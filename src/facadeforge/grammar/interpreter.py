@@ -7,6 +7,7 @@ shape count and time.
 
 from __future__ import annotations
 
+import difflib
 import gc
 import math
 import sys
@@ -54,34 +55,44 @@ class Limits:
     max_warnings: int = 1000
 
 
-_gc_lock = threading.Lock()
-_gc_pause = {"count": 0, "was_enabled": False}  # derivations running, collector state before
+_running_lock = threading.Lock()
+# derivations running, and the process settings found when the first of them started
+_running = {"count": 0, "gc_was_enabled": False, "recursion_limit": 0}
 
 
 @contextmanager
-def paused_gc():
-    """Python's cyclic garbage collector off while a derivation runs, back as it was after.
+def deriving():
+    """The process-wide settings a derivation needs, back as they were when the last
+    derivation running leaves (threads share them, so the calls are counted).
 
-    A derivation allocates hundreds of thousands of small objects that live until it ends
-    (shapes, states, scopes, meshes); the collector's passes traverse them again and again
-    (``benchmarks/cga_speed.py``: Candler Building on seven lots 12.2 s with it, 9.0 s
-    without).  Reference counting still frees everything that is not in a cycle, and a
-    derivation makes no cyclic garbage but its own shape tree (parent ↔ children), which is kept
-    until the end anyway: an environment is its own expression evaluator
-    (``expressions.Evaluator``) rather than pointing at one that points back.  Threads share the
-    collector, so it comes back on when the last derivation running leaves."""
-    with _gc_lock:
-        if _gc_pause["count"] == 0:
-            _gc_pause["was_enabled"] = gc.isenabled()
+    - Python's cyclic garbage collector is paused.  A derivation allocates hundreds of
+      thousands of small objects that live until it ends (shapes, states, scopes, meshes); the
+      collector's passes traverse them again and again (``benchmarks/cga_speed.py``: Candler
+      Building on seven lots 12.2 s with it, 9.0 s without).  Reference counting still frees
+      everything that is not in a cycle, and a derivation makes no cyclic garbage but its own
+      shape tree (parent ↔ children), which is kept until the end anyway: an environment is its
+      own expression evaluator (``expressions.Evaluator``) rather than pointing at one that
+      points back.
+    - Python's recursion limit is raised to :data:`PYTHON_RECURSION_LIMIT`.  In a thread of
+      your own, give it a stack of 8 MB or more (``threading.stack_size``) before starting it:
+      macOS gives threads 512 KB, which a CGA recursion a few hundred calls deep overflows."""
+    with _running_lock:
+        if _running["count"] == 0:
+            _running["gc_was_enabled"] = gc.isenabled()
+            _running["recursion_limit"] = sys.getrecursionlimit()
             gc.disable()
-        _gc_pause["count"] += 1
+            if _running["recursion_limit"] < PYTHON_RECURSION_LIMIT:
+                sys.setrecursionlimit(PYTHON_RECURSION_LIMIT)
+        _running["count"] += 1
     try:
         yield
     finally:
-        with _gc_lock:
-            _gc_pause["count"] -= 1
-            if _gc_pause["count"] == 0 and _gc_pause["was_enabled"]:
-                gc.enable()
+        with _running_lock:
+            _running["count"] -= 1
+            if _running["count"] == 0:
+                sys.setrecursionlimit(_running["recursion_limit"])
+                if _running["gc_was_enabled"]:
+                    gc.enable()
 
 
 class Env(Evaluator):
@@ -297,8 +308,9 @@ class Derivation:
         purity = getattr(ruleset, "_purity", None)
         if purity is None:
             purity = ruleset._purity = Purity(ruleset)
-        # closed leaf shapes are occluders too (CityEngine), worth keeping only for queries
-        self.leaf_occluders = purity.uses_occlusion
+        # occluders (closed volumes split into parts, closed leaf shapes) are worth keeping only
+        # when some rule asks an occlusion query
+        self.keeps_occluders = purity.uses_occlusion
         if instancing:
             self._purity = None if purity.uses_occlusion else purity
 
@@ -346,10 +358,8 @@ class Derivation:
 
     # -- main loop ---------------------------------------------------------------------------
     def run(self) -> Model:
-        if sys.getrecursionlimit() < PYTHON_RECURSION_LIMIT:
-            sys.setrecursionlimit(PYTHON_RECURSION_LIMIT)
         try:
-            with paused_gc():
+            with deriving():
                 return self._run()
         except RecursionError:
             raise DerivationError(
@@ -376,9 +386,7 @@ class Derivation:
             if module.has_rule_name(name):
                 self.warn(f"rule '{name}' has no overload with {len(args)} parameters; shape left as is")
             elif "." in name:
-                prefix = name.rsplit(".", 1)[0]
-                why = "no such import" if module.resolve(name) is None else "no such rule there"
-                self.warn(f"rule '{name}' is not defined ({why}: '{prefix}'); the shape is a leaf")
+                self.warn(_undefined_qualified(module, name))
             self._output(node, state, name)
             return
         mod, rdef = found
@@ -494,8 +502,7 @@ class Derivation:
         if state.geometry.n_faces == 0:
             return
         node.material = self.material(state)
-        if self.leaf_occluders:
-            self.add_occluder(state)
+        self.add_occluder(state)
         own = state.geometry.column("material")
         if own is not None:  # faces with their own material: one part per material
             for am, faces in self._material_groups(own):
@@ -557,6 +564,8 @@ class Derivation:
     def add_occluder(self, state: ShapeState):
         """Register a closed volume about to be split into components as an occluder; return
         the occluder ids its descendants must ignore (their own ancestors)."""
+        if not self.keeps_occluders:
+            return None
         g = state.geometry
         ancestors = state.context.get("occluder_ancestors", ())
         if g.n_faces < 4 or not g.is_closed():
@@ -578,6 +587,23 @@ class Derivation:
         if self.shape_count > self.limits.max_shapes:
             raise DerivationError(f"more than {self.limits.max_shapes} shapes (last rule '{rule}'); "
                                   "a repeat split on a huge scope or a runaway recursion?")
+
+
+def _undefined_qualified(module: Module, name: str) -> str:
+    """The warning for a call of ``Alias.Rule`` that finds no rule, with the nearest name."""
+    prefix, short = name.rsplit(".", 1)
+    found = module.resolve(name)
+    if found is None:  # the alias (or one along the chain) is not imported
+        head = prefix.rpartition(".")[0]
+        owner = module if not head else (module.resolve(head + ".x") or (None,))[0]
+        known = [] if owner is None else [(head + "." if head else "") + a for a in owner.imports]
+        close = difflib.get_close_matches(prefix, known, n=1)
+        hint = f"; did you mean '{close[0]}.{short}'?" if close else ""
+        return f"rule '{name}' is not defined (no such import: '{prefix}'{hint}); the shape is a leaf"
+    mod = found[0]
+    close = difflib.get_close_matches(short, list(mod.rules), n=1)
+    hint = f"; did you mean '{prefix}.{close[0]}'?" if close else ""
+    return f"rule '{name}' is not defined (no such rule there: '{prefix}'{hint}); the shape is a leaf"
 
 
 class _RunContext:
