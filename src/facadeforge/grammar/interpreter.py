@@ -68,11 +68,10 @@ def deriving():
     - Python's cyclic garbage collector is paused.  A derivation allocates hundreds of
       thousands of small objects that live until it ends (shapes, states, scopes, meshes); the
       collector's passes traverse them again and again (``benchmarks/cga_speed.py``: Candler
-      Building on seven lots 12.2 s with it, 9.0 s without).  Reference counting still frees
-      everything that is not in a cycle, and a derivation makes no cyclic garbage but its own
-      shape tree (parent ↔ children), which is kept until the end anyway: an environment is its
-      own expression evaluator (``expressions.Evaluator``) rather than pointing at one that
-      points back.
+      Building on seven lots 12.2 s with it, 9.0 s without).  Reference counting frees
+      everything, since a derivation makes no reference cycle: an environment is its own
+      expression evaluator (``expressions.Evaluator``) rather than pointing at one that points
+      back, and a shape holds its parent weakly (``Shape.parent``).
     - Python's recursion limit is raised to :data:`PYTHON_RECURSION_LIMIT`.  In a thread of
       your own, give it a stack of 8 MB or more (``threading.stack_size``) before starting it:
       macOS gives threads 512 KB, which a CGA recursion a few hundred calls deep overflows."""
@@ -426,7 +425,7 @@ class Derivation:
             self._output(node, state, name)
         elif ctx.deleted and not node.children:
             # NIL removes the shape from the tree (CityEngine): nothing of it may be painted
-            parent = getattr(node, "parent", None)
+            parent = node.parent
             if parent is not None:
                 parent.children.remove(node)
 
@@ -620,11 +619,9 @@ class _RunContext:
         child_state = state.child(self.emitted)
         self.emitted += 1
         self.d.count_shape(name)
-        child = Shape(name, child_state.scope, id=self.d.new_id())
-        child.parent = self.node
+        child = self.node.add(Shape(name, child_state.scope, id=self.d.new_id()))
         if origin:
             child.operator, child.params = origin
-        self.node.children.append(child)
         if leaf:
             self.d._output(child, child_state, name)
         else:
@@ -664,7 +661,7 @@ class _RunContext:
                             self.d.count_shape(self.rule)
                             piece = Shape(self.rule, piece_state.scope, operator=op.name,
                                           params=info, id=self.d.new_id())
-                            self.node.children.append(piece)
+                            self.node.add(piece)
                             self.d._output(piece, piece_state, self.rule)
                     # the current shape is now an inner node of the tree, never a leaf; as in
                     # CityEngine, operations after the body go on with it unchanged (its own

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import weakref
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -54,10 +55,33 @@ class Shape:
     operator: str = ""
     params: dict = field(default_factory=dict)
     id: int = field(default_factory=lambda: next(_ids))
-    parent: Shape | None = field(default=None, repr=False, compare=False)
+    _parent: weakref.ref | None = field(default=None, init=False, repr=False, compare=False)
+
+    @property
+    def parent(self) -> Shape | None:
+        """The shape this one was made from; ``None`` for a root.  Held weakly, so that a tree
+        has no reference cycle and is freed as soon as its root is dropped (a subtree kept
+        alone loses its parent then)."""
+        return None if self._parent is None else self._parent()
+
+    @parent.setter
+    def parent(self, shape: Shape | None) -> None:
+        self._parent = None if shape is None else weakref.ref(shape)
+
+    def __getstate__(self) -> dict:  # pickling and deep copies: parents come back from children
+        state = self.__dict__.copy()
+        state["_parent"] = None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        for child in self.children:  # already rebuilt: pickle sets a node's state after theirs
+            child._parent = weakref.ref(self)
 
     def add(self, child: Shape) -> Shape:
+        """Append ``child`` and make this shape its parent."""
         self.children.append(child)
+        child._parent = weakref.ref(self)
         return child
 
     def walk(self) -> Iterator[Shape]:
@@ -131,5 +155,6 @@ class Shape:
         node = Shape(d["symbol"], Scope(sc["origin"], sc["rotation"], sc["size"], sc.get("unit", "m")),
                      label=d.get("label", ""), tags=dict(d.get("tags", {})),
                      operator=d.get("operator", ""), params=dict(d.get("params", {})))
-        node.children = [Shape.from_dict(c) for c in d.get("children", [])]
+        for c in d.get("children", []):
+            node.add(Shape.from_dict(c))
         return node
