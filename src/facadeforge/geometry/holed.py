@@ -132,6 +132,77 @@ def seams(mesh: Mesh, weld: np.ndarray) -> set:
     return {key for key, gs in owners.items() if len(gs) >= 2 and len(set(gs)) == 1}
 
 
+def edge_corners(mesh: Mesh, weld: np.ndarray, inner: set | None = None) -> np.ndarray:
+    """The corners whose edges ``comp(e)``, ``comp(fe)`` and tag queries list, in their order:
+    each face's corners in turn, a face with holes (pieces) taking its place at its first piece
+    as its rings (:func:`boundary_rings`), the edges between its pieces (``inner``, default
+    :func:`seams`) left out.  ``weld`` is the welded id of each vertex."""
+    n_c = len(mesh.corners)
+    if inner is None:
+        inner = seams(mesh, weld)
+    w = weld[mesh.corners] if n_c else np.zeros(0, np.int64)
+    nxt = mesh.next_corners() if n_c else np.zeros(0, np.int64)
+    if not inner:
+        return np.arange(n_c)
+    keep = np.array([(min(a, b), max(a, b)) not in inner for a, b in zip(w, w[nxt])], bool)
+    order = []
+    for group in face_groups(mesh):
+        if len(group) == 1:
+            f = group[0]
+            order.append(np.arange(mesh.starts[f], mesh.starts[f + 1]))
+            continue
+        corners = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in group])
+        rings_found = boundary_rings(mesh, group, corners[keep[corners]], w, nxt)
+        order.append(np.concatenate(rings_found) if rings_found is not None
+                     else corners[keep[corners]])
+    return np.concatenate(order) if order else np.zeros(0, np.int64)
+
+
+def boundary_rings(mesh: Mesh, faces, boundary: np.ndarray, w: np.ndarray, nxt: np.ndarray):
+    """The ``boundary`` corners of the pieces ``faces`` of one face with holes as its rings,
+    each a corner array with the face on the edges' left: the outline first, starting where
+    :func:`outline` starts (so a face's first edge is its scope's x axis), then the holes by
+    the distance of their nearest corner to that start, each starting at that corner (a
+    footprint's courtyard ring, given from its corner nearest the lot's first, comes back as
+    given).  ``None`` when the boundary is not such rings (two rings touching at a vertex)."""
+    start_of: dict = {}
+    for c in boundary:
+        if w[c] == w[nxt[c]]:
+            continue
+        if w[c] in start_of:
+            return None
+        start_of[w[c]] = c
+    loops, left = [], dict(start_of)
+    while left:
+        c = next(iter(left.values()))
+        loop = []
+        while w[c] in left:  # each step removes one entry: bounded
+            del left[w[c]]
+            loop.append(c)
+            c = start_of.get(w[nxt[c]])
+            if c is None:
+                return None
+        loops.append(np.array(loop, np.int64))
+    normal = mesh.face_normals()[faces].sum(axis=0)
+    pts = [mesh.vertices[mesh.corners[lp]] for lp in loops]
+    areas = [float(np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0) @ normal) for p in pts]
+    outer = [i for i, a in enumerate(areas) if a > 0]
+    if len(outer) != 1:
+        return None
+    start = outline(mesh, faces)[0]
+    o = outer[0]
+    first = int(np.argmin(np.linalg.norm(pts[o] - start, axis=1)))
+    out = [np.roll(loops[o], -first)]
+    holes = []
+    for i, (lp, p) in enumerate(zip(loops, pts)):
+        if i != o:
+            d = np.linalg.norm(p - start, axis=1)
+            k = int(np.argmin(d))
+            holes.append((float(d[k]), i, np.roll(lp, -k)))
+    out.extend(h for *_, h in sorted(holes, key=lambda t: (t[0], t[1])))
+    return out
+
+
 def outline(mesh: Mesh, faces) -> np.ndarray:
     """The outer ring (k, 3) of the pieces ``faces`` of one face with holes, counter-clockwise
     about their normal, for its scope: a wall's starts with its bottom edge (as an extruded

@@ -10,8 +10,10 @@ import numpy as np
 
 from ...geometry.cut import split_along_axis
 from ...geometry.holed import (
+    boundary_rings,
     connected_faces,
     connected_parts,
+    edge_corners,
     face_groups,
     outline,
     plane_polygon,
@@ -854,23 +856,22 @@ def _comp_edges(call, st, per_face: bool = False):
     edges, seen, edge_faces = [], {}, []
     normals = mesh.face_normals()
     corner_edge = []
-    inner = seams(mesh, weld)  # edges between pieces of a face with holes are no edges
-    for f in range(mesh.n_faces):
-        face = mesh.face(f)
-        for a, b in zip(face, np.roll(face, -1)):
-            k = (min(weld[a], weld[b]), max(weld[a], weld[b]))
-            if k in inner:
-                continue
-            corner_edge.append((a, b, f, seen.get(k, len(edges)) if k[0] != k[1] else -1))
-            if k[0] == k[1]:
-                continue
-            if k in seen:
-                edges[seen[k]][3] += 1
-                edge_faces[seen[k]].append(f)
-                continue
-            seen[k] = len(edges)
-            edges.append([mesh.vertices[a], mesh.vertices[b], normals[f], 1])
-            edge_faces.append([f])
+    nxt = mesh.next_corners()
+    face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
+    # each face's edges in turn, a face with holes' as its rings (seams between pieces are none)
+    for c in edge_corners(mesh, weld).tolist():
+        a, b, f = mesh.corners[c], mesh.corners[nxt[c]], int(face_of[c])
+        k = (min(weld[a], weld[b]), max(weld[a], weld[b]))
+        corner_edge.append((a, b, f, seen.get(k, len(edges)) if k[0] != k[1] else -1))
+        if k[0] == k[1]:
+            continue
+        if k in seen:
+            edges[seen[k]][3] += 1
+            edge_faces[seen[k]].append(f)
+            continue
+        seen[k] = len(edges)
+        edges.append([mesh.vertices[a], mesh.vertices[b], normals[f], 1])
+        edge_faces.append([f])
     welded_of = None
     if per_face:  # one component per corner, with its welded edge's neighbours
         welded_of = np.array([e for *_, e in corner_edge], np.int64)
@@ -1055,10 +1056,16 @@ class _PlanarEdges:
             self.xy = self.sc.to_local(poly)[:, :2]
             self.shape = shapely.Polygon(self.xy).buffer(0)
         else:
-            outlines = rings(plane_polygon(mesh, groups[0], self.sc.origin, self.sc.rotation))
-            if len(outlines) != 1:
-                raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
-            self.xy, self.holes = outlines[0]
+            found = _piece_rings(mesh, groups[0])
+            if found is None:
+                outlines = rings(plane_polygon(mesh, groups[0], self.sc.origin,
+                                               self.sc.rotation))
+                if len(outlines) != 1:
+                    raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) "
+                                          "first)")
+                self.xy, self.holes = outlines[0]
+            else:  # comp(fe)'s rings, so that an edge's index is the same in both
+                self.xy, *self.holes = [self.sc.to_local(r)[:, :2] for r in found]
             self.shape = shapely.Polygon(self.xy, self.holes)
         ring_list = [self.xy, *self.holes]
         self.seg_a = np.concatenate(ring_list)
@@ -1115,10 +1122,7 @@ class _PlanarEdges:
         if not self.pieces or not isinstance(values, np.ndarray) or len(values) != self.k:
             return values
         on, ix = self.edges_on_segments()
-        inner = seams(self.mesh, weld_ids(self.mesh.vertices))
-        w = weld_ids(self.mesh.vertices)[self.mesh.corners]
-        nxt = self.mesh.next_corners()
-        fe = [c for c in range(len(w)) if (min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]])) not in inner]
+        fe = edge_corners(self.mesh, weld_ids(self.mesh.vertices)).tolist()
         at = {int(ix.edge_of[c]): k for k, c in enumerate(fe)}
         return np.array([values[at[es[0]]] if es and es[0] in at else values[i]
                          for i, es in enumerate(on)], float)
@@ -1246,6 +1250,23 @@ class _PlanarEdges:
         """``[(branch, shapely geometry)]`` → successor states, one per branch (all its
         polygons in one shape): :func:`_successors` of this face alone."""
         return _successors(st, [(self, pieces, selected, remainder)], by_polygon=False)
+
+
+def _piece_rings(mesh: Mesh, faces) -> list[np.ndarray] | None:
+    """The rings (k, 3) of the face with holes stored as the pieces ``faces``, in ``comp(fe)``
+    order (:func:`geometry.holed.boundary_rings`), corners on straight runs kept; ``None``
+    where its boundary is not such rings."""
+    weld = weld_ids(mesh.vertices)
+    inner = seams(mesh, weld)
+    w = weld[mesh.corners]
+    nxt = mesh.next_corners()
+    corners = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in faces])
+    boundary = corners[[(min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]])) not in inner
+                        for c in corners]]
+    found = boundary_rings(mesh, faces, boundary, w, nxt)
+    if found is None:
+        return None
+    return [mesh.vertices[mesh.corners[r[w[r] != w[nxt[r]]]]] for r in found]
 
 
 def _faces_of(st, opname: str, object_rot) -> list[_PlanarEdges]:

@@ -31,7 +31,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ...geometry.holed import seams
+from ...geometry.holed import edge_corners
 from ...geometry.mesh import Mesh, weld_ids
 from ..values import CGARuntimeError, to_str
 from . import operation, shape_function
@@ -195,15 +195,14 @@ class TagIndex:
         self.face_of = np.repeat(np.arange(mesh.n_faces), mesh.face_sizes)
         vw = weld_ids(mesh.vertices)
         w = vw[mesh.corners] if n_c else np.zeros(0, np.int64)
-        inner = seams(mesh, vw)  # edges between pieces of a face with holes: not edges
         nxt = mesh.next_corners() if n_c else np.zeros(0, np.int64)
         self.weld = w
         self.edge_of = np.full(n_c, -1, np.int64)
         self.edge_corners: list[list[int]] = []
         seen: dict = {}
-        for c in range(n_c):
+        for c in edge_corners(mesh, vw).tolist():  # comp(e)'s order, seams left out
             k = (min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]]))
-            if k[0] == k[1] or k in inner:
+            if k[0] == k[1]:
                 continue
             e = seen.setdefault(k, len(self.edge_corners))
             if e == len(self.edge_corners):
