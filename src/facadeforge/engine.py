@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from .errors import InputError, RuleError
 from .geometry.assets import AssetResolver
 from .geometry.footprints import Footprint, load_footprints, lot
 from .geometry.mesh import Mesh, plane_basis, polygon_normal
-from .grammar.interpreter import Derivation, Limits, deriving
+from .grammar.interpreter import PYTHON_RECURSION_LIMIT, Derivation, Limits, deriving
 from .grammar.module import RuleSet, link
 from .grammar.state import ShapeState
 from .model.model import Model
@@ -242,6 +243,9 @@ def _worker_init(spec):
     from threadpoolctl import threadpool_limits
 
     _WORKER["blas"] = threadpool_limits(1)
+    # the process is ours: a derivation's shape tree is pickled back after ``deriving`` has put
+    # the recursion limit back, and pickling nests about five frames a tree level
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), PYTHON_RECURSION_LIMIT))
     _WORKER["rules"] = load_rules(spec["rules"], rule=spec["rule"], assets=spec["assets"],
                                   start=spec["start"], style=spec["style"])
     _WORKER["spec"] = spec

@@ -60,6 +60,10 @@ def test_parents_survive_pickling_and_copies():
                  Shape.from_dict(model.root.to_dict())):
         assert root.parent is None and sum(1 for _ in root.walk()) > 20
         assert all(c.parent is n for n in root.walk() for c in n.children)
+    shallow = copy.copy(model.root)  # shares the children, which stay the original's
+    assert shallow.children[0].parent is model.root
+    del shallow
+    assert all(c.parent is n for n in model.root.walk() for c in n.children)
 
 
 def test_the_collector_comes_back_as_it_was():

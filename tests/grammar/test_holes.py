@@ -230,6 +230,14 @@ def test_per_edge_setbacks_and_tag_selectors_on_a_face_with_holes(block):
     assert m.attributes["prints"] == ["30", "0", "18"]  # the lot's scope, y up, fitted
 
 
+def test_a_setback_line_on_a_face_with_holes_copies_its_edge_s_tags(block):
+    a = areas(derive_on('Lot --> tag("P", edges) setback(2){ front : F. | remainder : R }\n'
+                        'R --> extrude(1) comp(f){ isTagged("setback.back") && isTagged("P") : '
+                        'BP. | isTagged("setback.back") : BN. | all : O. }', block))
+    # front: the block's front edge and the courtyard's far one, each with its setback line
+    assert a["BP"] == pytest.approx(30 * 1 + 10 * 1) and "BN" not in a
+
+
 def test_comp_holes_gives_the_courtyards(block):
     m = derive_on("Lot --> print(size(comp(h){ all : 1 })) comp(h){ all : H. }", block)
     assert m.attributes["prints"] == ["1"]

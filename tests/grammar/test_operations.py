@@ -280,6 +280,42 @@ def test_occlusion_between_masses():
     assert len(r["inside"]) == 4
 
 
+def test_occlusion_queries_by_bare_name_and_in_attributes():
+    """``case inside : …`` calls the query as ``inside()`` does, and so does an attribute's
+    value: either way the rules keep their occluders."""
+    body = ("Lot --> [ extrude(10) comp(f){ all : W. } ] s('0.5, 0, '0.5) center(xz) "
+            "extrude(2) Q\n")
+    for q in ("Q --> case inside : In. else : Out.", "Q --> case inside() : In. else : Out."):
+        m = derive_text(body + q, lot="10x8")[0]
+        assert [p.symbol for p in m.parts if p.symbol in ("In", "Out")] == ["In"], q
+    m = derive_text("attr here = inside()\n" + body + "Q --> report(\"in\", here) X.",
+                    lot="10x8")[0]
+    assert m.reports["in"] == [True]
+
+
+def test_deep_trees_come_back_from_worker_processes(tmp_path):
+    """A worker pickles its model's shape tree after the derivation put Python's recursion
+    limit back: a rule recursing 250 levels still comes back, with its tree."""
+    import json
+
+    from facadeforge import derive
+
+    fp = tmp_path / "lots.geojson"
+    fp.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [
+            [[40 * i, 0], [40 * i + 20, 0], [40 * i + 20, 10], [40 * i, 10], [40 * i, 0]]]}}
+        for i in range(4)]}))
+    rules = tmp_path / "deep.cga"
+    rules.write_text("Lot --> R(0)\nR(n) --> case n < 250 : split(x){ 0.02 : A. | ~1 : R(n + 1) }"
+                     " else : X.\n")
+    models = derive(rules, fp, workers=2)
+    assert len(models) == 4
+    depth, node = 0, next(s for s in models[0].root.walk() if s.symbol == "X")
+    while node.parent is not None:
+        depth, node = depth + 1, node.parent
+    assert depth > 250
+
+
 def test_label_layout_export(tmp_path):
     from PIL import Image
 

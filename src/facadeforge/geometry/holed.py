@@ -192,6 +192,16 @@ def boundary_rings(mesh: Mesh, faces, boundary: np.ndarray, w: np.ndarray, nxt: 
     start = outline(mesh, faces)[0]
     o = outer[0]
     first = int(np.argmin(np.linalg.norm(pts[o] - start, axis=1)))
+    # back to where the straight run of that first edge begins (pieces may leave corners on
+    # a straight edge: a wall's bottom edge, split where a piece meets it, starts at its end)
+    d = np.roll(pts[o], -1, axis=0) - pts[o]
+    n = len(d)
+    for _ in range(n - 1):
+        a, b = d[(first - 1) % n], d[first]
+        if np.linalg.norm(np.cross(a, b)) > 1e-9 * np.linalg.norm(a) * np.linalg.norm(b) \
+                or a @ b <= 0:
+            break
+        first = (first - 1) % n
     out = [np.roll(loops[o], -first)]
     holes = []
     for i, (lp, p) in enumerate(zip(loops, pts)):

@@ -102,6 +102,8 @@ class Purity:
                 self.info[(id(m), "fn:" + name)] = info
             for adef in m.attrs.values():  # an attribute may ask an occlusion query too
                 self._expr(m, adef.value, RuleInfo())
+            for importer, expr in m.import_overrides.values():  # import F : "f.cga" (a = …)
+                self._expr(importer, expr, RuleInfo())
         changed = True
         while changed:  # propagate impurity and reads along calls
             changed = False
@@ -208,7 +210,10 @@ class Purity:
             n = stack.pop()
             t = type(n)
             if t is A.Name:
-                if n.name in IMPURE_NAMES or (n.name in IMPURE_CALLS and bare_call(n.name)):
+                if n.name in OCCLUSION_CALLS and m.attr(n.name) is None:  # `case inside : …`
+                    info.pure = False
+                    self.uses_occlusion = True
+                elif n.name in IMPURE_NAMES or (n.name in IMPURE_CALLS and bare_call(n.name)):
                     info.pure = False
                 elif n.name in CONTEXT_NAMES:
                     info.reads.add(n.name)

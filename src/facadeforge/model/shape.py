@@ -76,7 +76,8 @@ class Shape:
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         for child in self.children:  # already rebuilt: pickle sets a node's state after theirs
-            child._parent = weakref.ref(self)
+            if child._parent is None:  # not a shallow copy's, which shares the original's
+                child._parent = weakref.ref(self)
 
     def add(self, child: Shape) -> Shape:
         """Append ``child`` and make this shape its parent."""

@@ -544,11 +544,11 @@ def component_count(st, kind: str) -> int:
     if kind in ("e", "fe") and mesh.column("holed") is not None:  # seams are no edges
         weld = weld_ids(mesh.vertices)
         inner = seams(mesh, weld)
+        if kind == "fe":  # as comp(fe) lists them
+            return len(edge_corners(mesh, weld, inner))
         keys = [(min(weld[a], weld[b]), max(weld[a], weld[b]))
                 for a, b in zip(mesh.corners, mesh.corners[mesh.next_corners()])]
-        if kind == "e":
-            return len({k for k in keys if k[0] != k[1]} - inner)
-        return sum(k not in inner for k in keys)
+        return len({k for k in keys if k[0] != k[1]} - inner)
     if kind == "h":
         return len(hole_polygons(mesh))
     if kind in ("m", "g"):
@@ -1139,8 +1139,14 @@ class _PlanarEdges:
         d = b - a
         dd = np.maximum((d * d).sum(axis=1), EPS)
         unit = d / np.sqrt(dd)[:, None]
-        own = (corner_tags(face, EDGE_TAGS) if face.corner_column(EDGE_TAGS) is not None
-               and not self.holes else None)
+        own = None  # each segment's own edge tags, which its setback line copies
+        if face.corner_column(EDGE_TAGS) is not None:
+            tags = corner_tags(face, EDGE_TAGS)
+            if not self.pieces:
+                own = [tags[int(face.starts[0]) + i] for i in range(self.k)]
+            else:  # the tags of the piece edge lying on the segment
+                on, ix = self.edges_on_segments()
+                own = [tags[ix.edge_corners[es[0]][0]] if es else () for es in on]
         local = self.sc.to_local(mesh.vertices[mesh.corners])[:, :2]
         nxt = mesh.next_corners()
         ends = [tuple(np.round(np.concatenate([local[c], local[nxt[c]]]), 7)) for c in range(len(local))]
@@ -1166,7 +1172,7 @@ class _PlanarEdges:
                 if own is not None and len(along):  # the nearest selected edge it runs along
                     w = q - a[along]
                     dist = np.abs(unit[along, 0] * w[:, 1] - unit[along, 1] * w[:, 0])
-                    extra = own[int(face.starts[0]) + int(along[np.argmin(dist)])]
+                    extra = own[int(along[np.argmin(dist)])]
             parts.append(part)
             copied.append(extra)
         return edges_with(auto_tag_edges(mesh, "setback", parts), copied)
@@ -1387,7 +1393,7 @@ def op_setback_to_area(call):
         if a.size != pe.k:
             raise CGARuntimeError(f"setbackToArea: a distance array has {a.size} values; give "
                                   f"one per edge ({pe.k})")
-        return a
+        return pe.from_face_edges(a)
 
     lo, hi = per_edge(1, 0.0), per_edge(2, np.inf)
     selected = np.zeros(pe.k, bool)
