@@ -117,3 +117,16 @@ R --> split(x){ ~(rand) : X. }
     p = Purity(r)
     assert p.rule(r.main, "T").pure
     assert not p.rule(r.main, "R").pure
+
+
+def test_inside_as_a_keyword_or_selector_is_no_occlusion_query():
+    """``offset(-1, inside)`` and the ``inside`` selector of comp are keywords: the rules stay
+    instanceable and keep no occluders; ``case inside : …`` is the query."""
+    src = """Lot --> offset(-1, inside) comp(f){ inside : In. | border : B. } W
+W --> offset(-1) comp(f){ inside : In. | all : B. }
+"""
+    r = load_rules(src).ruleset
+    p = Purity(r)
+    assert p.rule(r.main, "W").pure and not p.uses_occlusion
+    r = load_rules(src + "Q --> case inside : In. else : Out.\n").ruleset
+    assert Purity(r).uses_occlusion

@@ -26,6 +26,8 @@ import numpy as np
 from . import ast as A
 from .functions import bare_call
 from .module import Module, RuleSet
+from .ops import OPERATIONS
+from .ops.subdivision import SELECTOR_WORDS
 from .ops.trimming import trim_key
 
 IMPURE_NAMES = {"scope.tx", "scope.ty", "scope.tz", "scope.rx", "scope.ry", "scope.rz",
@@ -162,8 +164,7 @@ class Purity:
                     if name in UV_OPS:
                         info.uses_uv = True
                     _note_reach(name, args, info)
-                    for a in args:
-                        self._expr(m, a, info)
+                    self._args(m, spec, args, info)
                     continue
                 if t is A.Successor:
                     callee = self._callee(m, name)
@@ -178,8 +179,7 @@ class Purity:
                 if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
                         and op.args[0].name in ("u", "v"):
                     info.uses_uv = True
-                for a in op.args:
-                    self._expr(m, a, info)
+                self._args(m, OPERATIONS.get(op.name), op.args, info)
                 self._branches(m, op.branches, info)
             elif t is A.Push or t is A.Inline:
                 self._ops(m, op.ops, info)
@@ -194,22 +194,34 @@ class Purity:
             elif t is A.StochasticOps:
                 info.pure = False
 
+    def _args(self, m, spec, args, info):
+        """An operation's arguments, but the bare keywords it takes (``offset(-1, inside)``:
+        no occlusion query)."""
+        keywords = spec.selector_positions(len(args)) if spec is not None else ()
+        for i, a in enumerate(args):
+            if not (i in keywords and type(a) is A.Name):
+                self._expr(m, a, info)
+
     def _branches(self, m, branches, info):
         for b in branches:
             if isinstance(b, A.RepeatGroup):
                 self._branches(m, b.branches, info)
             else:
-                self._expr(m, b.selector, info)
+                self._expr(m, b.selector, info, selector=True)
                 if b.depth is not None:
                     self._expr(m, b.depth, info)
                 self._ops(m, b.ops, info)
 
-    def _expr(self, m, node, info):
+    def _expr(self, m, node, info, selector: bool = False):
+        """``selector``: ``node`` selects components, where ``inside`` (offset's inner face)
+        and the other selector words are no queries."""
         stack = [node]
         while stack:
             n = stack.pop()
             t = type(n)
             if t is A.Name:
+                if selector and n.name in SELECTOR_WORDS:
+                    continue
                 if n.name in OCCLUSION_CALLS and m.attr(n.name) is None:  # `case inside : …`
                     info.pure = False
                     self.uses_occlusion = True

@@ -10,7 +10,6 @@ import numpy as np
 
 from ...geometry.cut import split_along_axis
 from ...geometry.holed import (
-    boundary_rings,
     connected_faces,
     connected_parts,
     edge_corners,
@@ -1056,16 +1055,13 @@ class _PlanarEdges:
             self.xy = self.sc.to_local(poly)[:, :2]
             self.shape = shapely.Polygon(self.xy).buffer(0)
         else:
-            found = _piece_rings(mesh, groups[0])
-            if found is None:
-                outlines = rings(plane_polygon(mesh, groups[0], self.sc.origin,
-                                               self.sc.rotation))
-                if len(outlines) != 1:
-                    raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) "
-                                          "first)")
-                self.xy, self.holes = outlines[0]
-            else:  # comp(fe)'s rings, so that an edge's index is the same in both
-                self.xy, *self.holes = [self.sc.to_local(r)[:, :2] for r in found]
+            # its edges' index is not always comp(e)'s: the FHNW rules' setbacks and shapeO on
+            # courtyard lots change form with comp(e)'s ring order, which needs a study against
+            # CityEngine first (widths from comp(fe) are matched by position: from_face_edges)
+            outlines = rings(plane_polygon(mesh, groups[0], self.sc.origin, self.sc.rotation))
+            if len(outlines) != 1:
+                raise CGARuntimeError(f"{opname} needs a single planar face (use comp(f) first)")
+            self.xy, self.holes = outlines[0]
             self.shape = shapely.Polygon(self.xy, self.holes)
         ring_list = [self.xy, *self.holes]
         self.seg_a = np.concatenate(ring_list)
@@ -1256,23 +1252,6 @@ class _PlanarEdges:
         """``[(branch, shapely geometry)]`` → successor states, one per branch (all its
         polygons in one shape): :func:`_successors` of this face alone."""
         return _successors(st, [(self, pieces, selected, remainder)], by_polygon=False)
-
-
-def _piece_rings(mesh: Mesh, faces) -> list[np.ndarray] | None:
-    """The rings (k, 3) of the face with holes stored as the pieces ``faces``, in ``comp(fe)``
-    order (:func:`geometry.holed.boundary_rings`), corners on straight runs kept; ``None``
-    where its boundary is not such rings."""
-    weld = weld_ids(mesh.vertices)
-    inner = seams(mesh, weld)
-    w = weld[mesh.corners]
-    nxt = mesh.next_corners()
-    corners = np.concatenate([np.arange(mesh.starts[f], mesh.starts[f + 1]) for f in faces])
-    boundary = corners[[(min(w[c], w[nxt[c]]), max(w[c], w[nxt[c]])) not in inner
-                        for c in corners]]
-    found = boundary_rings(mesh, faces, boundary, w, nxt)
-    if found is None:
-        return None
-    return [mesh.vertices[mesh.corners[r[w[r] != w[nxt[r]]]]] for r in found]
 
 
 def _faces_of(st, opname: str, object_rot) -> list[_PlanarEdges]:
