@@ -149,3 +149,22 @@ def test_semantic_errors_name_file_line_and_suggest():
     # own rules contain such calls on rarely taken branches)
     m = derive(load_rules("Lot --> F(1, 2)\nF(a) --> X\n"), None, lot_size="4x4")[0]
     assert any("no overload with 2 parameters" in w for w in m.warnings)
+
+
+def test_parser_tables_are_cached_in_the_users_folder(tmp_path, monkeypatch):
+    """The LALR tables are kept in the user's private cache; a broken cache file is rebuilt."""
+    from facadeforge.grammar import parser as P
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    P._parser.cache_clear()
+    try:
+        P._parser()
+        (cached,) = (tmp_path / "facadeforge" / "parser").glob("cga-*.pickle")
+        assert (cached.parent.stat().st_mode & 0o777) == 0o700
+        cached.write_bytes(b"not a pickle")
+        P._parser.cache_clear()
+        rules = parse_rules("A --> B\n")
+        assert [r.name for r in rules.rules] == ["A"]
+        assert cached.read_bytes() != b"not a pickle"  # rewritten
+    finally:
+        P._parser.cache_clear()

@@ -28,12 +28,14 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 import numpy as np
 
 from ..geometry.mesh import Mesh
 from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
+from ._ascii import format_lines
 from ._common import (
     Staging,
     corner_uvs,
@@ -81,7 +83,7 @@ def export_obj(models: Model | Sequence[Model], path: str | os.PathLike, *,
     mtl_path = path.with_suffix(".mtl")
     with Staging() as stage:
         library = _MaterialLibrary(path.parent, texture_folder)
-        with open(stage.path(path), "w", encoding="utf-8", newline="\n") as out:
+        with open(stage.path(path), "wb") as out:
             # model by model: a city never sits in memory whole
             _write_obj(out, iter_models(models), library, mtl_path.name, precision)
         for source, relative in library.textures.items():
@@ -145,40 +147,52 @@ class _MaterialLibrary:
         return "\n".join(lines) + "\n"
 
 
-def _write_obj(out, models, library: _MaterialLibrary, mtl_name: str, precision: int) -> None:
-    out.write(f"{_TAG} OBJ export\nmtllib {mtl_name}\n")
+def _text(out: BinaryIO, line: str) -> None:
+    out.write(line.encode("utf-8"))
+
+
+def _write_obj(out: BinaryIO, models, library: _MaterialLibrary, mtl_name: str,
+               precision: int) -> None:
+    _text(out, f"{_TAG} OBJ export\nmtllib {mtl_name}\n")
     counters = [0, 0]  # vertices and texture vertices written so far
     for i, model in enumerate(models):
-        out.write(f"o {safe_name(model.name, f'model{i}')}\n")
+        _text(out, f"o {safe_name(model.name, f'model{i}')}\n")
         data, geo = split_attributes(model.attributes)
         if data:
-            out.write(f"{_TAG} attributes {json.dumps(data)}\n")
+            _text(out, f"{_TAG} attributes {json.dumps(data)}\n")
         if geo:
-            out.write(f"{_TAG} georeference {json.dumps(geo)}\n")
+            _text(out, f"{_TAG} georeference {json.dumps(geo)}\n")
         for j, part in enumerate(model.parts):
             if part.mesh.n_faces:
                 _write_part(out, part, library.name(part.material), j, counters, precision)
 
 
-def _write_part(out, part: Part, material: str, index: int, counters: list[int],
+def _write_part(out: BinaryIO, part: Part, material: str, index: int, counters: list[int],
                 precision: int) -> None:
     mesh = part.mesh
     corners, starts = face_corners(mesh)
     uv, has_uv = corner_uvs(mesh)
-    out.write(f"g {safe_name(part.symbol, f'part{index}')}\n")
-    out.write(f"{_TAG} label={safe_name(part.label, '-')} shape={int(part.shape_id)}\n")
-    out.write(f"usemtl {material}\n")
-    np.savetxt(out, mesh.vertices, fmt=f"v %.{precision}f %.{precision}f %.{precision}f")
-    vidx = (corners + counters[0] + 1).tolist()
+    _text(out, f"g {safe_name(part.symbol, f'part{index}')}\n")
+    _text(out, f"{_TAG} label={safe_name(part.label, '-')} shape={int(part.shape_id)}\n")
+    _text(out, f"usemtl {material}\n")
+    write = out.write
+    # every number of the part at once (np.savetxt formatted row by row: 15 s a city)
+    write(format_lines("v ", mesh.vertices, precision=precision))
+    # faces of fewer than three corners are not written (an OBJ face needs three)
+    sizes = np.diff(starts)
+    kept = sizes >= 3
+    take = np.repeat(kept, sizes)
+    vidx = corners[take] + counters[0] + 1
+    line_starts = np.concatenate([[0], np.cumsum(sizes[kept])])
     if has_uv:
-        np.savetxt(out, uv, fmt=f"vt %.{precision}f %.{precision}f")
-        first = counters[1] + 1
-        tokens = [f"{v}/{t}" for v, t in zip(vidx, range(first, first + len(vidx)))]
-        counters[1] += len(vidx)
+        write(format_lines("vt ", uv, precision=precision))
+        tidx = np.arange(counters[1] + 1, counters[1] + 1 + len(corners))[take]
+        counters[1] += len(corners)
+        tokens = np.stack([vidx, tidx], axis=1).reshape(-1)
+        seps = np.tile(np.array([ord(" "), ord("/")], np.uint8), len(vidx))
+        write(format_lines("f ", tokens, 2 * line_starts, seps))
     else:
-        tokens = list(map(str, vidx))
-    bounds = zip(starts[:-1].tolist(), starts[1:].tolist())
-    out.write("".join(f"f {' '.join(tokens[a:b])}\n" for a, b in bounds if b - a >= 3))
+        write(format_lines("f ", vidx, line_starts))
     counters[0] += len(mesh.vertices)
 
 

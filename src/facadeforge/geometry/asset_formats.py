@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import tempfile
 import warnings
 from pathlib import Path
@@ -23,32 +22,19 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..user_cache import cache_root, private_folder
 from .mesh import Mesh
 
-
-def _cache_root() -> Path:
-    """The user's cache folder (``$XDG_CACHE_HOME`` or ``~/.cache``), not a shared /tmp one
-    that another user could have planted links in."""
-    base = os.environ.get("XDG_CACHE_HOME")
-    try:
-        return Path(base or Path.home() / ".cache") / "facadeforge"
-    except RuntimeError:  # no home folder
-        return Path(tempfile.gettempdir()) / f"facadeforge-{os.getuid()}"
-
-
 #: Where embedded glTF images are written (one sub-folder per asset file content).
-TEXTURE_CACHE = _cache_root() / "asset-textures"
+TEXTURE_CACHE = cache_root() / "asset-textures"
 
 
 def _private_cache() -> Path:
-    """The texture cache, made if need be; a folder someone else owns is not used (a fresh
-    private temporary folder instead)."""
-    try:
-        TEXTURE_CACHE.mkdir(parents=True, exist_ok=True, mode=0o700)
-        if TEXTURE_CACHE.stat().st_uid == os.getuid() and not TEXTURE_CACHE.is_symlink():
-            return TEXTURE_CACHE
-    except OSError:
-        pass
+    """The texture cache, made if need be; where the user's cache cannot be used (someone else
+    owns it), a fresh private temporary folder instead."""
+    folder = private_folder(TEXTURE_CACHE.name)
+    if folder is not None:
+        return folder
     fallback = Path(tempfile.mkdtemp(prefix="facadeforge-textures-"))
     _FALLBACKS.append(fallback.resolve())
     return fallback

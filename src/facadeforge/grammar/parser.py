@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import functools
+import hashlib
 import re
+import sys
 from dataclasses import dataclass
 from importlib import resources
 
+import lark
 from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import (
     LarkError,
@@ -17,6 +20,7 @@ from lark.exceptions import (
 )
 
 from ..errors import RuleSyntaxError
+from ..user_cache import private_folder
 from . import ast as A
 
 MAX_SOURCE_BYTES = 8 * 1024 * 1024  # a rule file larger than this is not a rule file
@@ -26,9 +30,17 @@ DEFAULT_STYLE = "Default"
 
 @functools.lru_cache(maxsize=1)
 def _parser() -> Lark:
+    """The CGA parser.  Building its LALR tables takes about a second, which every command
+    would pay, so Lark keeps them in the user's private cache folder, keyed by the grammar's
+    hash, Lark's and Python's versions (Lark checks the hash again and rebuilds a stale, foreign
+    or broken file)."""
     text = resources.files(__package__).joinpath("cga.lark").read_text(encoding="utf-8")
+    folder = private_folder("parser")
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    cache = (str(folder / f"cga-{digest}-lark{lark.__version__}-py{sys.version_info[0]}"
+                          f"{sys.version_info[1]}.pickle") if folder else False)
     return Lark(text, parser="lalr", propagate_positions=True, maybe_placeholders=True,
-                cache=False)
+                cache=cache)
 
 
 def _pos(meta_or_token) -> dict:
