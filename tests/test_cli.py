@@ -98,3 +98,19 @@ def test_render_views_from_above(tmp_path):
     assert not np.array_equal(np.asarray(Image.open(low)), np.asarray(Image.open(high)))
     with pytest.raises(SystemExit):
         main(["render", str(glb), "-o", str(high), "--elevation", "up"])
+
+
+def test_derive_does_not_import_the_dataset_and_training_code():
+    """``derive`` and ``render`` build only their own parser: the dataset, training and
+    benchmark modules (0.7 s of imports) stay unloaded; the full help still lists them all."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from facadeforge.cli import build_parser; p = build_parser('derive'); "
+            "print(sorted(m for m in ('facadeforge.datasets', 'facadeforge.classify.train', "
+            "'facadeforge.evaluation.bench') if m in sys.modules)); "
+            "print(sorted(build_parser(None)._subparsers._group_actions[0].choices))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.splitlines()
+    assert out[0] == "[]"
+    assert "train-classifier" in out[1] and "synth" in out[1] and "bench" in out[1]

@@ -66,7 +66,13 @@ def _elevation(text: str) -> float:
     return value
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; with ``command``, the subcommands whose arguments live in
+    heavy modules (dataset, training and benchmark code: 0.7 s of imports) are added only when
+    they are that command, so that ``derive`` and ``render`` start fast."""
+    def wanted(name: str) -> bool:
+        return command in (None, name) or command not in COMMANDS
+
     p = argparse.ArgumentParser(prog="facadeforge", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
 
@@ -119,31 +125,37 @@ def build_parser() -> argparse.ArgumentParser:
                    help="elements from image edges only (Müller 2007 §2–3, no classifier)")
     c.add_argument("-o", "--output", required=True, help="output folder")
 
-    from .classify.train import add_parser as add_train
-    from .parsing import DEFAULT_BUDGET
+    if wanted("parse"):
+        from .parsing import DEFAULT_BUDGET
 
-    g = sub.add_parser("parse", help="photo → best derivation of a parse grammar (Simon 2011)",
-                       description="Fit a parse grammar to a facade photo: pixel classifier → "
-                                   "energy → hill climbing or evolutionary search → shape tree, "
-                                   "labels, fitted rules and 3D model in OUTDIR.")
-    g.add_argument("photo", help="facade photo")
-    g.add_argument("--grammar", help="parse grammar: grid (default), haussmann, generic or a "
-                                     ".cga file")
-    g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
-    g.add_argument("--method", default="evolution", choices=("hill", "evolution"),
-                   help="search: evolution (default, §5.2) or hill (Alg. 4.1)")
-    g.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
-                   help=f"derivations (default {DEFAULT_BUDGET})")
-    g.add_argument("--rectified", action="store_true", help="the photo is already rectified")
-    g.add_argument("--width-m", type=float, help="facade width in metres (scales the model)")
-    g.add_argument("--seed", type=int, default=0)
-    g.add_argument("-o", "--output", required=True, help="output folder")
-    from .datasets.synthetic import add_parser as add_synth
-    from .evaluation.bench import add_parser as add_bench
+        g = sub.add_parser("parse", help="photo → best derivation of a parse grammar (Simon 2011)",
+                           description="Fit a parse grammar to a facade photo: pixel classifier "
+                                       "→ energy → hill climbing or evolutionary search → shape "
+                                       "tree, labels, fitted rules and 3D model in OUTDIR.")
+        g.add_argument("photo", help="facade photo")
+        g.add_argument("--grammar", help="parse grammar: grid (default), haussmann, generic or a "
+                                         ".cga file")
+        g.add_argument("--classifier", help="classifier model .npz (default: the shipped model)")
+        g.add_argument("--method", default="evolution", choices=("hill", "evolution"),
+                       help="search: evolution (default, §5.2) or hill (Alg. 4.1)")
+        g.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
+                       help=f"derivations (default {DEFAULT_BUDGET})")
+        g.add_argument("--rectified", action="store_true", help="the photo is already rectified")
+        g.add_argument("--width-m", type=float, help="facade width in metres (scales the model)")
+        g.add_argument("--seed", type=int, default=0)
+        g.add_argument("-o", "--output", required=True, help="output folder")
+    if wanted("synth"):
+        from .datasets.synthetic import add_parser as add_synth
 
-    add_synth(sub)
-    add_bench(sub)
-    add_train(sub)
+        add_synth(sub)
+    if wanted("bench"):
+        from .evaluation.bench import add_parser as add_bench
+
+        add_bench(sub)
+    if wanted("train-classifier"):
+        from .classify.train import add_parser as add_train
+
+        add_train(sub)
 
     m = sub.add_parser("demo", help="derive the example building and reconstruct a synthetic facade",
                        epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -329,7 +341,8 @@ COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv else None)
     args = parser.parse_args(argv)
     try:
         return COMMANDS[args.command](args)
