@@ -54,3 +54,15 @@ def test_empty_and_bad_input():
         format_lines("f ", np.arange(3))
     with pytest.raises(ValueError, match="at least one number"):
         format_lines("f ", np.arange(3), np.array([0, 0, 3]))
+
+
+def test_json_arrays():
+    import json
+
+    ints = np.array([[1, -2, 3], [40, 0, -600], [7, 8, 9]])
+    text = b"[" + format_lines("[", ints, sep=",", end="],")[:-1] + b"]"
+    assert json.loads(text) == ints.tolist()
+    rings = np.array([5, 6, 7, 8, 9, 10, 11])
+    text = format_lines("[[", rings, np.array([0, 4, 7]), sep=",", end="]],")
+    assert text == b"[[5,6,7,8]],[[9,10,11]],"
+    assert format_lines("", np.array([[1, 2]]), sep=",", end=";") == b"1,2;"

@@ -170,3 +170,43 @@ def test_faces_with_holes_are_surfaces_with_inner_rings(tmp_path: Path, validato
     assert back.mesh().area() == pytest.approx(2 * (600 - 100) + 10 * (100 + 40))
     (part,) = back.parts
     assert len({h for h in part.mesh.column("holed") if h is not None}) == 2  # top, bottom
+
+
+def test_textures_on_faces_with_holes_and_beside_plain_surfaces(tmp_path: Path, validator):
+    """A textured courtyard roof references texture vertices for its outline and its hole; the
+    plain bottom and the upper walls are ``[[None]]``; every reference has one texture vertex
+    per ring corner, numbered in order."""
+    from PIL import Image
+
+    from facadeforge import derive, load_rules
+    from facadeforge.geometry.footprints import load_footprints
+
+    Image.new("RGB", (8, 8), (200, 100, 50)).save(tmp_path / "brick.png")
+    geo = tmp_path / "block.geojson"
+    geo.write_text(json.dumps({"type": "Polygon", "coordinates": [
+        [[0, 0], [30, 0], [30, 20], [0, 20], [0, 0]],
+        [[10, 5], [10, 15], [20, 15], [20, 5], [10, 5]]]}))
+    rules = load_rules(
+        'Lot --> extrude(9) comp(f) { top : Top | bottom : color("#888888") X. | side : Side }\n'
+        'Top --> setupProjection(0, scope.xy, 4, 4) projectUV(0) texture("brick.png")\n'
+        'Side --> split(y) { 3 : setupProjection(0, scope.xy, 2, 2) projectUV(0) '
+        'texture("brick.png") | ~1 : color("#aa0000") X. }\n', assets=tmp_path)
+    (model,) = derive(rules, load_footprints(geo))
+    doc = _export(tmp_path, model)
+    assert _errors(validator, doc) == []
+    geom = next(iter(doc["CityObjects"].values()))["geometry"][0]
+    values = geom["texture"]["facadeforge"]["values"]
+    assert len(values) == len(geom["boundaries"]) == 18       # top, bottom, 8 × 2 wall bands
+    numbers = []
+    for surface, refs in zip(geom["boundaries"], values):
+        if refs == [[None]]:
+            continue
+        assert len(refs) == len(surface)
+        for ring, ref in zip(surface, refs):
+            assert ref[0] == 0 and len(ref) == len(ring) + 1
+            numbers += ref[1:]
+    holed = [refs for s, refs in zip(geom["boundaries"], values) if len(s) == 2]
+    assert len(holed) == 2 and sum(r != [[None]] for r in holed) == 1  # the top only
+    assert sum(r != [[None]] for r in values) == 9                   # top and 8 lower bands
+    assert numbers == list(range(len(numbers))) == list(range(len(doc["appearance"]
+                                                                   ["vertices-texture"])))

@@ -23,8 +23,12 @@ _LIMIT = 2.0 ** 62
 
 
 def format_lines(head: str, values: np.ndarray, line_starts: np.ndarray | None = None,
-                 separators: np.ndarray | None = None, precision: int = 0) -> bytes:
-    """Lines of numbers as ASCII bytes: ``head`` then the line's numbers, then ``\\n``.
+                 separators: np.ndarray | None = None, precision: int = 0, *, sep: str = " ",
+                 end: str = "\n") -> bytes:
+    """Lines of numbers as ASCII bytes: ``head``, the line's numbers, ``end``.
+
+    Besides OBJ lines (``v 1.5 2 3\\n``) this writes JSON arrays of numbers: with
+    ``head="["``, ``sep=","`` and ``end="],"`` each line is one array (CityJSON vertices).
 
     Parameters
     ----------
@@ -37,15 +41,17 @@ def format_lines(head: str, values: np.ndarray, line_starts: np.ndarray | None =
         Offsets of the lines in a one-dimensional ``values`` (increasing, ``line_starts[-1] ==
         N``; no empty lines).
     separators : (N,) uint8, optional
-        Byte written before each number that does not start its line (default a space; OBJ
+        Byte written before each number that does not start its line (default ``sep``; OBJ
         faces use ``/`` between a vertex and its texture vertex).
     precision : int
         Digits after the decimal point; 0 writes integers (values are rounded).
+    sep, end : str
+        The separator between numbers (one ASCII character) and what ends each line.
 
     Returns
     -------
     bytes
-        ``L`` lines, each ending in ``\\n``.
+        ``L`` lines, each ending in ``end``.
     """
     values = np.asarray(values)
     if values.ndim == 2:
@@ -56,6 +62,8 @@ def format_lines(head: str, values: np.ndarray, line_starts: np.ndarray | None =
         flat = values
         if line_starts is None:
             raise ValueError("format_lines: one-dimensional values need line_starts")
+    if not head and not end:
+        raise ValueError("format_lines: give a head or an end (lines must be told apart)")
     line_starts = np.asarray(line_starts, np.int64)
     if len(line_starts) < 2:
         return b""
@@ -67,16 +75,17 @@ def format_lines(head: str, values: np.ndarray, line_starts: np.ndarray | None =
         b = min(a + lines_per_block, len(line_starts) - 1)
         lo, hi = int(line_starts[a]), int(line_starts[b])
         seps = None if separators is None else separators[lo:hi]
-        parts.append(_block(head.encode("ascii"), flat[lo:hi], line_starts[a:b + 1] - lo, seps,
-                            precision))
+        parts.append(_block(head.encode("ascii"), flat[lo:hi], line_starts[a:b + 1] - lo,
+                            seps, precision, ord(sep), end.encode("ascii")))
     return b"".join(parts)
 
 
-def _block(head: bytes, x: np.ndarray, line_starts: np.ndarray, seps, precision: int) -> bytes:
+def _block(head: bytes, x: np.ndarray, line_starts: np.ndarray, seps, precision: int,
+           sep: int, end: bytes) -> bytes:
     scale = 10.0 ** precision
     scaled = np.asarray(x, np.float64) * scale
     if not np.all(np.abs(scaled) < _LIMIT):  # NaN, inf or huge: Python's own formatting
-        return _reference(head, x, line_starts, seps, precision)
+        return _reference(head, x, line_starts, seps, precision, sep, end)
     q = np.rint(scaled).astype(np.int64)
     neg = q < 0
     mag = np.abs(q)
@@ -92,20 +101,21 @@ def _block(head: bytes, x: np.ndarray, line_starts: np.ndarray, seps, precision:
     width = int(n_digits.max(initial=1))
     # one fixed-width row per number, right-aligned: prefix | sign | digits (with the point);
     # the bytes a number does not use are masked out and the rows compacted, in order
-    hl = len(head)
-    pw = hl + 1                                  # "\n" + head before a line's first number
+    hl, el = len(head), len(end)
+    pw = el + hl                           # the line before's end + head before a first number
     point = 1 if precision else 0
     cols = pw + 1 + width + point
     # built column by column (contiguous writes), transposed once for the compaction
     rows = np.empty((cols, len(x)), np.uint8)
     keep = np.zeros((cols, len(x)), bool)
     first = line_starts[:-1]
-    rows[pw - 1] = ord(" ") if seps is None else np.asarray(seps, np.uint8)
+    rows[pw - 1] = sep if seps is None else np.asarray(seps, np.uint8)
     keep[pw - 1] = True
-    for i, c in enumerate(b"\n" + head):
+    for i, c in enumerate(end + head):
         rows[i, first] = c
-    keep[pw - hl:pw, first] = True
-    keep[0, first[1:]] = True                  # the newline that ends the line before
+    keep[:pw, first] = False               # a first number: the prefix instead, that is
+    keep[el:pw, first] = True              # the head,
+    keep[:el, first[1:]] = True            # after the end of the line before
     rows[pw] = ord("-")
     keep[pw] = neg
     for place in range(width):
@@ -116,18 +126,19 @@ def _block(head: bytes, x: np.ndarray, line_starts: np.ndarray, seps, precision:
     if point:
         rows[cols - 1 - precision] = ord(".")
         keep[cols - 1 - precision] = True
-    return rows.T[keep.T].tobytes() + b"\n"
+    return rows.T[keep.T].tobytes() + end
 
 
-def _reference(head: bytes, x, line_starts, seps, precision: int) -> bytes:
+def _reference(head: bytes, x, line_starts, seps, precision: int, sep: int = 32,
+               end: bytes = b"\n") -> bytes:
     """The same lines through Python's ``%`` formatting (the plain implementation the tests
     compare against, and the path for values fixed point cannot hold)."""
     fmt = f"%.{precision}f" if precision else "%d"
     out = []
     values = np.asarray(x, np.float64).tolist() if precision else np.rint(x).astype(np.int64).tolist()
-    sep = [" "] * len(values) if seps is None else [chr(s) for s in np.asarray(seps).tolist()]
+    seps = [chr(sep)] * len(values) if seps is None else [chr(s) for s in np.asarray(seps).tolist()]
     for a, b in zip(line_starts[:-1].tolist(), line_starts[1:].tolist()):
         parts = [head.decode("ascii") + fmt % values[a]]
-        parts += [sep[i] + fmt % values[i] for i in range(a + 1, b)]
-        out.append("".join(parts) + "\n")
+        parts += [seps[i] + fmt % values[i] for i in range(a + 1, b)]
+        out.append("".join(parts) + end.decode("ascii"))
     return "".join(out).encode("ascii")

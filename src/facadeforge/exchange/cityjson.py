@@ -31,6 +31,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Sequence
@@ -42,8 +43,10 @@ from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ..geometry.mesh import Mesh, plane_basis, polygon_normal
 from ..model.labels import Labels, label_for_name
 from ..model.model import Material, Model, Part
+from ._ascii import format_lines
 from ._common import (
     Staging,
+    column_bounds,
     corner_uvs,
     face_corners,
     image_extension,
@@ -222,39 +225,51 @@ class _Faces:
     records (``offsets``, ``has_uv``, ``surface_of``) and per-surface owners (``part_of``)."""
 
     def __init__(self, model: Model, origin: np.ndarray) -> None:
-        pts, uvs, has, offsets, surface_of, owner = [], [], [], [0], [], []
+        pts, uvs, has, sizes, holes, owner = [], [], [], [], [], []
         self.parts = [p for p in model.parts if p.mesh.n_faces]
         for index, part in enumerate(self.parts):
-            for ring_pts, ring_uvs, has_uv, surface in _surface_rings(part.mesh):
-                pts.append(ring_pts @ _TO_CJ.T + origin)
+            for ring_pts, ring_uvs, ring_sizes, ring_has, ring_hole in _surface_rings(part.mesh):
+                pts.append(ring_pts)
                 uvs.append(ring_uvs)
-                has.append(has_uv)
-                offsets.append(offsets[-1] + len(ring_pts))
-                surface_of.append(len(owner) if surface == 0 else len(owner) - 1)
-                if surface == 0:
-                    owner.append(index)
-        self.points = np.concatenate(pts) if pts else np.zeros((0, 3))
-        self.uv = np.concatenate(uvs) if uvs else np.zeros((0, 2))
-        self.has_uv = np.asarray(has, bool)
-        self.offsets = np.asarray(offsets, np.int64)
-        self.surface_of = np.asarray(surface_of, np.int64)
-        self.part_of = np.asarray(owner, np.int64)
+                sizes.append(ring_sizes)
+                has.append(ring_has)
+                holes.append(ring_hole)
+                owner.append(np.full(int(np.count_nonzero(ring_hole == 0)), index, np.int64))
+        if not pts:
+            pts, uvs, sizes, has, holes, owner = [np.zeros((0, 3))], [np.zeros((0, 2))], \
+                [np.zeros(0, np.int64)], [np.zeros(0, bool)], [np.zeros(0, np.int64)], \
+                [np.zeros(0, np.int64)]
+        self.points = np.concatenate(pts) @ _TO_CJ.T + origin
+        # bounds of the corners (the building's extent, the file's translation)
+        self.lo, self.hi = column_bounds(self.points) if len(self.points) else (origin, origin)
+        self.uv = np.concatenate(uvs)
+        self.has_uv = np.concatenate(has).astype(bool)
+        self.offsets = np.concatenate([[0], np.cumsum(np.concatenate(sizes))]).astype(np.int64)
+        # a ring starts a new surface when it is an outer ring (its hole number is 0)
+        self.surface_of = np.cumsum(np.concatenate(holes) == 0) - 1
+        self.part_of = np.concatenate(owner)
 
 
 def _surface_rings(mesh: Mesh):
-    """``(points, uvs, has_uv, k)`` for every ring of every surface of ``mesh``, ``k`` 0 for a
-    surface's outer ring and 1, 2… for its holes: each face alone, the pieces of a face with
+    """The rings of every surface of ``mesh`` in blocks ``(points (C, 3), uvs (C, 2), sizes
+    (R,), has_uv (R,), hole (R,))``, ``hole`` 0 for a surface's outer ring and 1, 2… for its
+    holes: each face alone (whole runs of such faces in one block), the pieces of a face with
     holes as one outline with its holes (corner uvs looked up where the pieces have them)."""
     corners, starts = face_corners(mesh)
     uv, has_uv = corner_uvs(mesh)
+    if mesh.column(HOLED) is None:  # every face is a surface of its own: one block
+        yield _single_faces(mesh, np.arange(mesh.n_faces), corners, starts, uv, has_uv)
+        return
     normals = mesh.face_normals()
+    run: list[int] = []  # faces alone, waiting to be yielded as one block
     for group in face_groups(mesh):
         f = group[0]
         if len(group) == 1 or not normals[f].any():
-            for g in group:
-                a, b = starts[g], starts[g + 1]
-                yield mesh.vertices[corners[a:b]], uv[a:b], has_uv, 0
+            run.extend(group)
             continue
+        if run:
+            yield _single_faces(mesh, np.asarray(run), corners, starts, uv, has_uv)
+            run = []
         p0 = mesh.vertices[corners[starts[f]]]
         basis = plane_basis(normals[f], mesh.vertices[corners[starts[f] + 1]] - p0)
         at = {}
@@ -266,7 +281,19 @@ def _surface_rings(mesh: Mesh):
                 pts = p0 + ring @ basis[:, :2].T
                 ring_uv = [at.get(tuple(np.round(q, 6))) for q in pts]
                 found = has_uv and all(u is not None for u in ring_uv)
-                yield pts, (np.array(ring_uv) if found else np.zeros((len(pts), 2))), found, k
+                yield (pts, np.array(ring_uv) if found else np.zeros((len(pts), 2)),
+                       np.array([len(pts)]), np.array([found]), np.array([k]))
+    if run:
+        yield _single_faces(mesh, np.asarray(run), corners, starts, uv, has_uv)
+
+
+def _single_faces(mesh: Mesh, faces: np.ndarray, corners, starts, uv, has_uv):
+    """One ``_surface_rings`` block of faces that are surfaces on their own, all at once."""
+    sizes = starts[faces + 1] - starts[faces]
+    first = np.cumsum(sizes) - sizes
+    at = np.repeat(starts[faces] - first, sizes) + np.arange(int(sizes.sum()))
+    return (mesh.vertices[corners[at]], uv[at], sizes, np.full(len(faces), has_uv),
+            np.zeros(len(faces), np.int64))
 
 
 class _CityJsonWriter:
@@ -301,17 +328,17 @@ class _CityJsonWriter:
                 vids = np.zeros(0, np.int64)
                 if len(f.points):
                     if translate is None:
-                        translate = f.points.min(axis=0)
-                    lo, hi = np.minimum(lo, f.points.min(axis=0)), np.maximum(hi, f.points.max(axis=0))
+                        translate = f.lo
+                    lo, hi = np.minimum(lo, f.lo), np.maximum(hi, f.hi)
                     uniq, vids = self._quantized(f, translate)
                     vids = vids + count
-                    text = json.dumps(uniq.tolist(), separators=(",", ":"))[1:-1]
+                    text = format_lines("[", uniq, sep=",", end="],")[:-1].decode("ascii")
                     vertices.write(("," if count else "") + text)
                     count += len(uniq)
                 name = _unique_id(model.name, taken)
                 taken.add(name)
                 fh.write(("," if len(taken) > 1 else "") + json.dumps(name) + ":"
-                         + json.dumps(self._building(model, f, vids), separators=(",", ":")))
+                         + _dumps(self._building(model, f, vids)))
                 if self.uv_list:  # the building's texture coordinates wait on disk too
                     text = json.dumps(np.concatenate(self.uv_list).round(6).tolist(),
                                       separators=(",", ":"))[1:-1]
@@ -347,7 +374,7 @@ class _CityJsonWriter:
         for model in models:
             f = _Faces(model, self.origin)
             if not header_done:
-                translate = f.points.min(axis=0) if len(f.points) else self.origin
+                translate = f.lo if len(f.points) else self.origin
                 head = {"type": "CityJSON", "version": "2.0",
                         "transform": self._transform(translate),
                         "CityObjects": {}, "vertices": [], "metadata": metadata}
@@ -363,7 +390,7 @@ class _CityJsonWriter:
             appearance = self._appearance()
             if appearance:
                 feature["appearance"] = appearance
-            fh.write(json.dumps(feature, separators=(",", ":")) + "\n")
+            fh.write(_dumps(feature) + "\n")
 
     def _transform(self, translate: np.ndarray) -> dict:
         """``transform`` of the integer vertices, which are metres / ``scale`` from
@@ -375,15 +402,14 @@ class _CityJsonWriter:
         if not len(f.points):
             return np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
         ints = np.rint((f.points - translate) / self.scale).astype(np.int64)
-        uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
-        return uniq, inverse.reshape(-1)
+        return unique_rows(ints)
 
     def _building(self, model: Model, f: _Faces, vids: np.ndarray) -> dict:
         obj: dict = {"type": "Building", "attributes": scalar_attributes(model.attributes)}
         if len(f.points):
-            obj["geographicalExtent"] = _extent(f.points)
+            obj["geographicalExtent"] = [*f.lo.tolist(), *f.hi.tolist()]
             geometry = self._geometry(f, vids)
-            if geometry["boundaries"]:
+            if len(geometry["boundaries"]):
                 obj["geometry"] = [geometry]
         return obj
 
@@ -391,52 +417,74 @@ class _CityJsonWriter:
         keep, valid = _clean_rings(vids, f.offsets)
         ring_of = np.repeat(np.arange(len(f.offsets) - 1), np.diff(f.offsets))
         sizes = np.bincount(ring_of[keep], minlength=len(f.offsets) - 1)
-        bounds = np.concatenate([[0], np.cumsum(sizes)]).tolist()
-        flat = vids[keep].tolist()
+        bounds = np.concatenate([[0], np.cumsum(sizes)])
         uv_kept = f.uv[keep]
         # a surface is kept when its outer ring is; its holes when they are
         first = np.r_[True, f.surface_of[1:] != f.surface_of[:-1]]
         outer_ok = np.zeros(len(f.part_of), bool)
         outer_ok[f.surface_of[first & valid]] = True
-        surfaces_rings: list[list[int]] = []
-        for r in np.flatnonzero(valid & outer_ok[f.surface_of]):
-            if first[r]:
-                surfaces_rings.append([])
-            surfaces_rings[-1].append(int(r))
-        boundaries = [[flat[bounds[r]:bounds[r + 1]] for r in rs] for rs in surfaces_rings]
-        owner = [int(f.part_of[f.surface_of[rs[0]]]) for rs in surfaces_rings]
+        kept = np.flatnonzero(valid & outer_ok[f.surface_of])      # rings written, in order
+        # the kept rings of one surface are consecutive: split the list where a surface starts
+        opens = np.flatnonzero(first[kept]).tolist()
+        if len(opens) == len(kept):  # no holes, one ring a surface (the usual case): as text
+            lengths = bounds[kept + 1] - bounds[kept]
+            at = np.repeat(bounds[kept] - (np.cumsum(lengths) - lengths), lengths) \
+                + np.arange(int(lengths.sum()))
+            text = format_lines("[[", vids[keep][at], np.concatenate([[0], np.cumsum(lengths)]),
+                                sep=",", end="]],")
+            boundaries = _Raw(b"[" + text[:-1] + b"]" if len(kept) else b"[]")
+        else:
+            flat = vids[keep].tolist()
+            lo, hi = bounds[kept].tolist(), bounds[kept + 1].tolist()
+            ring_ids = [flat[a:b] for a, b in zip(lo, hi)]
+            ends = opens[1:] + [len(kept)]
+            boundaries = [ring_ids[a:b] for a, b in zip(opens, ends)]
+        owner = f.part_of[f.surface_of[kept[opens]]] if len(kept) else np.zeros(0, np.int64)
         surfaces: dict[tuple, int] = {}
         sem = [self._surface(p, surfaces) for p in f.parts]
         mat = [self._material(p.material) for p in f.parts]
+        owners = owner.tolist()
         geometry = {"type": "MultiSurface", "lod": self.lod, "boundaries": boundaries,
                     "semantics": {"surfaces": [dict(s) for s in surfaces],
-                                  "values": [sem[p] for p in owner]},
-                    "material": {THEME: {"values": [mat[p] for p in owner]}}}
-        textures = self._texture_values(f, owner, surfaces_rings, uv_kept, bounds)
+                                  "values": [sem[p] for p in owners]},
+                    "material": {THEME: {"values": [mat[p] for p in owners]}}}
+        textures = self._texture_values(f, owner, kept, opens, uv_kept, bounds)
         if textures is not None:
             geometry["texture"] = {THEME: {"values": textures}}
         return geometry
 
-    def _texture_values(self, f: _Faces, owner: list[int], surfaces_rings: list[list[int]],
-                        uv: np.ndarray, bounds: list[int]) -> list | None:
+    def _texture_values(self, f: _Faces, owner: np.ndarray, kept: np.ndarray, opens: list[int],
+                        uv: np.ndarray, bounds: np.ndarray) -> list | None:
         """Per-surface texture references, a ``[tex, uv…]`` per ring (``[[None]]`` without
-        texture)."""
+        texture): a surface is textured when its part's material has a texture and every ring
+        of it has texture coordinates."""
         tex = [self._texture_index(p.material.texture) for p in f.parts]
-        if all(t is None for t in tex):
+        if all(t is None for t in tex) or not len(kept):
             return None
-        values = []
-        for p, rs in zip(owner, surfaces_rings):
-            if tex[p] is None or not all(f.has_uv[r] for r in rs):
-                values.append([[None]])
-                continue
-            refs = []
-            for r in rs:
-                a, b = bounds[r], bounds[r + 1]
-                self.uv_list.append(uv[a:b])
-                refs.append([tex[p], *range(self.uv_count, self.uv_count + b - a)])
-                self.uv_count += b - a
-            values.append(refs)
-        return values
+        part_tex = np.array([-1 if t is None else t for t in tex], np.int64)
+        surface_ok = (part_tex[owner] >= 0) & np.logical_and.reduceat(f.has_uv[kept], opens)
+        ring_ok = np.repeat(surface_ok, np.diff(opens + [len(kept)]))
+        textured = kept[ring_ok]
+        lengths = bounds[textured + 1] - bounds[textured]
+        if len(textured):
+            at = np.repeat(bounds[textured] - (np.cumsum(lengths) - lengths), lengths) \
+                + np.arange(int(lengths.sum()))
+            self.uv_list.append(uv[at])
+        numbers = range(self.uv_count, self.uv_count + int(lengths.sum()))
+        self.uv_count += int(lengths.sum())
+        ring_tex = part_tex[np.repeat(owner, np.diff(opens + [len(kept)]))].tolist()
+        refs, used = [], 0
+        for ok, t, n in zip(ring_ok.tolist(), ring_tex, np.diff(bounds)[kept].tolist()):
+            if ok:
+                refs.append([t, *numbers[used:used + n]])
+                used += n
+            else:
+                refs.append(None)
+        if len(opens) == len(kept):
+            return [[r] if r is not None else [[None]] for r in refs]
+        ends = opens[1:] + [len(kept)]
+        return [refs[a:b] if surface_ok[i] else [[None]]
+                for i, (a, b) in enumerate(zip(opens, ends))]
 
     def _surface(self, part: Part, surfaces: dict[tuple, int]) -> int | None:
         kind = self.types.get(part.label, self.types.get(""))
@@ -514,13 +562,71 @@ def _clean_rings(vids: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.n
         return np.zeros(0, bool), np.zeros(0, bool)
     face_of = np.repeat(np.arange(n_faces), np.diff(starts))
     keep = vids != vids[previous_corner(starts)]
-    distinct = np.unique(face_of * (int(vids.max()) + 1) + vids) // (int(vids.max()) + 1)
-    valid = np.bincount(distinct, minlength=n_faces) >= 3
+    # three distinct vertices: one unlike the face's first, and one unlike both (linear, where
+    # counting the distinct ids of every face took a sort of all corners)
+    sizes = np.diff(starts)
+    first_id = np.full(n_faces, -1, np.int64)
+    first_id[sizes > 0] = vids[starts[:-1][sizes > 0]]
+    other = vids != first_id[face_of]
+    at = np.flatnonzero(other)                     # in order, so grouped by face
+    owner = face_of[at]
+    lead = np.r_[True, owner[1:] != owner[:-1]] if len(at) else np.zeros(0, bool)
+    second_id = np.full(n_faces, -1, np.int64)
+    second_id[owner[lead]] = vids[at[lead]]        # each face's first corner unlike its first
+    third = other & (vids != second_id[face_of])
+    valid = np.bincount(face_of[third], minlength=n_faces) > 0
     return keep & valid[face_of], valid
 
 
-def _extent(points: np.ndarray) -> list[float]:
-    return [*points.min(axis=0).tolist(), *points.max(axis=0).tolist()]
+class _Raw:
+    """JSON text that :func:`_dumps` writes as it is (arrays of millions of numbers, which
+    :func:`format_lines` writes far faster than ``json`` encodes lists)."""
+
+    __slots__ = ("text",)
+
+    def __init__(self, text: bytes) -> None:
+        self.text = text.decode("ascii")
+
+    def __len__(self) -> int:
+        return len(self.text) > 2  # "[]" is empty
+
+#: Stands for a _Raw in json's output until it is replaced (random: no user text holds it).
+_MARK = "\x00raw-" + secrets.token_hex(16)
+
+
+def _dumps(obj) -> str:
+    """Compact ``json.dumps`` that writes :class:`_Raw` values as their text."""
+    raws: list[str] = []
+
+    def raw(value):
+        if isinstance(value, _Raw):
+            raws.append(value.text)
+            return _MARK
+        raise TypeError(f"{type(value).__name__} is not JSON serializable")
+    text = json.dumps(obj, separators=(",", ":"), default=raw)
+    if not raws:
+        return text
+    pieces = text.split(json.dumps(_MARK))
+    if len(pieces) != len(raws) + 1:  # pragma: no cover - the mark is random
+        raise ExportError("internal: raw JSON marker found in the data")
+    return "".join(p + r for p, r in zip(pieces, [*raws, ""]))
+
+
+def unique_rows(ints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(ints, axis=0, return_inverse=True)`` for (N, 3) integers, through one
+    integer key per row where the span allows (the row-wise sort was 6 s of a 40-building
+    city); the same rows in the same (lexicographic) order."""
+    lo, hi = column_bounds(ints)
+    span = hi - lo + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) >= 2.0 ** 62:
+        uniq, inverse = np.unique(ints, axis=0, return_inverse=True)
+        return uniq, inverse.reshape(-1)
+    shifted = ints - lo
+    key = (shifted[:, 0] * span[1] + shifted[:, 1]) * span[2] + shifted[:, 2]
+    keys, inverse = np.unique(key, return_inverse=True)
+    uniq = np.stack([keys // (span[1] * span[2]), keys // span[2] % span[1], keys % span[2]],
+                    axis=1) + lo
+    return uniq, inverse.reshape(-1)
 
 
 def _unique_id(name: str, taken: dict) -> str:

@@ -44,6 +44,7 @@ from ..geometry.mesh import Mesh
 from ..model.model import Material, Model, Part
 from ._common import (
     Staging,
+    column_bounds,
     corner_uvs,
     face_corners,
     image_extension,
@@ -147,8 +148,8 @@ class _GlbBuilder:
         acc = {"bufferView": self._view(array.tobytes(), target), "componentType": component,
                "count": int(len(array) if kind != "SCALAR" else array.size), "type": kind}
         if bounds:
-            acc["min"] = array.min(axis=0).astype(float).tolist()
-            acc["max"] = array.max(axis=0).astype(float).tolist()
+            lo, hi = column_bounds(array)
+            acc["min"], acc["max"] = lo.astype(float).tolist(), hi.astype(float).tolist()
         self.json["accessors"].append(acc)
         return len(self.json["accessors"]) - 1
 
