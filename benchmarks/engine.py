@@ -52,6 +52,13 @@ def footprints(n: int = 40) -> dict:
 FORMATS = ("glb", "obj", "city.json")
 
 
+def _label(src: Path) -> str:
+    """A checkout's name in the results: its commit, else its path."""
+    res = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
+                         capture_output=True, text=True)
+    return f"commit {res.stdout.strip()}" if res.returncode == 0 else str(src)
+
+
 def _run(cmd: list[str], env: dict) -> tuple[float, dict, int]:
     """Wall seconds, ``--stats`` and peak memory (KiB) of one CLI run."""
     t0 = time.perf_counter()
@@ -80,7 +87,7 @@ def main() -> int:
     base_env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     sides = {"this checkout": dict(base_env)}
     for src in args.src:
-        sides[str(src)] = {**base_env, "PYTHONPATH": str(src.resolve())}
+        sides[_label(src)] = {**base_env, "PYTHONPATH": str(src.resolve())}
     walls = {(side, f): [] for side in sides for f in formats}
     stats, peaks = {}, {}
     with tempfile.TemporaryDirectory() as tmp:

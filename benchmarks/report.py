@@ -13,23 +13,39 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+_FORMAT_NAMES = {"glb": "GLB", "obj": "OBJ", "city.json": "CityJSON"}
+
+
 def engine_table() -> str:
     path = ROOT / "benchmarks" / "results" / "engine.json"
     if not path.exists():
         return "_no result yet: run `make bench`_"
     r = json.loads(path.read_text())
     m = r["machine"]
+    formats = r.get("formats") or {r.get("format", "glb"): r}
+    names = [_FORMAT_NAMES.get(f, f) for f in formats]
     rows = [
-        ("buildings / s (40 footprints, whole CLI process)", f"{r['buildings_per_second']:.2f}"),
-        ("faces / building", f"{r['faces_per_building']:,}"),
-        ("faces / s", f"{r['faces_per_second']:,}"),
-        ("best wall time", f"{r['best_wall_seconds']:.1f} s over {r['runs']} runs"),
-        ("peak memory (largest process)", f"{r['peak_memory_mib_per_process']:.0f} MiB"),
-        ("warnings", str(r["warnings"])),
+        ("buildings / s (40 footprints, whole CLI process)",
+         [f"{v['buildings_per_second']:.2f}" for v in formats.values()]),
+        ("faces / s", [f"{v['faces_per_second']:,}" for v in formats.values()]),
+        ("best wall time", [f"{v['best_wall_seconds']:.1f} s of {r['runs']} runs"
+                            for v in formats.values()]),
+        ("peak memory (largest process)",
+         [f"{v['peak_memory_mib_per_process']:.0f} MiB" for v in formats.values()]),
     ]
     head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
-            f"({m['cpu']}), {m['memory_gib']} GiB, Python {m['python']}.\n\n")
-    return head + "| engine benchmark | value |\n|---|---|\n" + "\n".join(f"| {a} | {b} |" for a, b in rows)
+            f"({m['cpu']}), {m['memory_gib']} GiB, Python {m['python']}: "
+            f"{r['faces_per_building']:,} faces a building, {r['warnings']} warnings.\n\n")
+    table = (head + "| engine benchmark | " + " | ".join(names) + " |\n|---|"
+             + "---|" * len(names) + "\n"
+             + "\n".join(f"| {a} | " + " | ".join(b) + " |" for a, b in rows))
+    for side, per_format in r.get("side_by_side", {}).items():
+        table += (f"\n\nSide by side, runs alternating, buildings / s: `{side}` against this "
+                  "commit\n\n| format | before | after |\n|---|---|---|\n"
+                  + "\n".join(f"| {_FORMAT_NAMES.get(f, f)} | "
+                              f"{per_format[f]['buildings_per_second']:.2f} | "
+                              f"{formats[f]['buildings_per_second']:.2f} |" for f in formats))
+    return table
 
 
 def methods_table() -> str:
