@@ -175,9 +175,8 @@ def _write_part(out: BinaryIO, part: Part, material: str, index: int, counters: 
     _text(out, f"g {safe_name(part.symbol, f'part{index}')}\n")
     _text(out, f"{_TAG} label={safe_name(part.label, '-')} shape={int(part.shape_id)}\n")
     _text(out, f"usemtl {material}\n")
-    write = out.write
     # every number of the part at once (np.savetxt formatted row by row: 15 s a city)
-    write(format_lines("v ", mesh.vertices, precision=precision))
+    out.write(format_lines("v ", mesh.vertices, precision=precision))
     # faces of fewer than three corners are not written (an OBJ face needs three)
     sizes = np.diff(starts)
     kept = sizes >= 3
@@ -185,14 +184,14 @@ def _write_part(out: BinaryIO, part: Part, material: str, index: int, counters: 
     vidx = corners[take] + counters[0] + 1
     line_starts = np.concatenate([[0], np.cumsum(sizes[kept])])
     if has_uv:
-        write(format_lines("vt ", uv, precision=precision))
+        out.write(format_lines("vt ", uv, precision=precision))
         tidx = np.arange(counters[1] + 1, counters[1] + 1 + len(corners))[take]
         counters[1] += len(corners)
         tokens = np.stack([vidx, tidx], axis=1).reshape(-1)
         seps = np.tile(np.array([ord(" "), ord("/")], np.uint8), len(vidx))
-        write(format_lines("f ", tokens, 2 * line_starts, seps))
+        out.write(format_lines("f ", tokens, 2 * line_starts, seps))
     else:
-        write(format_lines("f ", vidx, line_starts))
+        out.write(format_lines("f ", vidx, line_starts))
     counters[0] += len(mesh.vertices)
 
 
