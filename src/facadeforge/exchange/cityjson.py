@@ -332,7 +332,7 @@ class _CityJsonWriter:
                     lo, hi = np.minimum(lo, f.lo), np.maximum(hi, f.hi)
                     uniq, vids = self._quantized(f, translate)
                     vids = vids + count
-                    text = format_lines("[", uniq, sep=",", end="],")[:-1].decode("ascii")
+                    text = _json_rows(uniq).text[1:-1]
                     vertices.write(("," if count else "") + text)
                     count += len(uniq)
                 name = _unique_id(model.name, taken)
@@ -386,7 +386,7 @@ class _CityJsonWriter:
             taken.add(name)
             feature = {"type": "CityJSONFeature", "id": name,
                        "CityObjects": {name: self._building(model, f, vids)},
-                       "vertices": uniq.tolist()}
+                       "vertices": _json_rows(uniq)}
             appearance = self._appearance()
             if appearance:
                 feature["appearance"] = appearance
@@ -592,6 +592,13 @@ class _Raw:
 
 #: Stands for a _Raw in json's output until it is replaced (random: no user text holds it).
 _MARK = "\x00raw-" + secrets.token_hex(16)
+
+
+def _json_rows(ints: np.ndarray) -> _Raw:
+    """(N, 3) integers as the JSON array of arrays ``[[x,y,z],…]``."""
+    if not len(ints):
+        return _Raw(b"[]")
+    return _Raw(b"[" + format_lines("[", ints, sep=",", end="],")[:-1] + b"]")
 
 
 def _dumps(obj) -> str:
