@@ -231,6 +231,9 @@ def _suggest(name, known) -> str:
 # -- parallel derivation ------------------------------------------------------------------------
 
 _WORKER: dict = {}
+#: Rules the parent loaded, by token: a worker made by fork inherits them and need not parse
+#: the rule files again (a large rule set takes a third of a second); spawned workers load.
+_PRELOADED: dict = {}
 
 
 def _worker_init(spec):
@@ -246,8 +249,10 @@ def _worker_init(spec):
     # the process is ours: a derivation's shape tree is pickled back after ``deriving`` has put
     # the recursion limit back, and pickling nests about five frames a tree level
     sys.setrecursionlimit(max(sys.getrecursionlimit(), PYTHON_RECURSION_LIMIT))
-    _WORKER["rules"] = load_rules(spec["rules"], rule=spec["rule"], assets=spec["assets"],
-                                  start=spec["start"], style=spec["style"])
+    inherited = _PRELOADED.get(spec.get("preloaded"))
+    _WORKER["rules"] = inherited if inherited is not None else load_rules(
+        spec["rules"], rule=spec["rule"], assets=spec["assets"], start=spec["start"],
+        style=spec["style"])
     _WORKER["spec"] = spec
 
 
@@ -348,7 +353,7 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "style": style,
                 "attrs": attrs, "seed": seed, "strict": strict, "limits": limits}
-        return _derive_parallel(spec, fps, n_workers, two_pass, keep_tree)
+        return _derive_parallel(spec, fps, n_workers, two_pass, keep_tree, loaded)
 
     def one(fp, around=None, tree=keep_tree):
         return derive_footprint(loaded, fp, attrs=attrs, seed=seed, strict=strict, start=start,
@@ -363,10 +368,14 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
     return run()
 
 
-def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool):
+def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool,
+                     loaded: Rules):
     """Models from worker processes, in order, at most a few per worker ahead."""
     from collections import deque
 
+    token = object().__repr__()  # unique while the pool lives
+    _PRELOADED[token] = loaded
+    spec = {**spec, "preloaded": token}
     pool = ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,))
     try:
         around = [None] * len(fps)
@@ -376,6 +385,7 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool)
                 _worker_run, [(fp, None, False, True) for fp in fps], chunksize=chunks)))
     except BaseException:
         pool.shutdown(cancel_futures=True)
+        _PRELOADED.pop(token, None)
         raise
 
     def run():
@@ -398,6 +408,7 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool)
         finally:
             # stopped early (an error, Ctrl-C): do not wait for buildings nobody will read
             pool.shutdown(wait=finished, cancel_futures=True)
+            _PRELOADED.pop(token, None)
     return run()
 
 
