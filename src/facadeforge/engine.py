@@ -348,7 +348,7 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
     n_workers = workers if workers is not None else (os.cpu_count() or 1)
     # ``inter`` occlusion queries need the neighbours' occluders: as CityEngine's runtime does,
     # every initial shape is derived once for its occluders, then for real with its neighbours'
-    two_pass = len(fps) > 1 and _uses_occlusion(loaded)
+    two_pass = len(fps) > 1 and _queries_neighbours(loaded)
     if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "style": style,
@@ -419,14 +419,16 @@ def _occluders_only(model: Model) -> Model:
     return light
 
 
-def _uses_occlusion(rules: Rules) -> bool:
+def _queries_neighbours(rules: Rules) -> bool:
+    """Whether an occlusion query of the rules may test the neighbouring buildings (``intra``
+    queries alone need no first pass)."""
     from .grammar.instancing import Purity
 
     ruleset = rules.ruleset
     purity = getattr(ruleset, "_purity", None)
     if purity is None:
         purity = ruleset._purity = Purity(ruleset)
-    return purity.uses_occlusion
+    return purity.queries_neighbours
 
 
 def summary(model: Model) -> Model:

@@ -75,3 +75,24 @@ def test_the_modern_example_on_its_pair_of_lots():
     assert sum(p.mesh.area() for p in party) > 0
     assert not [p for p in tall.parts if p.symbol == "Glass" and p.mesh.bounds()[0, 0] > 35.8
                 and p.mesh.bounds()[1, 1] < 9.6 and not -15.6 < p.mesh.bounds()[0, 2] < -8.4]
+
+
+@pytest.mark.parametrize("query, first_pass", [
+    ("touches(intra)", False), ('touches("intra")', False), ("touches(inter)", True),
+    ("touches(all)", True), ("touches()", True), ("touches(where)", True)])
+def test_only_queries_that_may_reach_the_neighbours_derive_them_first(query, first_pass,
+                                                                      monkeypatch):
+    """``intra`` queries never look at other buildings: no first pass over the footprints for
+    their occluders, and the same models either way."""
+    from facadeforge import engine
+
+    text = RULES.format(target="@").replace("touches(@)", query)
+    rules = load_rules('attr where = "intra"\n' + text)
+    assert engine._queries_neighbours(rules) is first_pass
+    fps = [Footprint("a", lot(0, 10)), Footprint("b", lot(10, 20))]
+    got = derive(rules, fps, workers=1)
+    if not first_pass:
+        monkeypatch.setattr(engine, "_queries_neighbours", lambda r: True)
+        both = derive(rules, fps, workers=1)
+        assert [m.stats() for m in got] == [m.stats() for m in both]
+        assert wall_area(got) == 0

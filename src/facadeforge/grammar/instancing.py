@@ -56,6 +56,18 @@ UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", 
             "geometry.dv"}
 
 
+def _intra_only(m: Module, call: A.Call) -> bool:
+    """Whether an occlusion query names the target ``intra`` literally (the default, and any
+    expression, may reach the neighbours)."""
+    if not call.args:
+        return False
+    target = call.args[0]
+    if isinstance(target, A.Str):
+        return target.value == "intra"
+    return (isinstance(target, A.Name) and target.name == "intra"
+            and m.attr("intra") is None and m.function("intra", 0) is None)
+
+
 @dataclass
 class RuleInfo:
     pure: bool = True
@@ -76,6 +88,9 @@ class Purity:
         self.modules = {id(m): m for m in ruleset.main.all_modules()}
         self.info: dict[tuple, RuleInfo] = {}
         self.uses_occlusion = False
+        # whether a query may look at the neighbouring buildings (``inter``, ``all`` or a
+        # target not known before the derivation): only then are neighbours derived first
+        self.queries_neighbours = False
         for m in self.modules.values():
             for name, overloads in m.rules.items():
                 info = RuleInfo()
@@ -224,7 +239,7 @@ class Purity:
                     continue
                 if n.name in OCCLUSION_CALLS and m.attr(n.name) is None:  # `case inside : …`
                     info.pure = False
-                    self.uses_occlusion = True
+                    self.uses_occlusion = self.queries_neighbours = True
                 elif n.name in IMPURE_NAMES or (n.name in IMPURE_CALLS and bare_call(n.name)):
                     info.pure = False
                 elif n.name in CONTEXT_NAMES:
@@ -243,6 +258,8 @@ class Purity:
                 if n.name in OCCLUSION_CALLS:
                     info.pure = False
                     self.uses_occlusion = True
+                    if not _intra_only(m, n):
+                        self.queries_neighbours = True
                 if m.function(n.name, len(n.args)) is not None:
                     callee = self._callee(m, n.name, "fn:")
                     if callee is not None:
