@@ -238,6 +238,14 @@ def triangulate_corners(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     return tri, face_of
 
 
+def ranges_index(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The indices ``starts[0] … starts[0] + lengths[0] - 1``, then those of the next range…,
+    as one array (the corners of chosen faces or rings, gathered at once)."""
+    lengths = np.asarray(lengths, np.int64)
+    return np.repeat(np.asarray(starts, np.int64) - (np.cumsum(lengths) - lengths), lengths) \
+        + np.arange(int(lengths.sum()))
+
+
 def column_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-column minimum and maximum of ``points`` (N, K), column by column: numpy's
     ``min(axis=0)`` over short rows is several times slower on the large arrays of an export."""

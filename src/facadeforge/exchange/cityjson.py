@@ -53,6 +53,7 @@ from ._common import (
     iter_models,
     jsonable,
     previous_corner,
+    ranges_index,
     read_texture,
     safe_name,
     scalar_attributes,
@@ -290,8 +291,7 @@ def _surface_rings(mesh: Mesh):
 def _single_faces(mesh: Mesh, faces: np.ndarray, corners, starts, uv, has_uv):
     """One ``_surface_rings`` block of faces that are surfaces on their own, all at once."""
     sizes = starts[faces + 1] - starts[faces]
-    first = np.cumsum(sizes) - sizes
-    at = np.repeat(starts[faces] - first, sizes) + np.arange(int(sizes.sum()))
+    at = ranges_index(starts[faces], sizes)
     return (mesh.vertices[corners[at]], uv[at], sizes, np.full(len(faces), has_uv),
             np.zeros(len(faces), np.int64))
 
@@ -428,8 +428,7 @@ class _CityJsonWriter:
         opens = np.flatnonzero(first[kept]).tolist()
         if len(opens) == len(kept):  # no holes, one ring a surface (the usual case): as text
             lengths = bounds[kept + 1] - bounds[kept]
-            at = np.repeat(bounds[kept] - (np.cumsum(lengths) - lengths), lengths) \
-                + np.arange(int(lengths.sum()))
+            at = ranges_index(bounds[kept], lengths)
             text = format_lines("[[", vids[keep][at], np.concatenate([[0], np.cumsum(lengths)]),
                                 sep=",", end="]],")
             boundaries = _Raw(b"[" + text[:-1] + b"]" if len(kept) else b"[]")
@@ -467,8 +466,7 @@ class _CityJsonWriter:
         textured = kept[ring_ok]
         lengths = bounds[textured + 1] - bounds[textured]
         if len(textured):
-            at = np.repeat(bounds[textured] - (np.cumsum(lengths) - lengths), lengths) \
-                + np.arange(int(lengths.sum()))
+            at = ranges_index(bounds[textured], lengths)
             self.uv_list.append(uv[at])
         numbers = range(self.uv_count, self.uv_count + int(lengths.sum()))
         self.uv_count += int(lengths.sum())
