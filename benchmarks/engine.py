@@ -52,6 +52,11 @@ def footprints(n: int = 40) -> dict:
 FORMATS = ("glb", "obj", "city.json")
 
 
+def _shown(path: Path) -> str:
+    path = path.resolve()
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+
+
 def _label(src: Path) -> str:
     """A checkout's name in the results: its commit, else its path."""
     res = subprocess.run(["git", "-C", str(src), "rev-parse", "--short", "HEAD"],
@@ -76,6 +81,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--footprints", type=int, default=40)
+    ap.add_argument("--grammar", type=Path, default=GRAMMAR,
+                    help="rules to derive (default benchmarks/grammars/detailed.cga; "
+                         "detailed_varied.cga chooses each window at random)")
     ap.add_argument("--formats", default=",".join(FORMATS),
                     help=f"export formats to time, comma-separated (default {','.join(FORMATS)})")
     ap.add_argument("--src", type=Path, action="append", default=[],
@@ -95,7 +103,7 @@ def main() -> int:
         lots.write_text(json.dumps(footprints(args.footprints)))
 
         def cmd(fmt: str) -> list[str]:
-            return [str(exe), "derive", str(GRAMMAR), "--footprint", str(lots), "--assets",
+            return [str(exe), "derive", str(args.grammar), "--footprint", str(lots), "--assets",
                     str(ASSETS), "-o", str(Path(tmp) / f"city.{fmt}"), "--stats"]
         for env in sides.values():  # warm-up: compiled modules, the parser cache
             _run(cmd(formats[0]), env)
@@ -119,7 +127,7 @@ def main() -> int:
     head = summary(main_side, formats[0])
     st = stats[(main_side, formats[0])]
     result = {
-        "benchmark": "engine", "grammar": str(GRAMMAR.relative_to(ROOT)), "footprints": n,
+        "benchmark": "engine", "grammar": _shown(args.grammar), "footprints": n,
         "runs": args.runs, "format": formats[0], **head,
         "faces": st["faces"], "faces_per_building": round(st["faces"] / n),
         "triangles": st["triangles"], "warnings": len(st["warnings"]),
