@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import sys
 import time
@@ -234,6 +235,7 @@ _WORKER: dict = {}
 #: Rules the parent loaded, by token: a worker made by fork inherits them and need not parse
 #: the rule files again (a large rule set takes a third of a second); spawned workers load.
 _PRELOADED: dict = {}
+_POOLS = itertools.count()  # the token of each pool's entry in _PRELOADED
 
 
 def _worker_init(spec):
@@ -373,7 +375,7 @@ def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool,
     """Models from worker processes, in order, at most a few per worker ahead."""
     from collections import deque
 
-    token = object().__repr__()  # unique while the pool lives
+    token = next(_POOLS)
     _PRELOADED[token] = loaded
     spec = {**spec, "preloaded": token}
     pool = ProcessPoolExecutor(n_workers, initializer=_worker_init, initargs=(spec,))
