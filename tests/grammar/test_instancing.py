@@ -63,6 +63,12 @@ def assert_same_parts(a, b):
     (ROOT / "src" / "facadeforge" / "data" / "building.cga", "24x14", None),
     (ROOT / "benchmarks" / "grammars" / "detailed.cga", "30x16", ROOT / "examples" / "assets"),
     (ROOT / "examples" / "grammars" / "courtyard.cga", "42x30", None),   # geometry tags
+    # stochastic choices: tiles replayed by the outcome of their windows' choice
+    (ROOT / "benchmarks" / "grammars" / "detailed_varied.cga", "30x16", ROOT / "examples" / "assets"),
+    (TEXTURED.replace("Window --> report", "Window --> 30% : X. 25% : Y. else : report")
+     .replace("Tile --> split(x)", "Tile --> 40% : color(\"#ff0000\") TileBody else : TileBody\n"
+              "TileBody --> split(x)"),
+     "23.7x11.3", None),
     # tiles alike but for a tag: each must see its own tags, not a replay of the other's
     ("Lot --> extrude(6) comp(f){ side : F }\n"
      "F --> split(x){ ~3 : tag(\"odd\") T | ~3 : T }*\n"

@@ -78,13 +78,20 @@ class RuleInfo:
     trims: bool = False  # inserts or trims (depends on the trim planes it inherits)
     assets: set = field(default_factory=set)  # the i("literal") assets it inserts
     far: bool = False  # may put geometry beyond its scope box (s, t, extrude, primitives…)
+    chance: bool = False  # makes stochastic choices (``p% : … else : …``), itself or below
     calls: set = field(default_factory=set)  # (module id, rule or function name)
 
 
 class Purity:
-    """Which rules have position-independent, deterministic subtrees (fixpoint over calls)."""
+    """Which rules have position-independent, deterministic subtrees (fixpoint over calls).
 
-    def __init__(self, ruleset: RuleSet):
+    With ``chance``, stochastic choices (``30% : A else : B``) do not count as impure: a rule is
+    then *pure by chance* when its subtree depends on nothing but its key and the outcomes of
+    its choices (``RuleInfo.chance`` says it makes any), which the interpreter replays by
+    outcome (see ``Derivation._instanced``)."""
+
+    def __init__(self, ruleset: RuleSet, chance: bool = False):
+        self.chance = chance
         self.modules = {id(m): m for m in ruleset.main.all_modules()}
         self.info: dict[tuple, RuleInfo] = {}
         self.uses_occlusion = False
@@ -130,8 +137,9 @@ class Purity:
                     if other is None:
                         continue
                     before = (info.pure, len(info.reads), info.projects, info.centers,
-                              info.uses_uv, info.trims, len(info.assets), info.far)
+                              info.uses_uv, info.trims, len(info.assets), info.far, info.chance)
                     info.pure &= other.pure
+                    info.chance |= other.chance
                     info.reads |= other.reads
                     info.projects |= other.projects
                     info.centers |= other.centers
@@ -140,7 +148,8 @@ class Purity:
                     info.assets |= other.assets
                     info.far |= other.far
                     if (info.pure, len(info.reads), info.projects, info.centers,
-                            info.uses_uv, info.trims, len(info.assets), info.far) != before:
+                            info.uses_uv, info.trims, len(info.assets), info.far,
+                            info.chance) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -207,7 +216,13 @@ class Purity:
                     self._ops(m, b, info)
                 self._ops(m, op.otherwise, info)
             elif t is A.StochasticOps:
-                info.pure = False
+                if not self.chance:
+                    info.pure = False
+                    continue
+                info.chance = True
+                for _, b in op.branches:
+                    self._ops(m, b, info)
+                self._ops(m, op.otherwise, info)
 
     def _args(self, m, spec, args, info):
         """An operation's arguments, but the bare keywords it takes (``offset(-1, inside)``:

@@ -32,7 +32,7 @@ from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
 from .ops.scoping import euler_xyz_deg, pivot_frame, pivot_value
-from .state import ShapeState
+from .state import ShapeState, child_seed, random_value
 from .values import CGARuntimeError, to_bool, to_float, to_str
 
 load_all()
@@ -310,8 +310,17 @@ class Derivation:
         # occluders (closed volumes split into parts, closed leaf shapes) are worth keeping only
         # when some rule asks an occlusion query
         self.keeps_occluders = purity.uses_occlusion
+        # rules pure but for their stochastic choices, instanced by the choices' outcomes
+        self._chance = None
+        self._chance_log: list | None = None  # the choices of the subtree being recorded
+        self._chance_instances: dict = {}  # key -> [(choices, Recording)]
         if instancing:
             self._purity = None if purity.uses_occlusion else purity
+            if self._purity is not None:
+                chance = getattr(ruleset, "_chance_purity", None)
+                if chance is None:
+                    chance = ruleset._chance_purity = Purity(ruleset, chance=True)
+                self._chance = chance
 
     # -- attributes --------------------------------------------------------------------------
     def attr_value(self, module: Module, adef: A.AttrDef, state: ShapeState):
@@ -411,6 +420,17 @@ class Derivation:
                         self._instanced(key, uv_map, node, state, name, args, module, depth,
                                         payoff)
                         return
+            elif self._chance is not None:
+                info = self._chance.rule(module, name)
+                if info is not None and info.pure and info.chance:
+                    payoff = self._payoff.get(id(info))
+                    if payoff is None:
+                        payoff = self._payoff[id(info)] = Payoff()
+                    if not payoff.off:
+                        key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
+                        if key is not None and self._by_chance(key, uv_map, node, state, name,
+                                                                args, module, depth, payoff):
+                            return
         self._run_rule(queue, node, state, name, args, mod, rdef, depth)
 
     def _run_rule(self, queue, node, state, name, args, mod, rdef, depth):
@@ -432,37 +452,85 @@ class Derivation:
     # -- instancing (see instancing.py) -------------------------------------------------------
     def _instanced(self, key, uv_map, node, state, name, args, module, depth, payoff) -> None:
         rec = self._instances.get(key)
-        scope0 = state.scope
+        scope0 = state.scope  # the recording moves it: replays go where the shape was
         if rec is None:
-            saved = (self.parts, self.reports, self.prints, self._purity)
-            count0 = self.shape_count
-            self.parts, self.reports, self.prints = [], {}, []
-            sub: deque = deque()
-            mod, rdef = module.rule(name, len(args))
-            self._run_rule(sub, node, state, name, args, mod, rdef, depth)
-            while sub:
-                item = sub.popleft()
-                self._apply(sub, *item)
-            rot, org = scope0.rotation, scope0.origin
-            # parts alike in label, material and symbol become one mesh: replays (and exports)
-            # then handle a few meshes instead of one per leaf shape
-            groups: dict = {}
-            for p in self.parts:
-                groups.setdefault((p.label, p.material.key(), p.symbol), []).append(p)
-            parts = []
-            for (label, _, symbol), ps in groups.items():
-                merged = Mesh.merge(p.mesh for p in ps)
-                parts.append((merged.with_vertices((merged.vertices - org) @ rot), label,
-                              ps[0].material, symbol))
-            rec = Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
-                            self.shape_count - count0, uv_map)
-            self.parts, self.reports, self.prints, self._purity = saved
-            self._instances[key] = rec
+            rec = self._instances[key] = self._record(uv_map, node, state, name, args, module,
+                                                      depth)
             payoff.note(False, rec.shapes)
             self._replay(rec, scope0, uv_map, node, count=False)
             return
         payoff.note(True, rec.shapes)
         self._replay(rec, scope0, uv_map, node, count=True)
+
+    def _record(self, uv_map, node, state, name, args, module, depth) -> Recording:
+        """Derive a subtree now, depth first, and keep what it made relative to its scope."""
+        scope0 = state.scope
+        saved = (self.parts, self.reports, self.prints, self._purity)
+        count0 = self.shape_count
+        self.parts, self.reports, self.prints = [], {}, []
+        sub: deque = deque()
+        mod, rdef = module.rule(name, len(args))
+        self._run_rule(sub, node, state, name, args, mod, rdef, depth)
+        while sub:
+            item = sub.popleft()
+            self._apply(sub, *item)
+        rot, org = scope0.rotation, scope0.origin
+        # parts alike in label, material and symbol become one mesh: replays (and exports)
+        # then handle a few meshes instead of one per leaf shape
+        groups: dict = {}
+        for p in self.parts:
+            groups.setdefault((p.label, p.material.key(), p.symbol), []).append(p)
+        parts = []
+        for (label, _, symbol), ps in groups.items():
+            merged = Mesh.merge(p.mesh for p in ps)
+            parts.append((merged.with_vertices((merged.vertices - org) @ rot), label,
+                          ps[0].material, symbol))
+        rec = Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
+                        self.shape_count - count0, uv_map)
+        self.parts, self.reports, self.prints, self._purity = saved
+        return rec
+
+    def _by_chance(self, key, uv_map, node, state, name, args, module, depth, payoff) -> bool:
+        """Instancing of a subtree that is pure but for its stochastic choices: a recording is
+        kept with the outcome of every choice it made (where in the subtree, which draw of that
+        shape's random stream, the percentages, the branch taken).  Another shape of the same
+        key replays it when its own random streams, which follow from its seed along the same
+        successor indices, give every choice the same outcome; else it is derived (and
+        recorded, up to :data:`CHANCE_VARIANTS` recordings a key).  Returns False when the
+        shape is left to the caller to derive directly."""
+        variants = self._chance_instances.setdefault(key, [])
+        scope0 = state.scope
+        for choices, rec in variants:
+            if _choices_hold(state.seed, choices):
+                payoff.note(True, rec.shapes)
+                self._note_choices(state, choices)
+                self._replay(rec, scope0, uv_map, node, count=True)
+                return True
+        if len(variants) >= CHANCE_VARIANTS:
+            payoff.note(False, 0)
+            return False
+        outer_log, outer_path = self._chance_log, state.path
+        self._chance_log, state.path = [], ()
+        try:
+            rec = self._record(uv_map, node, state, name, args, module, depth)
+            choices = self._chance_log
+        finally:
+            self._chance_log, state.path = outer_log, outer_path
+        if all(path is not None for path, *_ in choices):
+            variants.append((tuple(choices), rec))
+        payoff.note(False, rec.shapes)
+        self._note_choices(state, choices)
+        self._replay(rec, scope0, uv_map, node, count=False)
+        return True
+
+    def _note_choices(self, state: ShapeState, choices) -> None:
+        """Within a subtree being recorded by chance, the choices of a nested one count too,
+        found from the outer root along the nested root's successor indices."""
+        if self._chance_log is not None:
+            prefix = state.path
+            self._chance_log.extend(
+                (None if prefix is None or path is None else (*prefix, *path), *rest)
+                for path, *rest in choices)
 
     def _replay(self, rec, scope, uv_map, node, count: bool) -> None:
         rot, org = scope.rotation, scope.origin
@@ -588,6 +656,30 @@ class Derivation:
                                   "a repeat split on a huge scope or a runaway recursion?")
 
 
+#: Recordings kept per key of a subtree instanced by the outcomes of its stochastic choices.
+CHANCE_VARIANTS = 8
+
+
+def _choices_hold(seed: int, choices) -> bool:
+    """Whether the random streams below a shape of ``seed`` give every recorded choice
+    ``(successor indices, draw, percentages, branch)`` the same branch (the interpreter's own
+    arithmetic: ``child_seed``, ``random_value``, the running sum of percentages)."""
+    for path, draw, pcts, index in choices:
+        s = seed
+        for i in path:
+            s = child_seed(s, i)
+        r = random_value(s, draw) * 100.0
+        got, acc = len(pcts), 0.0
+        for k, pct in enumerate(pcts):
+            acc += pct
+            if r < acc:
+                got = k
+                break
+        if got != index:
+            return False
+    return True
+
+
 def _undefined_qualified(module: Module, name: str) -> str:
     """The warning for a call of ``Alias.Rule`` that finds no rule, with the nearest name."""
     prefix, short = name.rsplit(".", 1)
@@ -690,12 +782,16 @@ class _RunContext:
                     return self.run(chosen, state, env, origin) or consumed
                 elif t is A.StochasticOps:
                     r = state.random_float() * 100.0
-                    chosen, acc = op.otherwise, 0.0
-                    for pct, branch in op.branches:
+                    chosen, acc, index = op.otherwise, 0.0, len(op.branches)
+                    for k, (pct, branch) in enumerate(op.branches):
                         acc += pct
                         if r < acc:
-                            chosen = branch
+                            chosen, index = branch, k
                             break
+                    log = self.d._chance_log
+                    if log is not None:  # recorded for instancing by chance
+                        log.append((state.path, state.draws,
+                                    tuple(pct for pct, _ in op.branches), index))
                     return self.run(chosen, state, env, origin) or consumed
             except CGARuntimeError as e:
                 self.d.warn(str(e), op, self.rule)

@@ -16,6 +16,16 @@ def splitmix64(x: int) -> int:
     return x ^ (x >> 31)
 
 
+def child_seed(seed: int, index: int) -> int:
+    """The random stream of a shape's ``index``-th successor."""
+    return splitmix64(seed ^ ((index + 1) * 0x632BE59BD9B4E019 & MASK64))
+
+
+def random_value(seed: int, draw: int) -> float:
+    """The ``draw``-th (from 1) number in [0, 1) of the stream ``seed``."""
+    return splitmix64(seed + draw * 0xD1B54A32D192ED03 & MASK64) / 2.0**64
+
+
 class ShapeState:
     """Scope, geometry and attributes of the current shape.
 
@@ -33,7 +43,7 @@ class ShapeState:
     """
 
     __slots__ = ("_scope", "_own", "geometry", "material", "attrs", "context", "projections",
-                 "label", "tags", "seed", "draws", "pivot", "trim")
+                 "label", "tags", "seed", "draws", "pivot", "trim", "path")
 
     def __init__(self, scope: Scope, geometry: Mesh, material=None, attrs=None, context=None,
                  projections=None, label: str = "", tags=None, seed: int = 0, draws: int = 0,
@@ -51,6 +61,9 @@ class ShapeState:
         self.draws = draws
         self.pivot = pivot
         self.trim = trim
+        # successor indices from the root of a subtree being recorded for instancing by the
+        # outcomes of its stochastic choices (None otherwise): its random stream follows them
+        self.path = None
 
     @property
     def scope(self) -> Scope:
@@ -75,20 +88,24 @@ class ShapeState:
 
     def copy(self) -> ShapeState:
         self._own = False
-        return ShapeState(self._scope, self.geometry, dict(self.material), dict(self.attrs),
-                          dict(self.context), dict(self.projections), self.label, dict(self.tags),
-                          self.seed, 0, self.pivot, self.trim)
+        new = ShapeState(self._scope, self.geometry, dict(self.material), dict(self.attrs),
+                         dict(self.context), dict(self.projections), self.label, dict(self.tags),
+                         self.seed, 0, self.pivot, self.trim)
+        new.path = self.path
+        return new
 
     def child(self, index: int) -> ShapeState:
         """Copy for the ``index``-th successor, with its own random stream."""
         c = self.copy()
-        c.seed = splitmix64(self.seed ^ ((index + 1) * 0x632BE59BD9B4E019 & MASK64))
+        c.seed = child_seed(self.seed, index)
         c.pivot = self._scope
+        if self.path is not None:
+            c.path = (*self.path, index)
         return c
 
     def random_float(self) -> float:
         self.draws += 1
-        return splitmix64(self.seed + self.draws * 0xD1B54A32D192ED03 & MASK64) / 2.0**64
+        return random_value(self.seed, self.draws)
 
     # -- geometry helpers --------------------------------------------------------------------
     def local_geometry(self) -> Mesh:
