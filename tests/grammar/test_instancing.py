@@ -69,6 +69,12 @@ def assert_same_parts(a, b):
      .replace("Tile --> split(x)", "Tile --> 40% : color(\"#ff0000\") TileBody else : TileBody\n"
               "TileBody --> split(x)"),
      "23.7x11.3", None),
+    # p(), listRandom and stochastic expressions are choices too
+    ("Lot --> extrude(9) comp(f){ side : F }\n"
+     "F --> split(y){ ~3 : split(x){ ~2 : T }* }*\n"
+     "T --> case p(0.3) : split(x){ ~1 : A. | 0.5 : B. | ~1 : A. }\n"
+     "      else : s('1, 50% : '0.5 else : '0.8, '1) color(listRandom(\"#ff0000;#00ff00;#0000ff\")) C.",
+     "24x12", None),
     # tiles alike but for a tag: each must see its own tags, not a replay of the other's
     ("Lot --> extrude(6) comp(f){ side : F }\n"
      "F --> split(x){ ~3 : tag(\"odd\") T | ~3 : T }*\n"

@@ -98,6 +98,11 @@ class Evaluator:
 
     __slots__ = ()
 
+    def note_choice(self, kind: str, params, outcome) -> None:
+        """A random choice was made (``pct``: a stochastic branch, ``p``: ``p(prob)``,
+        ``list``: ``listRandom``): environments that instance subtrees by their choices'
+        outcomes record it (``interpreter.Env``); plain evaluators need not."""
+
     def evaluate(self, node):
         """The value of the expression ``node``."""
         return _DISPATCH[type(node)](self, node)
@@ -187,10 +192,13 @@ class Evaluator:
     def _stochastic(self, node):
         r = self.random_float() * 100.0
         acc = 0.0
-        for pct, value in node.branches:
+        pcts = tuple(pct for pct, _ in node.branches)
+        for k, (pct, value) in enumerate(node.branches):
             acc += pct
             if r < acc:
+                self.note_choice("pct", pcts, k)
                 return self(value)
+        self.note_choice("pct", pcts, len(pcts))
         return self(node.otherwise)
 
 

@@ -168,7 +168,10 @@ def _rand(env, a):
 
 @builtin("p", 1)
 def _p(env, a):
-    return env.random_float() < to_float(a[0])
+    prob = to_float(a[0])
+    outcome = env.random_float() < prob
+    env.note_choice("p", prob, outcome)
+    return outcome
 
 
 # ---- strings ------------------------------------------------------------------------------
@@ -306,7 +309,9 @@ def _list_random(env, a):
     items = _list_items(to_str(a[0]))
     if not items:
         return ""
-    return items[min(int(env.random_float() * len(items)), len(items) - 1)]
+    k = min(int(env.random_float() * len(items)), len(items) - 1)
+    env.note_choice("list", len(items), k)
+    return items[k]
 
 
 @builtin("listToArray", 1)

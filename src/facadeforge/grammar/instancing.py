@@ -38,6 +38,8 @@ IMPURE_CALLS = {"rand", "p", "listRandom", "fileRandom", "convert", "minimumDist
                 "getGeoCoord",
                 "assetApproxRatio", "assetApproxSize", "assetFitSize", "imageApproxRatio"}
 OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
+# random functions whose outcome is discrete: instancing by chance records it (interpreter)
+CHANCE_CALLS = {"p", "listRandom"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
@@ -269,7 +271,10 @@ class Purity:
                 if n.name in UV_NAMES:
                     info.uses_uv = True
                 if n.name in IMPURE_CALLS:
-                    info.pure = False
+                    if self.chance and n.name in CHANCE_CALLS:
+                        info.chance = True
+                    else:
+                        info.pure = False
                 if n.name in OCCLUSION_CALLS:
                     info.pure = False
                     self.uses_occlusion = True
@@ -281,7 +286,12 @@ class Purity:
                         info.calls.add(callee)
                 stack.extend(n.args)
             elif t is A.StochasticExpr:
-                info.pure = False
+                if not self.chance:
+                    info.pure = False
+                    continue
+                info.chance = True
+                stack.extend(v for _, v in n.branches)
+                stack.append(n.otherwise)
             elif t in (A.Binary,):
                 stack.extend((n.left, n.right))
             elif t is A.Unary:

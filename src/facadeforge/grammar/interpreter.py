@@ -114,6 +114,11 @@ class Env(Evaluator):
     def random_float(self) -> float:
         return self.state.random_float()
 
+    def note_choice(self, kind: str, params, outcome) -> None:
+        log = self.derivation._chance_log
+        if log is not None:  # recorded for instancing by chance
+            log.append((self.state.path, self.state.draws, kind, params, outcome))
+
     # -- names -------------------------------------------------------------------------------
     def lookup(self, name: str, node):
         if name in self.locals:
@@ -662,20 +667,28 @@ CHANCE_VARIANTS = 8
 
 def _choices_hold(seed: int, choices) -> bool:
     """Whether the random streams below a shape of ``seed`` give every recorded choice
-    ``(successor indices, draw, percentages, branch)`` the same branch (the interpreter's own
-    arithmetic: ``child_seed``, ``random_value``, the running sum of percentages)."""
-    for path, draw, pcts, index in choices:
+    ``(successor indices, draw, kind, parameters, outcome)`` the same outcome, with the
+    interpreter's own arithmetic (``child_seed``, ``random_value``; a stochastic branch by the
+    running sum of its percentages, ``p(prob)`` by ``r < prob``, ``listRandom`` of ``n`` items
+    by ``int(r · n)``)."""
+    for path, draw, kind, params, outcome in choices:
         s = seed
         for i in path:
             s = child_seed(s, i)
-        r = random_value(s, draw) * 100.0
-        got, acc = len(pcts), 0.0
-        for k, pct in enumerate(pcts):
-            acc += pct
-            if r < acc:
-                got = k
-                break
-        if got != index:
+        r = random_value(s, draw)
+        if kind == "p":
+            got = r < params
+        elif kind == "list":
+            got = min(int(r * params), params - 1)
+        else:
+            r *= 100.0
+            got, acc = len(params), 0.0
+            for k, pct in enumerate(params):
+                acc += pct
+                if r < acc:
+                    got = k
+                    break
+        if got != outcome:
             return False
     return True
 
@@ -788,10 +801,7 @@ class _RunContext:
                         if r < acc:
                             chosen, index = branch, k
                             break
-                    log = self.d._chance_log
-                    if log is not None:  # recorded for instancing by chance
-                        log.append((state.path, state.draws,
-                                    tuple(pct for pct, _ in op.branches), index))
+                    env.note_choice("pct", tuple(pct for pct, _ in op.branches), index)
                     return self.run(chosen, state, env, origin) or consumed
             except CGARuntimeError as e:
                 self.d.warn(str(e), op, self.rule)
