@@ -142,3 +142,26 @@ W --> offset(-1) comp(f){ inside : In. | all : B. }
     assert p.rule(r.main, "W").pure and not p.uses_occlusion
     r = load_rules(src + "Q --> case inside : In. else : Out.\n").ruleset
     assert Purity(r).uses_occlusion
+
+
+def test_stochastic_tiles_are_replayed_by_the_outcome_of_their_choice(monkeypatch):
+    """The varied benchmark building chooses each window at random: its tiles are pure but for
+    that choice, so later tiles replay the recording whose choice their own random stream
+    repeats (and derive, and are recorded, when it does not)."""
+    import facadeforge.grammar.interpreter as interp
+
+    outcomes = []
+    real = interp._choices_hold
+
+    def counting(seed, choices):
+        outcomes.append(real(seed, choices))
+        return outcomes[-1]
+    monkeypatch.setattr(interp, "_choices_hold", counting)
+    rules = load_rules(ROOT / "benchmarks" / "grammars" / "detailed_varied.cga",
+                       assets=ROOT / "examples" / "assets")
+    chance = Purity(rules.ruleset, chance=True)
+    tile = chance.rule(rules.ruleset.main, "Tile")
+    assert tile.pure and tile.chance and not Purity(rules.ruleset).rule(rules.ruleset.main,
+                                                                        "Tile").pure
+    derive(rules, lot_size="30x16", keep_tree=False)
+    assert sum(outcomes) > 100 and not all(outcomes)
