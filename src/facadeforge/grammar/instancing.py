@@ -13,6 +13,14 @@ Texture coordinates inherited from a facade-wide projection differ from tile to 
 affine function of position; they are left out of the key and re-derived on replay from the
 input's affine map (corners whose UVs came from the input are recognised by that map).
 
+A subtree that is pure but for stochastic choices (``30% : A else : B``, ``p(prob)``,
+``listRandom``, stochastic expressions) is instanced *by chance*: it is recorded with the outcome
+of each choice it made, found by the successor indices from the subtree's root, the draw of
+that shape's random stream, and the choice's parameters; a later shape of the same key replays
+the recording whose choices its own random streams repeat (the streams follow from a shape's
+seed and those indices alone), and is derived and recorded otherwise (up to a few recordings a
+key; ``Derivation._by_chance``).  Continuous random values (``rand()``) keep a subtree impure.
+
 Enabled only when the caller drops shape trees (the CLI), and never for rule sets that use
 occlusion queries (replayed shapes would not leave occluders behind).
 """
