@@ -414,3 +414,15 @@ def test_comp_function():
     m = derive_text(src, lot="10x8")[0]
     assert m.reports["side"] == [pytest.approx(2 * (10 + 8) * 4 + 1)]
     assert m.reports["n"] == [12.0] and m.reports["top"] == ["t"]
+
+
+def test_offset_uv_is_the_2014_name_of_translate_uv():
+    """Esri's own 2014 library rules (ESRI.lib Facade_Textures.cga) write offsetUV(0, u, v)."""
+    uvs = []
+    for op in ("offsetUV", "translateUV"):
+        rules = load_rules(f"Lot --> setupProjection(0, scope.xz, 4, 4) projectUV(0) "
+                           f"{op}(0, 0.25, -0.5) X.")
+        (m,) = derive(rules, lot_size="8x4")
+        assert not m.warnings
+        uvs.append(m.parts[0].mesh.corner_uvs)
+    assert np.array_equal(uvs[0], uvs[1]) and uvs[0][:, 0].min() == pytest.approx(0.25)

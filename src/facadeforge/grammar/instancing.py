@@ -52,7 +52,7 @@ IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
-UV_OPS = {"tileUV", "translateUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV",
+UV_OPS = {"tileUV", "translateUV", "offsetUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV",
           "insertAlongUV"}
 # operations that cut their geometry at the shape's trim planes (ops/trimming.py)
 TRIM_OPS = {"i", "trim", "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone",

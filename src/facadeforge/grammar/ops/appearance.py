@@ -148,6 +148,11 @@ def op_translate_uv(call):
     _uv_edit(call, lambda uv: uv + [du, dv])
 
 
+# ``offsetUV(uvSet, u, v)``: the name Esri's own 2014 library rules use for the same shift
+# (ESRI.lib ``Facade_Textures.cga``, version "2014.0"); current references list translateUV only
+operation("offsetUV", 3)(op_translate_uv)
+
+
 @operation("scaleUV", 3)
 def op_scale_uv(call):
     su, sv = call.num(1), call.num(2)
