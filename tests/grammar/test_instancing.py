@@ -165,3 +165,12 @@ def test_stochastic_tiles_are_replayed_by_the_outcome_of_their_choice(monkeypatc
                                                                         "Tile").pure
     derive(rules, lot_size="30x16", keep_tree=False)
     assert sum(outcomes) > 100 and not all(outcomes)
+
+
+def test_choice_outcomes():
+    from facadeforge.grammar.chance import outcome
+
+    assert [outcome("pct", r, (30.0, 20.0)) for r in (0.0, 0.299, 0.3, 0.499, 0.5, 0.999)] == \
+        [0, 0, 1, 1, 2, 2]
+    assert outcome("p", 0.2, 0.25) is True and outcome("p", 0.25, 0.25) is False
+    assert [outcome("list", r, 3) for r in (0.0, 0.34, 0.67, 0.999999)] == [0, 1, 2, 2]

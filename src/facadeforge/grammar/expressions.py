@@ -9,6 +9,7 @@ import numpy as np
 
 from . import arrays
 from . import ast as A
+from .chance import outcome
 from .ops import SHAPE_FUNCTIONS as SELECTOR_FUNCTIONS
 from .values import (
     CGARuntimeError,
@@ -190,16 +191,10 @@ class Evaluator:
         return self.comp_function(node)
 
     def _stochastic(self, node):
-        r = self.random_float() * 100.0
-        acc = 0.0
         pcts = tuple(pct for pct, _ in node.branches)
-        for k, (pct, value) in enumerate(node.branches):
-            acc += pct
-            if r < acc:
-                self.note_choice("pct", pcts, k)
-                return self(value)
-        self.note_choice("pct", pcts, len(pcts))
-        return self(node.otherwise)
+        k = outcome("pct", self.random_float(), pcts)
+        self.note_choice("pct", pcts, k)
+        return self(node.branches[k][1] if k < len(pcts) else node.otherwise)
 
 
 _DISPATCH = {

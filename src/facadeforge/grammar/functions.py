@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .chance import outcome
 from .values import (
     CGARuntimeError,
     from_numpy,
@@ -169,9 +170,9 @@ def _rand(env, a):
 @builtin("p", 1)
 def _p(env, a):
     prob = to_float(a[0])
-    outcome = env.random_float() < prob
-    env.note_choice("p", prob, outcome)
-    return outcome
+    got = outcome("p", env.random_float(), prob)
+    env.note_choice("p", prob, got)
+    return got
 
 
 # ---- strings ------------------------------------------------------------------------------
@@ -309,7 +310,7 @@ def _list_random(env, a):
     items = _list_items(to_str(a[0]))
     if not items:
         return ""
-    k = min(int(env.random_float() * len(items)), len(items) - 1)
+    k = outcome("list", env.random_float(), len(items))
     env.note_choice("list", len(items), k)
     return items[k]
 

@@ -25,6 +25,7 @@ from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
 from ..model.shape import Shape
 from . import ast as A
+from .chance import outcome
 from .expressions import Evaluator
 from .functions import FUNCTIONS, bare_call
 from .instancing import Payoff, Purity, Recording, instance_key
@@ -667,28 +668,14 @@ CHANCE_VARIANTS = 8
 
 def _choices_hold(seed: int, choices) -> bool:
     """Whether the random streams below a shape of ``seed`` give every recorded choice
-    ``(successor indices, draw, kind, parameters, outcome)`` the same outcome, with the
-    interpreter's own arithmetic (``child_seed``, ``random_value``; a stochastic branch by the
-    running sum of its percentages, ``p(prob)`` by ``r < prob``, ``listRandom`` of ``n`` items
-    by ``int(r · n)``)."""
-    for path, draw, kind, params, outcome in choices:
+    ``(successor indices, draw, kind, parameters, outcome)`` the same outcome: the streams by
+    ``child_seed`` and ``random_value``, the outcome by :func:`chance.outcome`, as when the
+    shapes derive."""
+    for path, draw, kind, params, recorded in choices:
         s = seed
         for i in path:
             s = child_seed(s, i)
-        r = random_value(s, draw)
-        if kind == "p":
-            got = r < params
-        elif kind == "list":
-            got = min(int(r * params), params - 1)
-        else:
-            r *= 100.0
-            got, acc = len(params), 0.0
-            for k, pct in enumerate(params):
-                acc += pct
-                if r < acc:
-                    got = k
-                    break
-        if got != outcome:
+        if outcome(kind, random_value(s, draw), params) != recorded:
             return False
     return True
 
@@ -794,14 +781,10 @@ class _RunContext:
                             break
                     return self.run(chosen, state, env, origin) or consumed
                 elif t is A.StochasticOps:
-                    r = state.random_float() * 100.0
-                    chosen, acc, index = op.otherwise, 0.0, len(op.branches)
-                    for k, (pct, branch) in enumerate(op.branches):
-                        acc += pct
-                        if r < acc:
-                            chosen, index = branch, k
-                            break
-                    env.note_choice("pct", tuple(pct for pct, _ in op.branches), index)
+                    pcts = tuple(pct for pct, _ in op.branches)
+                    index = outcome("pct", state.random_float(), pcts)
+                    env.note_choice("pct", pcts, index)
+                    chosen = op.branches[index][1] if index < len(pcts) else op.otherwise
                     return self.run(chosen, state, env, origin) or consumed
             except CGARuntimeError as e:
                 self.d.warn(str(e), op, self.rule)
