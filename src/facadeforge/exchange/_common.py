@@ -246,13 +246,6 @@ def ranges_index(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
         + np.arange(int(lengths.sum()))
 
 
-def column_bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per-column minimum and maximum of ``points`` (N, K), column by column: numpy's
-    ``min(axis=0)`` over short rows is several times slower on the large arrays of an export."""
-    return (np.array([points[:, j].min() for j in range(points.shape[1])]),
-            np.array([points[:, j].max() for j in range(points.shape[1])]))
-
-
 def previous_corner(starts: np.ndarray) -> np.ndarray:
     """Index of the previous corner of the same face for every flattened corner (C,)."""
     prev = np.arange(-1, int(starts[-1]) - 1)

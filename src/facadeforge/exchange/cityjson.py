@@ -40,13 +40,12 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
-from ..geometry.mesh import Mesh, plane_basis, polygon_normal
+from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
 from ..model.labels import Labels, label_for_name
 from ..model.model import Material, Model, Part
 from ._ascii import format_lines
 from ._common import (
     Staging,
-    column_bounds,
     corner_uvs,
     face_corners,
     image_extension,
@@ -409,11 +408,11 @@ class _CityJsonWriter:
         if len(f.points):
             obj["geographicalExtent"] = [*f.lo.tolist(), *f.hi.tolist()]
             geometry = self._geometry(f, vids)
-            if len(geometry["boundaries"]):
+            if geometry is not None:
                 obj["geometry"] = [geometry]
         return obj
 
-    def _geometry(self, f: _Faces, vids: np.ndarray) -> dict:
+    def _geometry(self, f: _Faces, vids: np.ndarray) -> dict | None:
         keep, valid = _clean_rings(vids, f.offsets)
         ring_of = np.repeat(np.arange(len(f.offsets) - 1), np.diff(f.offsets))
         sizes = np.bincount(ring_of[keep], minlength=len(f.offsets) - 1)
@@ -424,6 +423,8 @@ class _CityJsonWriter:
         outer_ok = np.zeros(len(f.part_of), bool)
         outer_ok[f.surface_of[first & valid]] = True
         kept = np.flatnonzero(valid & outer_ok[f.surface_of])      # rings written, in order
+        if not len(kept):  # nothing left to write
+            return None
         # the kept rings of one surface are consecutive: split the list where a surface starts
         opens = np.flatnonzero(first[kept]).tolist()
         if len(opens) == len(kept):  # no holes, one ring a surface (the usual case): as text
@@ -431,14 +432,14 @@ class _CityJsonWriter:
             at = ranges_index(bounds[kept], lengths)
             text = format_lines("[[", vids[keep][at], np.concatenate([[0], np.cumsum(lengths)]),
                                 sep=",", end="]],")
-            boundaries = _Raw(b"[" + text[:-1] + b"]" if len(kept) else b"[]")
+            boundaries = _Raw(b"[" + text[:-1] + b"]")
         else:
             flat = vids[keep].tolist()
             lo, hi = bounds[kept].tolist(), bounds[kept + 1].tolist()
             ring_ids = [flat[a:b] for a, b in zip(lo, hi)]
             ends = opens[1:] + [len(kept)]
             boundaries = [ring_ids[a:b] for a, b in zip(opens, ends)]
-        owner = f.part_of[f.surface_of[kept[opens]]] if len(kept) else np.zeros(0, np.int64)
+        owner = f.part_of[f.surface_of[kept[opens]]]
         surfaces: dict[tuple, int] = {}
         sem = [self._surface(p, surfaces) for p in f.parts]
         mat = [self._material(p.material) for p in f.parts]
@@ -458,7 +459,7 @@ class _CityJsonWriter:
         texture): a surface is textured when its part's material has a texture and every ring
         of it has texture coordinates."""
         tex = [self._texture_index(p.material.texture) for p in f.parts]
-        if all(t is None for t in tex) or not len(kept):
+        if all(t is None for t in tex):
             return None
         part_tex = np.array([-1 if t is None else t for t in tex], np.int64)
         surface_ok = (part_tex[owner] >= 0) & np.logical_and.reduceat(f.has_uv[kept], opens)
@@ -584,9 +585,6 @@ class _Raw:
 
     def __init__(self, text: bytes) -> None:
         self.text = text.decode("ascii")
-
-    def __len__(self) -> int:
-        return len(self.text) > 2  # "[]" is empty
 
 #: Stands for a _Raw in json's output until it is replaced (random: no user text holds it).
 _MARK = "\x00raw-" + secrets.token_hex(16)

@@ -40,11 +40,10 @@ from pathlib import Path
 import numpy as np
 import pygltflib as gl
 
-from ..geometry.mesh import Mesh
+from ..geometry.mesh import Mesh, column_bounds
 from ..model.model import Material, Model, Part
 from ._common import (
     Staging,
-    column_bounds,
     corner_uvs,
     face_corners,
     image_extension,

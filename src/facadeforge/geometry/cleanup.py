@@ -430,8 +430,7 @@ def _untouched_face(mesh: Mesh, components: str, tolerance: float) -> Mesh | Non
         return None
     pts = mesh.vertices.tolist()
     if tolerance <= WELD_EPS:  # the grid weld: every vertex in a cell of its own
-        keys = np.round(mesh.vertices / WELD_EPS).astype(np.int64)
-        if len(np.unique(keys, axis=0)) != len(keys):
+        if len(np.unique(weld_ids(mesh.vertices, WELD_EPS))) != len(mesh.vertices):
             return None
     else:
         reach = tolerance * tolerance * (1.0 + _MARGIN)
