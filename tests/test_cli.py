@@ -73,12 +73,52 @@ def test_render_and_demo(tmp_path, capsys):
     assert "faces" in out
     for name in ("building.glb", "building.obj", "building.city.json", "preview.png"):
         assert (tmp_path / "demo" / name).stat().st_size > 0
+    assert (tmp_path / "demo" / "reconstruction" / "preview.png").is_file()
+    assert "staging" not in out and sorted(p.name for p in tmp_path.iterdir()) == ["demo"]
+    report = json.loads((tmp_path / "demo" / "reconstruction" / "report.json").read_text())
+    assert report["input"]["photo"].startswith(str(tmp_path / "demo" / "synthetic"))
     png = tmp_path / "again.png"
     assert main(["render", str(tmp_path / "demo" / "building.glb"), "-o", str(png),
                  "--size", "320x240"]) == 0
     from PIL import Image
 
     assert Image.open(png).size == (320, 240)
+    # the demo's folder is facadeforge's: a file put there makes the next demo stop at once
+    (tmp_path / "demo" / "notes.txt").write_text("mine")
+    assert main(["demo", "-o", str(tmp_path / "demo")]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+    assert (tmp_path / "demo" / "notes.txt").read_text() == "mine"
+
+
+def _photo(path):
+    import numpy as np
+    from PIL import Image
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.full((80, 80, 3), 128, np.uint8)).save(path)
+    return path
+
+
+@pytest.mark.parametrize("command", ["reconstruct", "parse"])
+def test_an_output_folder_holding_the_photo_is_refused(tmp_path, capsys, command):
+    """The reproducer: ``reconstruct same/texture.jpg --rectified -o same`` overwrote the
+    photo with the texture it wrote."""
+    photo = _photo(tmp_path / "same" / "texture.jpg")
+    before = photo.read_bytes()
+    assert main([command, str(photo), "--rectified", "-o", str(tmp_path / "same")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is inside the output folder" in err[0] and "-o" in err[0]
+    assert photo.read_bytes() == before and [p.name for p in photo.parent.iterdir()] == [
+        "texture.jpg"]
+
+
+def test_a_folder_given_as_the_photo_says_so(tmp_path, capsys):
+    photos = tmp_path / "photos"
+    _photo(photos / "a.png")
+    assert main(["reconstruct", str(photos), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "is a folder, not an image file" in err and str(photos / "a.png") in err
+    assert "does not exist" not in err
 
 
 def test_render_views_from_above(tmp_path):
@@ -114,3 +154,12 @@ def test_derive_does_not_import_the_dataset_and_training_code():
                          check=True).stdout.splitlines()
     assert out[0] == "[]"
     assert "train-classifier" in out[1] and "synth" in out[1] and "bench" in out[1]
+
+
+def test_derive_never_writes_over_its_footprints(rules, tmp_path, capsys):
+    lots = tmp_path / "lots.obj"
+    lots.write_text("v 0 0 0\nv 10 0 0\nv 10 0 6\nv 0 0 6\nf 1 4 3 2\n")
+    before = lots.read_bytes()
+    assert main(["derive", str(rules), "--footprint", str(lots), "-o", str(lots)]) == 2
+    assert "is the --footprint file the run reads" in capsys.readouterr().err
+    assert lots.read_bytes() == before

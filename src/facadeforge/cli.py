@@ -171,7 +171,9 @@ def suffix_of(path: str) -> str:
 def cmd_derive(args) -> int:
     from . import engine, export
     from .geometry.footprints import load_footprints
+    from .outdir import check_output_file
 
+    check_output_file(args.output, {"--footprint": args.footprint, "rules": args.rules})
     t0 = time.perf_counter()
     footprints = load_footprints(args.footprint) if args.footprint else None
     if footprints and footprints[0].attributes.get("_projected"):
@@ -257,48 +259,59 @@ def cmd_reconstruct(args) -> int:
 
 def cmd_demo(args) -> int:
     from . import engine, export, render
+    from .outdir import check_outdir, write_outdir
 
     out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
+    check_outdir(out)          # before the work: OUTDIR is replaced whole (outdir.py)
     grammar = Path(__file__).resolve().parent / "data" / "building.cga"
-    t0 = time.perf_counter()
-    models = engine.derive(grammar, lot_size="24x14")
-    seconds = time.perf_counter() - t0
-    files = []
-    for suffix in ("glb", "obj", "city.json"):
-        files += [str(p) for p in export(models, out / f"building.{suffix}")]
-    render(models, out / "preview.png")
-    files.append(str(out / "preview.png"))
-    s = engine.stats(models, seconds)
-    print(f"derived {grammar.name} on a 24 m × 14 m lot in {seconds:.2f} s: {s['shapes']} shapes, "
-          f"{s['faces']} faces, {s['triangles']} triangles")
-    for k, v in sorted(s["report"].items()):
-        print(f"  report {k}: n={len(v)} sum={sum(x for x in v if isinstance(x, float)):.2f}")
-    print("wrote " + ", ".join(files))
-    _demo_reconstruct(out)
+    lines: list[str] = []      # printed once the folder is in place
+
+    def write(stage: Path) -> None:
+        t0 = time.perf_counter()
+        models = engine.derive(grammar, lot_size="24x14")
+        seconds = time.perf_counter() - t0
+        files = []
+        for suffix in ("glb", "obj", "city.json"):
+            export(models, stage / f"building.{suffix}")
+            files.append(str(out / f"building.{suffix}"))
+        render(models, stage / "preview.png")
+        files.append(str(out / "preview.png"))
+        s = engine.stats(models, seconds)
+        lines.append(f"derived {grammar.name} on a 24 m × 14 m lot in {seconds:.2f} s: "
+                     f"{s['shapes']} shapes, {s['faces']} faces, {s['triangles']} triangles")
+        for k, v in sorted(s["report"].items()):
+            lines.append(f"  report {k}: n={len(v)} "
+                         f"sum={sum(x for x in v if isinstance(x, float)):.2f}")
+        lines.append("wrote " + ", ".join(files))
+        lines.append(_demo_reconstruct(stage, out))
+
+    write_outdir(out, write)
+    print("\n".join(lines))
     return 0
 
 
-def _demo_reconstruct(out: Path) -> None:
-    """A synthetic Haussmann facade (exact truth) → reconstruct → summary with window F1."""
+def _demo_reconstruct(stage: Path, out: Path) -> str:
+    """A synthetic Haussmann facade (exact truth) → reconstruct → summary with window F1;
+    written into ``stage``, described as in ``out``."""
     from . import render
     from .datasets.synthetic import generate
     from .evaluation.metrics import match_boxes
     from .reconstruction import reconstruct
 
-    photo = generate(1, seed=11, out_dir=out / "synthetic", size=640, styles=["haussmann"])[0]
+    photo = generate(1, seed=11, out_dir=stage / "synthetic", size=640, styles=["haussmann"])[0]
     meta = json.loads(photo.with_suffix(".meta.json").read_text())
     objects = json.loads(photo.with_suffix(".objects.json").read_text())
-    rec_dir = out / "reconstruction"
-    rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0], out_dir=rec_dir)
+    rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0])
+    rec.report["input"]["photo"] = str(out / "synthetic" / photo.name)   # not the stage's
+    rec.save(stage / "reconstruction")
     truth = [o["box"] for o in objects if o["label"] == "window"]
     score = match_boxes(truth, rec.windows(frame="input"))
     if rec.model is not None:
-        render(rec.model, rec_dir / "preview.png")
-    print(f"\nreconstructed the synthetic facade {photo.name} (truth: {len(truth)} windows):")
-    print(_summary(rec, rec_dir))
-    print(f"windows: precision {score.precision:.2f}, recall {score.recall:.2f}, "
-          f"F1 {score.f1:.2f} (IoU ≥ 0.5)")
+        render(rec.model, stage / "reconstruction" / "preview.png")
+    return (f"\nreconstructed the synthetic facade {photo.name} (truth: {len(truth)} windows):\n"
+            f"{_summary(rec, out / 'reconstruction')}\n"
+            f"windows: precision {score.precision:.2f}, recall {score.recall:.2f}, "
+            f"F1 {score.f1:.2f} (IoU ≥ 0.5)")
 
 
 def cmd_bench(args) -> int:
@@ -314,8 +327,11 @@ def cmd_synth(args) -> int:
 
 
 def cmd_parse(args) -> int:
+    from .outdir import check_outdir
     from .parsing.parse import parse
 
+    check_outdir(args.output, {"photo": args.photo, "--grammar": args.grammar,
+                               "--classifier": args.classifier})   # before the search
     result = parse(args.photo, grammar=args.grammar, classifier=args.classifier,
                    method=args.method, budget=args.budget, rectified=args.rectified,
                    width_m=args.width_m, seed=args.seed)
@@ -344,8 +360,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv[0] if argv else None)
     args = parser.parse_args(argv)
+    from .scratch import Terminated, sigterm_as_exit
+
     try:
-        return COMMANDS[args.command](args)
+        with sigterm_as_exit():   # SIGTERM: finally blocks remove temporary folders, as Ctrl-C
+            return COMMANDS[args.command](args)
     except FacadeForgeError as e:
         first = str(e).splitlines()[0]
         print(f"facadeforge: error: {first}", file=sys.stderr)
@@ -356,6 +375,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("facadeforge: interrupted", file=sys.stderr)
         return 130
+    except Terminated as e:
+        print("facadeforge: terminated", file=sys.stderr)
+        return e.code
     except Exception as e:  # a bug: still one line, with what to report
         print(f"facadeforge: internal error: {type(e).__name__}: {e} (please report this with "
               "the command and its input files)", file=sys.stderr)

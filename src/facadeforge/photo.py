@@ -25,6 +25,9 @@ def as_rgb(photo) -> tuple[np.ndarray, str]:
     if isinstance(photo, (str, os.PathLike)):
         from .datasets.folder import read_image
 
+        if os.path.isdir(photo):   # else reported as missing: the reader wants a file
+            raise InputError(f"photo {photo} is a folder, not an image file; give one photo "
+                             f"in it, e.g. {_example_in(photo)}")
         return read_image(photo), str(photo)
     from .imaging.rectify import to_rgb8
 
@@ -62,3 +65,16 @@ def analysis_copy(rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
     sx, sy = size[0] / w, size[1] / h
     return small, np.diag([sx, sy, 1.0])
+
+
+def _example_in(folder) -> str:
+    """An image file of ``folder`` to suggest in a message (a made-up name when it has none)."""
+    from pathlib import Path
+
+    suffixes = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}
+    try:
+        names = sorted(p for p in Path(folder).iterdir()
+                       if p.suffix.lower() in suffixes and p.is_file())
+    except OSError:
+        names = []
+    return str(names[0] if names else Path(folder) / "facade.jpg")

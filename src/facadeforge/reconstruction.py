@@ -36,7 +36,6 @@ import dataclasses
 import json
 import os
 import shutil
-import tempfile
 import time
 import weakref
 from collections import Counter
@@ -92,6 +91,7 @@ class Reconstruction:
     structure: object = None
     regions: list = field(default_factory=list)
     workdir: Path | None = None     # texture.jpg, rules.cga, assets/ the model was derived from
+    inputs: dict = field(default_factory=dict)   # the input files: save() never writes over them
 
     def labels_input(self) -> np.ndarray:
         """The label map warped back into the input photo's pixel frame (nearest neighbour;
@@ -116,7 +116,9 @@ class Reconstruction:
 
     def save(self, out_dir: str | os.PathLike) -> list[Path]:
         """Write the OUTDIR files (see :func:`reconstruct`) atomically: everything is written
-        into a staging folder inside ``out_dir`` and moved into place at the end."""
+        into a staging folder beside ``out_dir`` and swapped in for it at the end
+        (:mod:`facadeforge.outdir`: the files of an earlier run there are replaced; a folder
+        with other files, or holding an input, is refused)."""
         return _save(self, Path(out_dir))
 
 
@@ -467,7 +469,9 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     out_dir : path, optional
         Write ``rectified.png, structure.png, labels.png, labels_input.png, shape_tree.json,
         rules.cga, assets/, texture.jpg, model.glb, model.obj (+ .mtl, textures/),
-        model.city.json, report.json`` there (atomically).
+        model.city.json, report.json`` there (atomically; the folder is replaced whole, and
+        refused when it holds an input or files facadeforge did not write: see
+        :mod:`facadeforge.outdir`).
     model : bool
         Derive the 3D model (the benchmark harness only needs the tree).
     refine : bool
@@ -486,6 +490,11 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     timings: dict[str, float] = {}
     t = time.perf_counter()
     check_facade_size(width_m, height_m)
+    inputs = {"photo": photo, "--classifier": classifier, "--depths": depths}
+    if out_dir is not None:     # a bad -o fails before the analysis, not after it
+        from .outdir import check_outdir
+
+        check_outdir(out_dir, inputs)
     rgb, name = as_rgb(photo)
     check_size(rgb, name)
     depth_map = load_depths(depths) if not isinstance(depths, Mapping) else {**DEFAULT_DEPTHS,
@@ -626,7 +635,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     rec = Reconstruction(photo=rgb, rectified=rect_img, homography=homography,
                          inverse=np.linalg.inv(homography), tree=tree, rules=rules, labels=labels,
                          report=report, texture=texture, structure=structure,
-                         regions=regions or [])
+                         regions=regions or [], inputs=inputs)
     if model:
         t = time.perf_counter()
         rec.model, rec.workdir = _derive_model(rec, frame)
@@ -654,8 +663,10 @@ def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:
     """Derive ``rec.rules`` on the facade rectangle in a scratch folder holding the texture and
     the element assets (the model's materials point at files there until exported)."""
     from .engine import derive_facade
+    from .scratch import scratch_dir
 
-    work = Path(tempfile.mkdtemp(prefix="facadeforge-model-"))
+    # named after this process: a killed run's folder is removed by the next run's scratch_dir
+    work = scratch_dir("facadeforge-model-")
     _write_workdir(rec, work)
     w_m, h_m = frame.size_m
     m = derive_facade(work / "rules.cga", w_m, h_m, assets=work, name="facade")
@@ -722,4 +733,4 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
         timings["total"] = sum(timings.values())
         write_json(stage / "report.json", rec.report)
 
-    return write_outdir(out, write)
+    return write_outdir(out, write, rec.inputs)

@@ -360,6 +360,41 @@ def test_cli_glue(cmp_dir: Path, tmp_path: Path, capsys):
     assert "examples:" in parser._subparsers._group_actions[0].choices["bench"].epilog
 
 
+@pytest.mark.parametrize("output, message", [
+    ("dir", "is a folder; bench writes a result file"),          # an existing folder
+    ("new/", "is a folder; bench writes a result file"),         # meant as one
+    ("result", "is not a .json file"),
+    ("cmp/result.json", "inside the dataset folder"),            # never write into the input
+])
+def test_a_bad_output_is_refused_before_any_file(cmp_dir: Path, tmp_path: Path, output: str,
+                                                 message: str, monkeypatch):
+    """The reproducer: ``bench -o DIR`` wrote DIR.md and DIR_sheet.png, then failed."""
+    (tmp_path / "dir").mkdir()
+    before = sorted(tmp_path.rglob("*"))
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match=message):
+        run_bench("prior", "cmp", cmp_dir, out=output if output.endswith("/") else
+                  tmp_path / output, progress=False)
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_results_are_written_all_three_or_none(cmp_dir: Path, tmp_path: Path, monkeypatch):
+    from facadeforge.evaluation import bench
+
+    out = tmp_path / "r.json"
+    run_bench("prior", "cmp", cmp_dir, limit=2, out=out, progress=False)
+    first = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+    assert sorted(first) == ["r.json", "r.md", "r_sheet.png"]
+
+    def broken(result):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(bench, "markdown_summary", broken)   # fails after the sheet is drawn
+    with pytest.raises(OSError, match="disk full"):
+        run_bench("prior", "cmp", cmp_dir, split="all", out=out, progress=False)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == first
+
+
 # ------------------------------------------------------------------------------- real data
 @pytest.mark.skipif(not (DATA / "cmp").is_dir(), reason=f"shared CMP data not found at {DATA}")
 def test_real_cmp_limit_3(tmp_path: Path):

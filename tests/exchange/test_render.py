@@ -178,3 +178,25 @@ def test_small_faces_in_front_of_big_ones_are_seen():
     assert red.sum() > 100
     mixed = ((arr > 60) & (arr < 180)).all(axis=2)
     assert mixed[:, :100].sum() > 100  # translucent yellow over blue, on the left
+
+
+def test_rendering_a_textured_glb_leaves_no_temporary_folder(house: Model, tmp_path: Path,
+                                                             monkeypatch):
+    """The reproducer: every render of a .glb with embedded images left a folder in /tmp."""
+    import tempfile
+
+    glb = tmp_path / "house.glb"
+    export(house, glb)                       # the wall texture is embedded in the file
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    img = render_file(glb, tmp_path / "a.png", size=(160, 120))
+    assert list(tmp.iterdir()) == []
+    from facadeforge.exchange import load
+
+    textures = [p.material.texture for m in load(glb, texture_dir=tmp_path / "t") for p in m.parts
+                if p.material.texture]
+    assert textures                          # the file does carry a texture to extract
+    # and the picture still shows it: same pixels as rendering the model itself
+    assert np.array_equal(np.asarray(img), np.asarray(render_preview(
+        load(glb, texture_dir=tmp_path / "t"), size=(160, 120))))

@@ -87,8 +87,8 @@ from .metrics import (
 )
 from .sheet import SheetRow, write_sheet
 
-__all__ = ["EXAMPLES", "RESULT_KEYS", "add_parser", "box_to_image", "cmd_bench", "markdown_summary",
-           "output_paths", "run_bench", "select_samples", "warp_to_image"]
+__all__ = ["EXAMPLES", "RESULT_KEYS", "add_parser", "box_to_image", "check_output", "cmd_bench",
+           "markdown_summary", "output_paths", "run_bench", "select_samples", "warp_to_image"]
 
 #: Keys every RESULT.json has (``floor_count_*`` / ``column_count_*`` only when available).
 RESULT_KEYS: tuple[str, ...] = (
@@ -357,6 +357,32 @@ def output_paths(out: str | Path) -> dict[str, Path]:
             "sheet": out.with_name(out.stem + "_sheet.png")}
 
 
+def check_output(out: str | Path, data: str | Path | None = None) -> dict[str, Path]:
+    """The :func:`output_paths` of ``-o out``, refused before any work unless ``out`` names a
+    ``.json`` file (not a folder) and none of the three files is a folder or lies in the
+    dataset folder ``data`` (a result must never overwrite an input)."""
+    text = os.fspath(out)
+    given = Path(text)
+    if text.endswith(("/", os.sep)) or given.is_dir():
+        raise InputError(f"-o {text} is a folder; bench writes a result file: give e.g. "
+                         f"-o {given / 'result.json'} (RESULT.md and RESULT_sheet.png are "
+                         "written beside it)")
+    if given.suffix.lower() != ".json":
+        raise InputError(f"-o {text} is not a .json file; give the result file, e.g. "
+                         f"-o {given.with_name(given.name + '.json')} (RESULT.md and "
+                         "RESULT_sheet.png are written beside it)")
+    paths = output_paths(given)
+    root = Path(data).expanduser().resolve() if data is not None else None
+    for p in paths.values():
+        if p.is_dir():
+            raise InputError(f"{p}, which bench writes beside -o {text}, is a folder; choose "
+                             "another result name")
+        if root is not None and root in p.resolve().parents:
+            raise InputError(f"-o {text} is inside the dataset folder {data}; write the result "
+                             "outside it (bench never writes into its input)")
+    return paths
+
+
 # ---------------------------------------------------------------------------------- harness
 def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
               labels: str | None = None, limit: int | None = None, *, out: str | Path,
@@ -393,6 +419,7 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
         Unknown method, dataset, split or label set; an empty selection; a bad prediction.
     """
     t_start = time.perf_counter()
+    paths = check_output(out, data)      # a bad -o fails now, not after the scoring
     m = get_method(method)
     if limit is not None and (isinstance(limit, bool) or int(limit) < 1):
         raise InputError(f"limit {limit!r} must be a positive number of facades")
@@ -404,7 +431,6 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
                          "(train, val, all) or check the folder")
     label_set = scored[0].label_set
     k = label_set.num_classes
-    paths = output_paths(out)
 
     fit_seconds = 0.0
     if m.fit is not None:
@@ -520,13 +546,30 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
             rows.append(SheetRow(title=f"{tag} {n}: {sid}   mIoU {miou:.3f}",
                                  photo=sample.image(), truth=sample.labels(),
                                  prediction=pred_of[sid]))
-    write_sheet(rows, label_set, paths["sheet"],
-                title=f"{method} on {dataset} ({split}, {label_set.name}): mIoU "
-                      f"{_fmt(result['miou'])}, pixel accuracy {_fmt(result['pixel_accuracy'])}")
-    result["wall_seconds"] = round(time.perf_counter() - t_start, 3)
-    _write_atomic(paths["markdown"], markdown_summary(result))
-    _write_atomic(paths["json"], json.dumps(result, indent=2) + "\n")
+    _write_results(paths, lambda sheet: write_sheet(
+        rows, label_set, sheet,
+        title=f"{method} on {dataset} ({split}, {label_set.name}): mIoU "
+              f"{_fmt(result['miou'])}, pixel accuracy {_fmt(result['pixel_accuracy'])}"),
+        result, t_start)
     return result
+
+
+def _write_results(paths: dict[str, Path], sheet, result: dict, t_start: float) -> None:
+    """The sheet, RESULT.md and RESULT.json, all three or none: each is written under a
+    temporary name first, and they are renamed into place only when all three were written
+    (RESULT.json last, so a reader that finds it finds the other two of the same run)."""
+    parts = {k: p.with_name(f".{p.stem}.{os.getpid()}.part{p.suffix}") for k, p in paths.items()}
+    try:
+        paths["json"].parent.mkdir(parents=True, exist_ok=True)
+        sheet(parts["sheet"])
+        result["wall_seconds"] = round(time.perf_counter() - t_start, 3)
+        _write_atomic(parts["markdown"], markdown_summary(result))
+        _write_atomic(parts["json"], json.dumps(result, indent=2) + "\n")
+        for key in ("sheet", "markdown", "json"):
+            os.replace(parts[key], paths[key])
+    finally:
+        for part in parts.values():
+            part.unlink(missing_ok=True)
 
 
 def _trim(kept: list[tuple[float, str, int, np.ndarray]]

@@ -165,9 +165,21 @@ def render_file(model_path: str | os.PathLike, out_png: str | os.PathLike,
     **options
         Passed to :func:`render_preview` (``size``, ``azimuth``, ``elevation``…).
     """
-    from . import load
+    import shutil
 
-    return render_preview(load(model_path), out_png, **options)
+    from ..scratch import scratch_dir
+    from . import IMPORTERS, load, suffix_of
+
+    if suffix_of(model_path, IMPORTERS) != "glb":
+        return render_preview(load(model_path), out_png, **options)
+    # a .glb's embedded images become files only for the time of the render (the picture
+    # holds their pixels), not a temporary folder left behind by every call; named after the
+    # process, so the next render removes the folder of one that was killed
+    textures = scratch_dir("facadeforge-render-")
+    try:
+        return render_preview(load(model_path, texture_dir=textures), out_png, **options)
+    finally:
+        shutil.rmtree(textures, ignore_errors=True)
 
 
 # -- scene ------------------------------------------------------------------------------------

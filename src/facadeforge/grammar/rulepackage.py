@@ -2,18 +2,25 @@
 
 An open runtime can only run CGA *source*: packages exported with "include CGA source" carry the
 ``.cga`` next to the compiled ``.cgb``; packages with ``.cgb`` only are refused with that hint.
+
+A package is unpacked into a temporary folder named after the process
+(``facadeforge-rpk-<host>-<pid>-*``, :mod:`facadeforge.scratch`): it is removed when the
+package object goes, when the unpacking fails or is stopped by SIGTERM (turned into a normal
+exit for the time of the unpacking), and, when the process was killed outright, by the next
+``open_rpk``.
 """
 
 from __future__ import annotations
 
 import shutil
-import tempfile
+import threading
 import weakref
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 from ..errors import InputError
+from ..scratch import scratch_dir, sigterm_as_exit
 
 MAX_UNPACKED_BYTES = 2 * 1024**3
 MAX_MEMBERS = 100_000
@@ -45,10 +52,10 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"rule package '{path}' does not exist")
-    root = Path(tempfile.mkdtemp(prefix="facadeforge-rpk-"))
+    root = scratch_dir("facadeforge-rpk-")   # also removes those of killed runs
     try:
         try:
-            with py7zr.SevenZipFile(p, "r") as z:
+            with sigterm_as_exit(), py7zr.SevenZipFile(p, "r") as z:
                 infos = z.list()
                 if len(infos) > MAX_MEMBERS:
                     raise InputError(f"'{path}' has more than {MAX_MEMBERS} members")
@@ -73,6 +80,13 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
         return package
     except BaseException:
         shutil.rmtree(root, ignore_errors=True)
+        # py7zr unpacks the folders of a non-solid archive in threads of its own, which a
+        # signal does not stop: once they end, remove what they wrote after the removal above
+        workers = [t for t in threading.enumerate() if "(extract_single)" in t.name]
+        for t in workers:
+            t.join(timeout=120)
+        if workers:
+            shutil.rmtree(root, ignore_errors=True)
         raise
 
 

@@ -71,6 +71,7 @@ class Parse:
     width_m: float = 0.0
     height_m: float = 0.0
     _files: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)   # the input files: save() never writes over them
 
     def labels_input(self) -> np.ndarray:
         """Canonical labels in the photo frame: the derivation inside the rectified facade, the
@@ -81,7 +82,9 @@ class Parse:
         return np.where(warped == IGNORE, self.fallback, warped).astype(np.uint8)
 
     def save(self, out_dir: str | os.PathLike) -> list[Path]:
-        """Write OUTDIR atomically (a staging folder inside it, moved into place at the end)."""
+        """Write OUTDIR atomically: a staging folder beside it, swapped in for it at the end (the
+        files of an earlier run there are replaced; a folder with other files, or holding an
+        input, is refused: :mod:`facadeforge.outdir`)."""
         return _save(self, Path(out_dir))
 
 
@@ -249,7 +252,8 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
         "timings": {k: round(v, 4) for k, v in timings.items()},
     }
     return Parse(rgb, rect_img, H, np.linalg.inv(H), fit, tree, labels, fallback, text, report,
-                 derived if model else None, fit.width_m, fit.height_m)
+                 derived if model else None, fit.width_m, fit.height_m,
+                 inputs={"photo": photo, "--grammar": grammar, "--classifier": classifier})
 
 
 def _energy_png(curve: list[float], path: Path, title: str) -> None:
@@ -295,4 +299,4 @@ def _save(p: Parse, out: Path) -> list[Path]:
                 export(p.model, stage / f"model.{suffix}")
         write_json(stage / "report.json", p.report)
 
-    return write_outdir(out, write)
+    return write_outdir(out, write, p.inputs)
