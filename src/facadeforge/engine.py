@@ -156,9 +156,10 @@ def _holed_face(fp: Footprint, poly: np.ndarray, n: np.ndarray) -> Mesh:
 
     basis = plane_basis(n, poly[1] - poly[0])
     flat = [((np.asarray(r, float) - poly[0]) @ basis[:, :2]) for r in [poly, *fp.holes]]
-    shape = shapely.Polygon(flat[0]).buffer(0)
-    for h in flat[1:]:
-        shape = shape.difference(shapely.Polygon(h).buffer(0))
+    # one difference with the union of all holes: one difference per hole redid the whole
+    # overlay each time, minutes for a footprint with thousands of courtyards
+    courtyards = shapely.buffer([shapely.Polygon(h) for h in flat[1:]], 0)
+    shape = shapely.Polygon(flat[0]).buffer(0).difference(shapely.union_all(courtyards))
     pieces = [(k, q) for k, (outer, holes) in enumerate(rings(shape))
               for q in simple_pieces(shapely.Polygon(outer, holes))]
     if not pieces:

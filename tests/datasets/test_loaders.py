@@ -372,3 +372,16 @@ def test_real_ruemonge():
     valid = labels[labels != IGNORE]
     assert valid.size and valid.max() < 7 and (labels == IGNORE).any()
     assert any(b.label == "window" for b in s.objects())
+
+
+def test_palette_hostile_json(tmp_path: Path):
+    # read through facadeforge.jsonfile: a BOM is fine, nesting and ragged colours are not
+    palette = tmp_path / "palette.json"
+    palette.write_text(json.dumps({"classes": ["wall", "window"]}), encoding="utf-8-sig")
+    assert load_palette(palette).classes == ("wall", "window")
+    palette.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(InputError, match="palette '.*palette.json': JSON nested too deeply"):
+        load_palette(palette)
+    _palette(tmp_path, classes=["wall", "window"], colors=[[1, 2, 3], [4]])
+    with pytest.raises(InputError, match="colors"):
+        load_palette(palette)

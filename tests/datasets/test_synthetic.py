@@ -249,3 +249,20 @@ def test_cli_synth(tmp_path: Path, capsys):
     assert len(list(tmp_path.glob("*.jpg"))) == 2
     with Image.open(tmp_path / "synth_9_0000.jpg") as im:
         assert im.size[0] == 96
+
+
+def test_loader_refuses_hostile_json(tmp_path: Path, flat: Path):
+    # metadata and object lists are read through facadeforge.jsonfile: nesting and shape
+    # errors name the file
+    for suffix in (".jpg", ".png", ".meta.json", ".objects.json"):
+        (tmp_path / f"x{suffix}").write_bytes((flat / f"synth_3_0000{suffix}").read_bytes())
+    (tmp_path / "x.objects.json").write_text("[5]")
+    (sample,) = S.load_synthetic(tmp_path)
+    with pytest.raises(InputError, match=r"x.objects.json must list"):
+        sample.objects()
+    (tmp_path / "x.meta.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(InputError, match=r"x.meta.json': JSON nested too deeply"):
+        S.load_synthetic(tmp_path)
+    (tmp_path / "x.meta.json").write_text("[1]")
+    with pytest.raises(InputError, match="must hold a JSON object"):
+        S.load_synthetic(tmp_path)

@@ -210,3 +210,19 @@ def test_textures_on_faces_with_holes_and_beside_plain_surfaces(tmp_path: Path, 
     assert sum(r != [[None]] for r in values) == 9                   # top and 8 lower bands
     assert numbers == list(range(len(numbers))) == list(range(len(doc["appearance"]
                                                                    ["vertices-texture"])))
+
+
+def test_hostile_json_is_a_load_error(tmp_path: Path):
+    # both readers parse through facadeforge.jsonfile: deep nesting names the file (and line)
+    from facadeforge.exchange.errors import LoadError
+
+    deep = "[" * 100_000 + "]" * 100_000
+    (tmp_path / "d.city.json").write_text(deep)
+    with pytest.raises(LoadError, match="d.city.json': JSON nested too deeply"):
+        load(tmp_path / "d.city.json")
+    head = json.dumps({"type": "CityJSON", "version": "2.0", "CityObjects": {}, "vertices": []})
+    (tmp_path / "d.city.jsonl").write_text(head + "\n" + deep + "\n")
+    with pytest.raises(LoadError, match=r"d.city.jsonl':2: JSON nested too deeply"):
+        load(tmp_path / "d.city.jsonl")
+    (tmp_path / "b.city.json").write_text(head, encoding="utf-8-sig")
+    assert load(tmp_path / "b.city.json") == []

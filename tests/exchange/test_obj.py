@@ -105,3 +105,19 @@ def test_material_names_survive_obj_comments(tmp_path: Path):
     names = [line.split(None, 1)[1] for line in mtl.splitlines() if line.startswith("newmtl")]
     assert names and all("#" not in n for n in names)
     assert load(tmp_path / "m.obj")[0].parts[0].material.color == pytest.approx((0xaa / 255, 0x55 / 255, 0x33 / 255), abs=1e-3)
+
+
+@pytest.mark.parametrize("tag, message", [
+    ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+    ("[1]", "not an object"),
+    ("{oops", "not valid JSON"),
+])
+def test_bad_attribute_lines(tmp_path: Path, tag: str, message: str):
+    # the JSON of a tag line is parsed by facadeforge.jsonfile: a LoadError naming the line,
+    # with the line itself shortened
+    from facadeforge.exchange.errors import LoadError
+
+    (tmp_path / "a.obj").write_text(f"o a\n# facadeforge attributes {tag}\nv 0 0 0\n")
+    with pytest.raises(LoadError, match=message) as err:
+        load(tmp_path / "a.obj")
+    assert "a.obj:2" in str(err.value) and len(str(err.value)) < 400

@@ -131,3 +131,14 @@ def test_z_up_assets_stand_up(tmp_path):
     # (x, y, z) -> (x, z, -y): the file's z -3..0 is now y -3..0, its y 0..2 now z -2..0,
     # kept in place and size
     assert np.allclose(m.stats()["bbox"], [[0, -3, -2], [1, 0, 0]])
+
+
+@pytest.mark.parametrize("content, message", [
+    ("[" * 100_000 + "]" * 100_000, "nested too deeply"),
+    ("[1, 2]", "its JSON is not an object"),
+])
+def test_hostile_gltf_json_is_a_warning(tmp_path, content, message):
+    # the .gltf JSON is read by facadeforge.jsonfile before pygltflib sees it
+    (tmp_path / "x.gltf").write_text(content)
+    m = insert(tmp_path, "x.gltf")
+    assert any(message in w for w in m.warnings), m.warnings

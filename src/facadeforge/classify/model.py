@@ -12,14 +12,20 @@ set it was trained in.
 File format (``.npz``, written by :func:`save_classifier`, read by :func:`load_classifier`): plain
 numeric arrays plus one JSON document in the array ``__meta__`` (kind, classes, label set, how the
 model was trained).  It is read with ``allow_pickle=False``: a model file holds numbers and text,
-never code, so loading one from a stranger executes nothing.
+never code, so loading one from a stranger executes nothing.  Nor can one exhaust memory: every
+array's ``.npy`` header (shape and type) is read before any data, and a file declaring more than
+:data:`MAX_CLASSIFIER_ARRAY_BYTES` in all is refused (a 7 MB file can hold a 4 GiB array of
+zeros).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
+import zipfile
+import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from pathlib import Path
@@ -33,6 +39,17 @@ __all__ = ["CLASSIFIER_KINDS", "ClassifierFileError", "PixelClassifier", "load_c
            "register_kind", "save_classifier"]
 
 FORMAT_VERSION = 1
+
+#: Most bytes of array data a classifier file may hold, all arrays together.  The shipped models
+#: hold 2.0 (convnet-cmp12) to 9.4 MB (autocontext-cmp6, three stages of ten trees); 512 MiB,
+#: some 50 times that, leaves room for forests of hundreds of trees, and bounds what loading
+#: a file can cost in memory.
+MAX_CLASSIFIER_ARRAY_BYTES = 512 * 2**20
+
+#: Most arrays a classifier file may hold (the shipped ensemble: 85).
+MAX_CLASSIFIER_ARRAYS = 4096
+
+_RETRAIN = "train one with 'facadeforge train-classifier'"
 
 
 class ClassifierFileError(InputError, ValueError):
@@ -151,18 +168,21 @@ def load_classifier(path: str | Path) -> PixelClassifier:
     if not path.is_file():
         raise ClassifierFileError(f"classifier {path}: no such file; train one with "
                                   "'facadeforge train-classifier' or omit --classifier")
+    arrays = _read_arrays(path)
+    from ..jsonfile import parse_json
+
     try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-        meta = json.loads(arrays.pop("__meta__").tobytes().decode())
+        text = arrays.pop("__meta__").tobytes().decode()
+        meta = parse_json(text, f"classifier {path}: its metadata", fix=_RETRAIN,
+                          error=ClassifierFileError)
         if not isinstance(meta, dict):
             raise ValueError("metadata is not an object")
         version = int(meta.get("version", 0))
-    except (OSError, ValueError, KeyError, TypeError, OverflowError, MemoryError,
-            UnicodeDecodeError) as exc:
+    except (ValueError, KeyError, TypeError, OverflowError, UnicodeDecodeError) as exc:
+        if isinstance(exc, ClassifierFileError):
+            raise
         raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file "
-                                  f"({exc.__class__.__name__}); train one with "
-                                  "'facadeforge train-classifier'") from None
+                                  f"({exc.__class__.__name__}); {_RETRAIN}") from None
     if meta.get("format") != "facadeforge-classifier":
         raise ClassifierFileError(f"classifier {path}: not a facadeforge classifier file")
     if version > FORMAT_VERSION:
@@ -183,6 +203,65 @@ def load_classifier(path: str | Path) -> PixelClassifier:
         raise ClassifierFileError(f"classifier {path}: damaged or inconsistent model file "
                                   f"({exc}); train it again with 'facadeforge "
                                   "train-classifier'") from None
+
+
+def _read_arrays(path: Path) -> dict[str, np.ndarray]:
+    """The arrays of the ``.npz`` file ``path`` by name, read only after every array's ``.npy``
+    header has been checked: numeric types only (no objects: no pickles, no strings) and no more
+    than :data:`MAX_CLASSIFIER_ARRAY_BYTES` of data in all.  ``np.load`` would allocate what a
+    header declares before reading it.
+
+    Raises
+    ------
+    ClassifierFileError
+        Not a zip of ``.npy`` arrays (empty, truncated, damaged), too many or too big arrays,
+        or arrays of a type a model never holds.
+    """
+    from numpy.lib import format as npy
+
+    def refuse(problem: str) -> ClassifierFileError:
+        return ClassifierFileError(f"classifier {path}: {problem}; {_RETRAIN}")
+
+    try:
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            if len(infos) > MAX_CLASSIFIER_ARRAYS:
+                raise refuse(f"{len(infos)} arrays, more than the {MAX_CLASSIFIER_ARRAYS} a "
+                             "model file may hold")
+            total = 0
+            for info in infos:
+                if not info.filename.endswith(".npy"):
+                    raise refuse(f"member {info.filename!r} is not a .npy array")
+                with zf.open(info) as f:
+                    version = npy.read_magic(f)
+                    if version == (1, 0):
+                        shape, _, dtype = npy.read_array_header_1_0(f)
+                    elif version == (2, 0):
+                        shape, _, dtype = npy.read_array_header_2_0(f)
+                    else:  # 3.0 is for non-Latin-1 field names: a model has no fields
+                        raise refuse(f"array {info.filename!r} is in .npy format {version}")
+                if dtype.hasobject or dtype.kind not in "biuf":
+                    raise refuse(f"array {info.filename!r} holds {dtype} values, not numbers")
+                if any(n < 0 for n in shape):
+                    raise refuse(f"array {info.filename!r} has the shape {shape}")
+                total += math.prod(shape) * dtype.itemsize
+                if total > MAX_CLASSIFIER_ARRAY_BYTES:
+                    raise refuse(f"its arrays hold more than {MAX_CLASSIFIER_ARRAY_BYTES >> 20} "
+                                 "MiB (the most a model file may hold)")
+            arrays = {}
+            for info in infos:
+                with zf.open(info) as f:
+                    arrays[info.filename[:-len(".npy")]] = npy.read_array(f, allow_pickle=False)
+            return arrays
+    except ClassifierFileError:
+        raise
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, OSError, ValueError, zlib.error,
+            NotImplementedError, RuntimeError, OverflowError, MemoryError) as exc:
+        # damaged zip structure or compressed data, a member cut short (ValueError "EOF"),
+        # an unsupported compression method or an encrypted member (NotImplementedError,
+        # RuntimeError), a malformed .npy header (ValueError)
+        raise refuse(f"not a facadeforge classifier file, or a damaged one "
+                     f"({exc.__class__.__name__}: {exc})") from None
 
 
 def _load_kinds() -> None:

@@ -40,7 +40,6 @@ connected components of each class in the label map (:func:`objects_from_labels`
 
 from __future__ import annotations
 
-import json
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -401,7 +400,10 @@ def palette_label_set(spec: dict[str, Any], name: str = "folder",
 
         guessed = [label_for_name(str(c)) for c in classes]
         colors = [LABEL_COLORS.get(g.value if g else "other", (128, 128, 128)) for g in guessed]
-    arr = np.asarray(colors)
+    try:
+        arr = np.asarray(colors)
+    except ValueError:  # rows of different lengths
+        arr = np.zeros((0, 0))
     if arr.shape != (k, 3) or arr.dtype.kind not in "iu" or arr.min() < 0 or arr.max() > 255:
         raise InputError(f"{source}: \"colors\" must be {k} [r, g, b] triples of integers 0–255; "
                          f"{fix}")
@@ -420,14 +422,18 @@ def palette_label_set(spec: dict[str, Any], name: str = "folder",
     return label_set, "colors" in spec and "ids" not in spec
 
 
+#: Largest palette.json read (bytes): a palette lists a few dozen classes.
+MAX_PALETTE_BYTES = 2**20
+
+
 def _read_palette(path: Path) -> tuple[LabelSet, bool]:
-    try:
-        spec = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError as exc:
+    from ..jsonfile import read_json
+
+    if not path.is_file():
         raise InputError(f"palette {path} does not exist; write one (format in "
-                         "facadeforge.datasets.folder) or pass a label set") from exc
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"palette {path} is not valid JSON ({exc}); fix the file") from exc
+                         "facadeforge.datasets.folder) or pass a label set")
+    spec = read_json(path, "palette", max_bytes=MAX_PALETTE_BYTES,
+                     fix="fix the file (format in facadeforge.datasets.folder)")
     return palette_label_set(spec, name=path.parent.name, source=str(path))
 
 

@@ -76,6 +76,7 @@ from PIL import Image
 from scipy import ndimage
 
 from ..errors import InputError
+from ..jsonfile import read_json
 from ..model.shape import Shape
 from .folder import FacadeSample, ObjectBox, _check_folder
 from .labelsets import LabelSet, get_label_set
@@ -1331,12 +1332,16 @@ def generate(n: int, seed: int, out_dir: str | Path, size: tuple[int, int] | int
 # ================================================================================ loader
 def _synthetic_boxes(sample: FacadeSample) -> list[ObjectBox]:
     path = Path(sample.meta["objects_path"])
+    fix = "regenerate the facade with facadeforge synth"
+    data = read_json(path, "synthetic objects", fix=fix)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"synthetic objects {path} cannot be read ({exc}); regenerate the "
-                         "facade with facadeforge synth") from exc
-    return [ObjectBox(str(o["label"]), *(float(v) for v in o["box"])) for o in data]
+        boxes = [(str(o["label"]), [float(v) for v in o["box"]]) for o in data]
+    except (KeyError, TypeError, ValueError, OverflowError):
+        boxes = None
+    if boxes is None or any(len(b) != 4 for _, b in boxes):
+        raise InputError(f"synthetic objects {path} must list {{\"label\", \"box\": [x0, y0, x1, "
+                         f"y1]}} objects; {fix}")
+    return [ObjectBox(label, *box) for label, box in boxes]
 
 
 def load_synthetic(root: str | Path, label_set: LabelSet | str = "cmp6") -> list[FacadeSample]:
@@ -1388,10 +1393,11 @@ def load_synthetic(root: str | Path, label_set: LabelSet | str = "cmp6") -> list
             if not p.is_file():
                 raise InputError(f"synthetic photo {photo} has no {what} {p.name}; regenerate "
                                  "the folder with facadeforge synth")
-        try:
-            meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise InputError(f"synthetic metadata {meta_path} cannot be read ({exc})") from exc
+        meta = read_json(meta_path, "synthetic metadata",
+                         fix="regenerate the folder with facadeforge synth")
+        if not isinstance(meta, dict):
+            raise InputError(f"synthetic metadata {meta_path} must hold a JSON object; "
+                             "regenerate the folder with facadeforge synth")
         info = {"dataset": "synthetic", "label_path": str(label), "meta_path": str(meta_path),
                 "objects_path": str(objects_path) if objects_path.is_file() else None,
                 "objects_from": "tree" if objects_path.is_file() else "components",

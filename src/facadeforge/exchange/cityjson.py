@@ -41,6 +41,7 @@ import numpy as np
 
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
+from ..jsonfile import parse_json, read_json
 from ..model.labels import Labels, label_for_name
 from ..model.model import Material, Model, Part
 from ._ascii import format_lines
@@ -661,10 +662,7 @@ def load_cityjson(path: str | os.PathLike) -> list[Model]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise LoadError(f"cannot read {path} as JSON: {exc}") from exc
+    doc = read_json(path, "CityJSON file", fix="write it again", error=LoadError)
     if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
         raise LoadError(f"{path} is not a CityJSON file")
     reader = _CityJsonReader(doc, path.parent)
@@ -681,27 +679,29 @@ def load_cityjsonseq(path: str | os.PathLike) -> list[Model]:
         raise FileNotFoundError(f"no such file: {path}")
     models: list[Model] = []
     head = None
-    with open(path, encoding="utf-8") as fh:
-        for number, line in enumerate(fh, 1):
-            if not line.strip():
-                continue
-            try:
-                doc = json.loads(line)
-            except ValueError as exc:
-                raise LoadError(f"{path}:{number}: not a JSON line: {exc}") from exc
-            if head is None:
-                if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
-                    raise LoadError(f"{path}: the first line is not a CityJSON object")
-                head = doc
-                continue
-            if not isinstance(doc, dict) or doc.get("type") != "CityJSONFeature":
-                raise LoadError(f"{path}:{number}: not a CityJSONFeature")
-            part = {"type": "CityJSON", "transform": head.get("transform"),
-                    "vertices": doc.get("vertices", []), "appearance": doc.get("appearance"),
-                    "CityObjects": doc.get("CityObjects", {})}
-            reader = _CityJsonReader(part, path.parent)
-            models.extend(m for oid, obj in part["CityObjects"].items()
-                          if (m := reader.model(oid, obj)) is not None)
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            for number, line in enumerate(fh, 1):
+                if not line.strip():
+                    continue
+                doc = parse_json(line, f"CityJSON sequence '{path}':{number}",
+                                 fix="write it again", error=LoadError)
+                if head is None:
+                    if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
+                        raise LoadError(f"{path}: the first line is not a CityJSON object")
+                    head = doc
+                    continue
+                if not isinstance(doc, dict) or doc.get("type") != "CityJSONFeature":
+                    raise LoadError(f"{path}:{number}: not a CityJSONFeature")
+                part = {"type": "CityJSON", "transform": head.get("transform"),
+                        "vertices": doc.get("vertices", []), "appearance": doc.get("appearance"),
+                        "CityObjects": doc.get("CityObjects", {})}
+                reader = _CityJsonReader(part, path.parent)
+                models.extend(m for oid, obj in part["CityObjects"].items()
+                              if (m := reader.model(oid, obj)) is not None)
+    except UnicodeDecodeError as exc:
+        raise LoadError(f"CityJSON sequence '{path}' is not UTF-8 text (byte {exc.start}); "
+                        "write it again") from None
     if head is None:
         raise LoadError(f"{path} is empty")
     return models

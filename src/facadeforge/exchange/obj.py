@@ -33,6 +33,7 @@ from typing import BinaryIO
 import numpy as np
 
 from ..geometry.mesh import Mesh
+from ..jsonfile import parse_json
 from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
 from ._ascii import format_lines
@@ -251,7 +252,8 @@ def load_obj(path: str | os.PathLike) -> list[Model]:
             try:
                 _parse_line(state, line.strip(), path.stem)
             except (ValueError, IndexError) as exc:
-                raise LoadError(f"{path}:{number}: cannot parse {line.strip()!r} ({exc})") from exc
+                shown = line.strip() if len(line) <= 80 else line.strip()[:60] + "…"
+                raise LoadError(f"{path}:{number}: cannot parse {shown!r} ({exc})") from exc
     return _finish(state, path)
 
 
@@ -283,12 +285,21 @@ def _parse_line(state: _ObjState, line: str, default_name: str) -> None:
             state.materials.update(_read_mtl(state.folder / name))
 
 
+def _tag_object(text: str) -> dict:
+    """The JSON object of an ``attributes``/``georeference`` tag line; ``ValueError`` (which
+    :func:`load_obj` reports with the file and line) when the text is not one."""
+    value = parse_json(text, "the tag", error=LoadError)  # a LoadError is a ValueError
+    if not isinstance(value, dict):
+        raise ValueError("the tag's JSON is not an object")
+    return value
+
+
 def _parse_tag(state: _ObjState, text: str) -> None:
     if text.startswith("attributes ") and state.models:
-        state.models[-1][0].attributes.update(json.loads(text[len("attributes "):]))
+        state.models[-1][0].attributes.update(_tag_object(text[len("attributes "):]))
     elif text.startswith("georeference ") and state.models:
         state.models[-1][0].attributes.update(
-            joined_attributes(None, json.loads(text[len("georeference "):])))
+            joined_attributes(None, _tag_object(text[len("georeference "):])))
     elif text.startswith("label="):
         fields = dict(item.split("=", 1) for item in text.split() if "=" in item)
         state.current = None

@@ -14,7 +14,6 @@ process (and the exporters) can read them.
 from __future__ import annotations
 
 import hashlib
-import json
 import tempfile
 import warnings
 from pathlib import Path
@@ -106,12 +105,15 @@ def _asset(pieces: list, path: Path):
 
 def _check_gltf_uris(path: Path) -> None:
     """Refuse a ``.gltf`` whose buffers or images point outside its folder."""
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise InputError(f"{path}: not a readable glTF file ({e})") from None
+    from ..jsonfile import read_json
+
+    doc = read_json(path, "glTF asset", fix="export the asset again")
+    if not isinstance(doc, dict):
+        raise InputError(f"glTF asset '{path}' is not a glTF file (its JSON is not an object); "
+                         "export the asset again")
     for kind in ("buffers", "images"):
-        for item in doc.get(kind) or []:
+        items = doc.get(kind) or []
+        for item in items if isinstance(items, list) else []:
             uri = item.get("uri") if isinstance(item, dict) else None
             if not uri or uri.startswith("data:"):
                 continue

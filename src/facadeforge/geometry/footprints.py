@@ -19,7 +19,6 @@ A third coordinate is the footprint's elevation (CGA y), the mean of its outline
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -89,7 +88,10 @@ def load_footprints(path: str | Path) -> list[Footprint]:
     Raises
     ------
     InputError
-        Unreadable file, unknown format, no polygon, degenerate polygon.
+        Unreadable file, unknown format, no polygon, degenerate polygon; for GeoJSON also
+        a member of the wrong type (the message names its JSON path, e.g. ``features[0]``),
+        coordinates that are not finite or larger than :data:`MAX_COORDINATE`, a file
+        larger than :data:`MAX_FOOTPRINT_FILE_BYTES` or nested thousands of levels deep.
     """
     p = Path(path)
     if not p.is_file():
@@ -102,46 +104,173 @@ def load_footprints(path: str | Path) -> list[Footprint]:
     raise InputError(f"footprint file '{path}': use .geojson, .json or .obj")
 
 
-def _geojson(p: Path) -> list[Footprint]:
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputError(f"footprint file '{p}' is not valid JSON: {e}") from None
-    feats = []
-    if not isinstance(data, dict):
-        raise InputError(f"'{p}' is not a GeoJSON object")
-    if data.get("type") == "FeatureCollection":
-        feats = data.get("features") or []
-    elif data.get("type") == "Feature":
-        feats = [data]
-    elif data.get("type") in ("Polygon", "MultiPolygon"):
-        feats = [{"type": "Feature", "geometry": data, "properties": {}}]
-    else:
-        raise InputError(f"'{p}': expected a GeoJSON Polygon, Feature or FeatureCollection")
-    parts = []  # (name, properties, outline (k, 2 or 3), holes)
-    for i, f in enumerate(feats[:MAX_FOOTPRINTS]):
-        geom = (f or {}).get("geometry") or {}
-        props = (f or {}).get("properties") or {}
-        name = str(props.get("name") or props.get("id") or f.get("id") or f"building_{i}")
-        polys = []
-        if geom.get("type") == "Polygon":
-            polys = [geom.get("coordinates") or []]
-        elif geom.get("type") == "MultiPolygon":
-            polys = geom.get("coordinates") or []
-        for k, rings in enumerate(polys):
-            if not rings:
+#: Largest footprint file read (bytes): a city's footprints run to hundreds of megabytes, and
+#: parsing takes several times the text in memory.
+MAX_FOOTPRINT_FILE_BYTES = 1024 * 2**20
+
+#: Largest coordinate magnitude accepted (file units).  Projected CRSs stay within 10⁷ m and
+#: degrees within 180; beyond 10⁹ float precision leaves nothing of a building.
+MAX_COORDINATE = 1e9
+
+_GEOJSON_FIX = "fix the file (GeoJSON, RFC 7946)"
+
+
+def _json_type(v) -> str:
+    """The JSON name of a parsed value's type, for messages."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, (int, float)):
+        return "a number"
+    if isinstance(v, str):
+        return "a string"
+    return "an array" if isinstance(v, list) else "an object"
+
+
+class _GeoJson:
+    """Typed reads from a parsed GeoJSON document: every member read is checked for its type,
+    and a wrong one is an :class:`InputError` naming the file and the member's JSON path
+    (``features[3].geometry.coordinates[0][2]``), so a malformed file never reaches numpy or
+    shapely as a value of the wrong kind."""
+
+    def __init__(self, p: Path):
+        self.p = p
+
+    def error(self, where: str, problem: str) -> InputError:
+        at = f" {where}" if where else ""
+        return InputError(f"footprint file '{self.p}':{at} {problem}; {_GEOJSON_FIX}")
+
+    def member(self, obj: dict, key: str, where: str, kind: type, kind_name: str):
+        """``obj[key]`` when it is a ``kind`` (None when absent or null)."""
+        v = obj.get(key)
+        if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
+            return v
+        path = f"{where}.{key}" if where else key
+        raise self.error(path, f"must be {kind_name}, not {_json_type(v)}")
+
+    def obj(self, v, where: str) -> dict:
+        if not isinstance(v, dict):
+            raise self.error(where or "the top level", f"must be an object, not {_json_type(v)}")
+        return v
+
+    def array(self, v, where: str) -> list:
+        if not isinstance(v, list):
+            raise self.error(where, f"must be an array, not {_json_type(v)}")
+        return v
+
+    def ring(self, ring, where: str) -> np.ndarray:
+        """A ring (array of positions) as (k, 2) or (k, 3) finite floats, positions beyond the
+        third value dropped."""
+        self.array(ring, where)
+        if not ring:
+            return np.zeros((0, 2))
+        try:  # one conversion for the honest case, checked as a whole
+            a = np.array(ring)
+        except (ValueError, OverflowError):
+            a = None
+        if (a is not None and a.ndim == 2 and a.dtype.kind in "iuf" and a.shape[1] >= 2
+                and not any(type(v) is bool for pos in ring for v in pos)):
+            a = a[:, :3].astype(float)
+            if np.isfinite(a).all() and np.abs(a).max() <= MAX_COORDINATE:
+                return a
+        # something is wrong, or the positions mix 2 and 3 values: position by position
+        dims = min(len(self.position(pos, f"{where}[{i}]")) for i, pos in enumerate(ring))
+        return np.array([pos[:min(dims, 3)] for pos in ring], float)
+
+    def position(self, pos, where: str) -> list:
+        """``pos`` when it is an array of at least two finite numbers of magnitude at most
+        :data:`MAX_COORDINATE`."""
+        self.array(pos, where)
+        if len(pos) < 2:
+            raise self.error(where, f"a position needs at least 2 numbers, got {len(pos)}")
+        for j, v in enumerate(pos):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise self.error(f"{where}[{j}]", f"must be a number, not {_json_type(v)}")
+            if not abs(v) <= MAX_COORDINATE:  # NaN compares false too
+                shown = repr(v) if len(repr(v)) <= 24 else repr(v)[:12] + "…"
+                raise self.error(f"{where}[{j}]", f"is {shown}, not a finite number of magnitude "
+                                 f"at most {MAX_COORDINATE:.0e}")
+        return pos
+
+    def polygon(self, rings, where: str) -> list[np.ndarray]:
+        """A Polygon's ``coordinates``: its rings, outline first."""
+        self.array(rings, where)
+        return [self.ring(r, f"{where}[{j}]") for j, r in enumerate(rings)]
+
+    def features(self, data: dict) -> list[tuple[dict, str, dict]]:
+        """``(feature, where, geometry)`` of each feature with a geometry, ``where`` the
+        feature's JSON path (empty for the top level)."""
+        kind = self.member(data, "type", "", str, "a string")
+        if kind == "FeatureCollection":
+            feats = self.member(data, "features", "", list, "an array") or []
+            where = [f"features[{i}]" for i in range(min(len(feats), MAX_FOOTPRINTS))]
+        elif kind == "Feature":
+            feats, where = [data], [""]
+        elif kind in ("Polygon", "MultiPolygon"):
+            return [({}, "", data)]
+        else:
+            raise self.error("", "expected a GeoJSON Polygon, MultiPolygon, Feature or "
+                             f"FeatureCollection, got type {kind!r}")
+        out = []
+        for f, w in zip(feats, where):
+            if f is None:  # tolerated, as a feature without geometry
                 continue
-            try:
-                ring = _coordinates(rings[0])
-                holes = [_coordinates(h) for h in rings[1:]]
-            except (ValueError, IndexError, TypeError):
-                raise InputError(f"'{p}': feature {i} has malformed coordinates") from None
-            parts.append((name if len(polys) == 1 else f"{name}_{k}", props, ring, holes))
-    crs_name = ((data.get("crs") or {}).get("properties") or {}).get("name")
+            f = self.obj(f, w)
+            geom = self.member(f, "geometry", w, dict, "an object or null")
+            if geom is not None:
+                out.append((f, w, geom))
+        return out
+
+    def crs_name(self, data: dict) -> str | None:
+        """The ``crs`` member's name (GeoJSON 2008 ``{"type": "name", "properties": {"name":
+        "EPSG:25832"}}``), or None."""
+        crs = data.get("crs")
+        if crs is None:
+            return None
+        if not isinstance(crs, dict):
+            raise self.error("crs", f"must be an object such as {{\"type\": \"name\", "
+                             f"\"properties\": {{\"name\": \"EPSG:25832\"}}}}, not "
+                             f"{_json_type(crs)}")
+        props = self.member(crs, "properties", "crs", dict, "an object") or {}
+        return self.member(props, "name", "crs.properties", str, "a string")
+
+
+def _geojson(p: Path) -> list[Footprint]:
+    from ..jsonfile import read_json
+
+    data = read_json(p, "footprint file", fix=_GEOJSON_FIX, max_bytes=MAX_FOOTPRINT_FILE_BYTES)
+    doc = _GeoJson(p)
+    doc.obj(data, "")
+    parts = []  # (name, properties, outline (k, 2 or 3), holes)
+    for i, (f, fw, geom) in enumerate(doc.features(data)):
+        where = f"{fw}.geometry" if fw else ("geometry" if f else "")
+        props = doc.member(f, "properties", fw, dict, "an object or null") or {}
+        # names are text or numbers (RFC 7946 §3.2: an id is either); anything else is skipped
+        names = [v for v in (props.get("name"), props.get("id"), f.get("id"))
+                 if v and isinstance(v, (str, int, float)) and not isinstance(v, bool)]
+        name = str(names[0]) if names else f"building_{i}"
+        gtype = doc.member(geom, "type", where, str, "a string")
+        coords = doc.member(geom, "coordinates", where, list, "an array")
+        cw = f"{where}.coordinates"
+        if gtype == "Polygon":
+            polys = [doc.polygon(coords or [], cw)]
+        elif gtype == "MultiPolygon":
+            polys = [doc.polygon(c, f"{cw}[{k}]") for k, c in enumerate(coords or [])]
+        else:
+            continue  # points, lines: not footprints
+        for k, rings in enumerate(polys):
+            if not rings or len(rings[0]) == 0:
+                continue
+            parts.append((name if len(polys) == 1 else f"{name}_{k}", props, rings[0], rings[1:]))
+    crs_name = doc.crs_name(data)
     project, epsg, note, unit = _georeference(p, crs_name, [ring for _, _, ring, _ in parts])
     out = []
     for name, props, ring, holes in parts:
         ring, holes = project(ring), [project(h) for h in holes]
+        if not (np.isfinite(ring).all() and all(np.isfinite(h).all() for h in holes)):
+            raise InputError(f"footprint file '{p}': footprint '{name}' lies outside the area "
+                             f"its crs can be projected from; check its crs and coordinates")
         elevation = float(ring[:, 2].mean()) if ring.shape[1] > 2 else 0.0
         ring = _clean_ring(ring[:, :2])
         if len(ring) < 3:
@@ -168,14 +297,6 @@ def _geojson(p: Path) -> list[Footprint]:
         raise InputError(f"'{p}' holds no usable polygon")
     _center_far_coordinates(out)
     return out
-
-
-def _coordinates(ring) -> np.ndarray:
-    """A GeoJSON ring as (k, 2) or (k, 3) floats (positions beyond the third value dropped)."""
-    a = np.asarray(ring, float)
-    if a.ndim != 2 or a.shape[1] < 2:
-        raise ValueError("not a list of positions")
-    return a[:, :3]
 
 
 #: A footprint file is in degrees (without a ``crs`` member saying so) when its footprints are

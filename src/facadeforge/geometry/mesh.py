@@ -620,8 +620,16 @@ def plane_basis(normal: np.ndarray, first_edge: np.ndarray | None = None) -> np.
     return np.column_stack([u, v, n])
 
 
+#: Polygons with more corners than this are triangulated by GEOS (:func:`_triangulate_large`):
+#: earcut's time grows with the square of the corners on round outlines (a 100,000-corner
+#: circle: 12 s), GEOS's constrained Delaunay triangulation stays under a second.  Below it,
+#: earcut (a few milliseconds), whose triangles every export and test was made with.
+EARCUT_MAX_CORNERS = 4096
+
+
 def triangulate_polygon(p: np.ndarray) -> np.ndarray:
-    """Triangles (T, 3) of local corner indices for a planar simple polygon (k, 3) (earcut)."""
+    """Triangles (T, 3) of local corner indices for a planar simple polygon (k, 3) (earcut, or
+    GEOS above :data:`EARCUT_MAX_CORNERS` corners)."""
     k = len(p)
     if k < 3:
         return np.zeros((0, 3), np.int64)
@@ -634,5 +642,39 @@ def triangulate_polygon(p: np.ndarray) -> np.ndarray:
 
     basis = plane_basis(n)
     xy = (p - p[0]) @ basis[:, :2]
+    if k > EARCUT_MAX_CORNERS:
+        tri = _triangulate_large(xy)
+        if tri is not None:
+            return tri
     tri = earcut.triangulate_float64(xy, np.array([k], dtype=np.uint32))
     return np.asarray(tri, np.int64).reshape(-1, 3)
+
+
+def _triangulate_large(xy: np.ndarray) -> np.ndarray | None:
+    """Triangles (T, 3) of corner indices of the simple polygon ``xy`` (k, 2) by GEOS's
+    constrained Delaunay triangulation, or None where it cannot serve (an invalid ring, or
+    triangles whose corners are not the polygon's own: repeated points), for earcut to try.
+    GEOS copies the corners' coordinates exactly, so each triangle corner is found among them
+    by an exact search."""
+    import shapely
+
+    g = shapely.Polygon(xy)
+    if not g.is_valid:
+        return None
+    tris = shapely.get_parts(shapely.constrained_delaunay_triangles(g))
+    q = shapely.get_coordinates(shapely.get_exterior_ring(tris)).reshape(-1, 4, 2)[:, :3]
+    key = xy[:, 0] + 1j * xy[:, 1]  # complex numbers sort by x, then y
+    order = np.argsort(key, kind="stable")
+    if (np.diff(key[order]) == 0).any():
+        return None
+    want = (q[..., 0] + 1j * q[..., 1]).ravel()
+    at = np.minimum(np.searchsorted(key[order], want), len(key) - 1)
+    if (key[order][at] != want).any():
+        return None
+    tri = order[at].reshape(-1, 3).astype(np.int64)
+    # counter-clockwise in the plane, as earcut's are (the polygon's own winding in the basis
+    # of its normal)
+    x, y = xy[tri, 0], xy[tri, 1]
+    area2 = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)
+    tri[area2 < 0] = tri[area2 < 0, ::-1]
+    return tri[area2 != 0]

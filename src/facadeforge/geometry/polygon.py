@@ -30,11 +30,10 @@ def simple_pieces(g) -> list[np.ndarray]:
         return [ext if g.exterior.is_ccw else ext[::-1]]
     import shapely
 
-    out = []
-    for tri in shapely.constrained_delaunay_triangles(g).geoms:
-        q = np.asarray(tri.exterior.coords)[:-1]
-        x, y = q[:, 0], q[:, 1]
-        area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
-        if abs(area2) > 1e-12:
-            out.append(q if area2 > 0 else q[::-1])
-    return out
+    # all triangles at once (a footprint with thousands of courtyards has tens of thousands)
+    tris = shapely.get_parts(shapely.constrained_delaunay_triangles(g))
+    q = shapely.get_coordinates(shapely.get_exterior_ring(tris)).reshape(-1, 4, 2)[:, :3]
+    x, y = q[:, :, 0], q[:, :, 1]
+    area2 = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)
+    q[area2 < 0] = q[area2 < 0, ::-1]
+    return list(q[np.abs(area2) > 1e-12])
