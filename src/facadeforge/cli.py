@@ -200,7 +200,7 @@ def cmd_derive(args) -> int:
         print("\r" + " " * 30 + "\r", end="", file=sys.stderr, flush=True)
     seconds = time.perf_counter() - t0
     if args.stats:
-        print(json.dumps(engine.stats(models, seconds)))
+        print(json.dumps(engine.stats(models, seconds), allow_nan=False))
     else:
         s = engine.stats(models, seconds)
         print(f"{len(models)} building(s), {s['faces']} faces, {s['triangles']} triangles, "

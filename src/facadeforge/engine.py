@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import sys
 import time
@@ -12,14 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, RuleError
-from .geometry.assets import AssetResolver
+from .errors import DerivationError, InputError, RuleError
+from .geometry.assets import AssetResolver, rule_roots
 from .geometry.footprints import Footprint, load_footprints, lot
 from .geometry.mesh import Mesh, plane_basis, polygon_normal
 from .grammar.interpreter import PYTHON_RECURSION_LIMIT, Derivation, Limits, deriving
 from .grammar.module import RuleSet, link
 from .grammar.state import ShapeState
-from .model.model import Model
+from .model.model import Model, extent_problem
 from .model.scope import Scope
 
 MAX_RULE_BYTES = 8 * 1024 * 1024
@@ -81,43 +82,48 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
         roots.append(package.root)
         import_roots = [package.root]
     elif base is not None:
-        # a CityEngine project keeps rules in <project>/rules and assets in <project>/assets;
-        # project-absolute paths (/<project>/assets/x.obj) resolve from the workspace above it
-        project = next((d.parent for d in [base, *base.parents] if d.name == "rules"), None)
-        import_roots = [base] + ([project, project.parent] if project is not None else [])
-        roots.extend([base] + ([project / "assets", project, project.parent]
-                               if project is not None else []))
+        import_roots = rule_roots(base)
+        roots.extend(import_roots[:1] + [r / "assets" for r in import_roots[1:]]
+                     + import_roots[1:])
     else:
         import_roots = []
+    confined = AssetResolver(import_roots)
 
     def read(importer: str, name: str):
         if package is not None and name.startswith("/") and name in package.resolve_map:
             target = package.resolve_map[name]
         else:
-            importer_dir = Path(importer).parent if importer != "<rules>" else Path.cwd()
-            target = (importer_dir / name.lstrip("/")).resolve() if not name.startswith("/") else None
+            importer_dir = Path(importer).parent if importer != "<rules>" else None
+            target = None
+            if importer_dir is not None and not name.startswith("/"):
+                target = (importer_dir / name).resolve()
             if target is None or not target.is_file():
+                target = None
+                parts = [x for x in name.split("/") if x]
                 for r in import_roots:
-                    parts = [x for x in name.split("/") if x]
                     for k in range(len(parts)):
                         cand = (Path(r) / "/".join(parts[k:])).resolve()
                         if cand.is_file():
                             target = cand
                             break
-                    if target is not None and target.is_file():
+                    if target is not None:
                         break
         if target is None or not target.is_file():
             raise OSError(f"file not found: {name}")
-        allowed = [Path(r).resolve() for r in import_roots]
-        if allowed and not any(r in target.parents for r in allowed):
-            raise OSError(f"'{name}' lies outside the rule folder")
+        if not confined.allowed(target) and not (package is not None
+                                                 and target in package.resolve_map.values()):
+            raise OSError(f"'{name}' lies outside the rule's project; keep imported rules "
+                          "inside it")
+        if target.stat().st_size > MAX_RULE_BYTES:
+            raise OSError(f"'{name}' is larger than {MAX_RULE_BYTES >> 20} MiB")
         return target.read_text(encoding="utf-8", errors="replace"), str(target)
 
     main = link(main_text, main_path, read, style=style)
     ruleset = RuleSet(main, start, roots[0] if roots else None)
     from .grammar.check import check_rules
 
-    check_rules(ruleset)
+    with deriving():  # the checker walks expressions as deep as the parser allows
+        check_rules(ruleset)
     resolver = AssetResolver(roots, package.resolve_map if package else None)
     return Rules(ruleset, resolver, main_path, package)
 
@@ -220,6 +226,9 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
         if not keep_tree:
             model.root = None
         model.derived_stats = model.stats()  # computed here, in the worker, not in the main process
+        problem = extent_problem(model.derived_stats)
+        if problem is not None:
+            raise DerivationError(f"'{fp.name}': {problem}")
     return model
 
 
@@ -467,4 +476,11 @@ def stats(models: list[Model], seconds: float) -> dict:
         lo = hi = np.zeros(3)
     return {"shapes": shapes, "faces": faces, "triangles": tris, "vertices": verts,
             "area": round(area, 6), "bbox": [lo.round(6).tolist(), hi.round(6).tolist()],
-            "report": report, "warnings": warnings, "seconds": round(seconds, 4)}
+            "report": {k: [_json_number(v) for v in vs] for k, vs in report.items()},
+            "warnings": warnings, "seconds": round(seconds, 4)}
+
+
+def _json_number(v):
+    """A reported value as JSON has it: NaN and infinities (``report("r", 0/0)``) have no
+    JSON spelling, so they become ``null``."""
+    return None if isinstance(v, float) and not math.isfinite(v) else v

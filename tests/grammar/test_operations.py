@@ -160,9 +160,14 @@ def test_caps_raise_derivation_error_naming_rule():
 
     with pytest.raises(DerivationError, match="rule 'A'"):
         derive(load_rules("Lot --> A\nA --> B A"), lot_size="2x2", limits=Limits(max_depth=50))
-    with pytest.raises(DerivationError, match="more than 100 shapes"):
+    # a repeat that would pass the cap says so before it makes a piece
+    with pytest.raises(DerivationError, match="makes 500 pieces, more than the 100 shapes"):
         derive(load_rules("Lot --> split(x) { { 0.01 : T }* }"), lot_size="5x2",
                limits=Limits(max_shapes=100))
+    # shapes made one by one meet the cap too
+    with pytest.raises(DerivationError, match="more than 100 shapes"):
+        derive(load_rules("Lot --> split(x) { { 0.5 : T }* }\nT --> U U U U U U U U U U U U"),
+               lot_size="5x2", limits=Limits(max_shapes=100))
 
 
 def test_stats_keys():

@@ -19,7 +19,7 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..model.model import Model
+from ..model.model import Model, extent_problem
 from .cityjson import export_cityjson, export_cityjsonseq, load_cityjson, load_cityjsonseq
 from .errors import ExportError, LoadError
 from .gltf import export_glb, load_glb
@@ -136,7 +136,12 @@ def load(path: str | os.PathLike, **options) -> list[Model]:
         inspect.signature(importer).bind(path, **options)
     except TypeError as exc:
         raise LoadError(f"cannot load {os.fspath(path)!r}: {exc}") from exc
-    return importer(path, **options)
+    models = importer(path, **options)
+    for m in models:
+        problem = extent_problem(m.stats())
+        if problem is not None:
+            raise LoadError(f"cannot load {os.fspath(path)!r}: model '{m.name}': {problem}")
+    return models
 
 
 def _check_options(exporter: Callable, options: dict, path) -> None:

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry.mesh import Mesh
-from ..model.model import Model
+from ..model.model import Model, extent_problem
 from .errors import ExportError
 
 log = logging.getLogger("facadeforge.exchange")
@@ -174,6 +174,16 @@ def scalar_attributes(attributes: dict) -> dict:
     return out
 
 
+def check_extent(model: Model) -> None:
+    """Refuse a model whose coordinates no file could hold as numbers other tools read
+    (:func:`~facadeforge.model.model.extent_problem`): every exporter's models pass here
+    before anything is written."""
+    stats = getattr(model, "derived_stats", None) or model.stats()
+    problem = extent_problem(stats)
+    if problem is not None:
+        raise ExportError(f"cannot export model '{model.name}': {problem}")
+
+
 def iter_models(models):
     """The ``models`` argument of the exporters that write as they go, one model at a time:
     a ``Model``, a sequence, or any iterable (``engine.derive_iter``'s generator)."""
@@ -182,6 +192,7 @@ def iter_models(models):
     for m in items:
         if not isinstance(m, Model):
             raise ExportError(f"expected Model objects, got {type(m).__name__}")
+        check_extent(m)
         count += 1
         yield m
     if not count:
@@ -196,6 +207,7 @@ def as_models(models: Model | Sequence[Model]) -> list[Model]:
     for m in items:
         if not isinstance(m, Model):
             raise ExportError(f"expected Model objects, got {type(m).__name__}")
+        check_extent(m)
     return items
 
 

@@ -4,7 +4,13 @@ confined to an asset root.
 Paths in rules resolve like CityEngine's: relative paths against the asset folder (also tried
 against the rule file's folder), project-absolute paths (``/Project/assets/x.obj``) through a
 rule package's resolve map or by stripping the project prefix.  A resolved path that leaves every
-allowed root is refused: rule text cannot read arbitrary files.
+allowed root is refused: rule text cannot read arbitrary files (``SECURITY.md``).
+
+The roots of a rule file (:func:`rule_roots`) are its own folder and, when it lies in a
+CityEngine project (``<project>/rules/…`` beside ``<project>/assets`` or ``.project``), that
+project; never the folder above a project, and never a folder that holds other people's files
+as well (the home folder, the temporary folder, the file system's root).  Hidden files and
+folders (``.ssh``, ``.env``) are never read, whatever the root.
 """
 
 from __future__ import annotations
@@ -20,6 +26,65 @@ from ..errors import InputError
 from .mesh import Mesh
 
 MAX_ASSET_BYTES = 256 * 1024 * 1024
+#: Largest text or table file a rule may read (``readTextFile``, ``readStringTable``…): such
+#: files are a few kilobytes; their cells become Python objects of ten times their size.
+MAX_TEXT_BYTES = 16 * 1024 * 1024
+#: Largest texture file a model may name (an 8k × 8k RGBA PNG is about 100 MiB at most).
+MAX_TEXTURE_BYTES = 128 * 1024 * 1024
+#: Files ``fileSearch``/``fileRandom`` may look through under the asset root.
+MAX_SEARCH_FILES = 100_000
+
+
+def _shared_folders() -> set[Path]:
+    """Folders that hold more than one project's files: a rule file lying directly in one of
+    them gets no folder of its own to read from."""
+    import tempfile
+
+    out = {Path("/").resolve(), Path(tempfile.gettempdir()).resolve()}
+    try:
+        out.add(Path.home().resolve())
+    except (KeyError, RuntimeError, OSError):  # no home folder (a service account)
+        pass
+    return out
+
+
+def rule_roots(folder: Path) -> list[Path]:
+    """The folders a rule file in ``folder`` may read: ``folder`` itself and, when it lies in a
+    CityEngine project (an ancestor called ``rules`` whose parent holds ``assets/`` or a
+    ``.project`` file), the project folder.  Shared folders (home, temporary folder, root) are
+    left out.
+
+    Parameters
+    ----------
+    folder : Path
+        The rule file's folder.
+
+    Returns
+    -------
+    list of Path
+        Resolved roots, the rule's folder first (empty when it is a shared folder).
+    """
+    folder = Path(folder).resolve()
+    shared = _shared_folders()
+    roots = [] if folder in shared else [folder]
+    for d in [folder, *folder.parents]:
+        if d.name == "rules":
+            project = d.parent
+            if project not in shared and ((project / "assets").is_dir()
+                                          or (project / ".project").is_file()):
+                roots.append(project)
+            break
+    return roots
+
+
+def inside(root: Path, p: Path) -> bool:
+    """Whether resolved path ``p`` is ``root`` or lies below it, through no hidden file or
+    folder (a name starting with a dot)."""
+    if p == root:
+        return True
+    if root not in p.parents:
+        return False
+    return not any(part.startswith(".") for part in p.relative_to(root).parts)
 
 
 @dataclass
@@ -66,10 +131,13 @@ class AssetResolver:
         self.resolve_map = {k: Path(v).resolve() for k, v in (resolve_map or {}).items()}
         self._mesh_cache: dict[Path, Asset] = {}
         self._resolved: dict[str, Path | None] = {}
+        self._searched: dict[str, list[str]] = {}
 
     # -- paths ---------------------------------------------------------------------------------
-    def _allowed(self, p: Path) -> bool:
-        return any(p == r or r in p.parents for r in self.roots) or p in self.resolve_map.values()
+    def allowed(self, p: Path) -> bool:
+        """Whether resolved path ``p`` may be read: inside a root (see :func:`inside`) or a
+        file of the resolve map."""
+        return any(inside(r, p) for r in self.roots) or p in self.resolve_map.values()
 
     def resolve(self, name: str) -> Path | None:
         """Readable file for an asset name, or ``None`` when there is none.
@@ -94,7 +162,7 @@ class AssetResolver:
         candidates = []
         if name.startswith("/"):
             direct = Path(name).resolve()
-            if direct.is_file() and self._allowed(direct):
+            if direct.is_file() and self.allowed(direct):
                 return direct
             parts = [p for p in name.split("/") if p]
             # "/Project/assets/a.obj" → try "assets/a.obj" and "a.obj" beneath each root
@@ -105,7 +173,7 @@ class AssetResolver:
         for rel in candidates:
             for root in self.roots:
                 p = (root / rel).resolve()
-                if not self._allowed(p):
+                if not self.allowed(p):
                     raise InputError(f"asset path '{name}' leaves the asset root {root}; "
                                      "keep assets inside the asset folder")
                 if p.is_file():
@@ -114,15 +182,45 @@ class AssetResolver:
 
     def search(self, pattern: str) -> list[str]:
         """Asset paths (relative to the first root) matching a glob pattern (``fileSearch``)."""
+        if pattern in self._searched:
+            return self._searched[pattern]
         out = []
         pat = pattern.lstrip("/")
+        seen = 0
         for root in self.roots[:1]:
-            for dirpath, _, files in os.walk(root):
+            for dirpath, dirs, files in os.walk(root):
+                dirs[:] = [d for d in dirs if not d.startswith(".")]  # hidden folders stay shut
+                seen += len(files)
+                if seen > MAX_SEARCH_FILES:
+                    raise InputError(f"fileSearch('{pattern}'): the asset root {root} holds more "
+                                     f"than {MAX_SEARCH_FILES} files; give a smaller --assets "
+                                     "folder")
                 for f in files:
+                    if f.startswith("."):
+                        continue
                     rel = os.path.relpath(os.path.join(dirpath, f), root).replace(os.sep, "/")
                     if fnmatch.fnmatch(rel, pat) or fnmatch.fnmatch(f, pat):
                         out.append(rel)
-        return sorted(out)
+        self._searched[pattern] = sorted(out)
+        return self._searched[pattern]
+
+    def read_bytes(self, name: str, limit: int = MAX_TEXT_BYTES) -> bytes | None:
+        """The contents of a small file under the asset roots (tables, text), ``None`` when
+        there is none.
+
+        Raises
+        ------
+        InputError
+            When the path leaves the asset roots or the file is larger than ``limit`` bytes.
+        """
+        p = self.resolve(name)
+        if p is None:
+            return None
+        size = p.stat().st_size
+        if size > limit:
+            raise InputError(f"'{name}' is {size >> 20} MiB, larger than the {limit >> 20} MiB a "
+                             "rule may read as text")
+        return p.read_bytes()
 
     # -- loading -------------------------------------------------------------------------------
     def mesh(self, name: str) -> Asset | None:
@@ -164,6 +262,11 @@ class AssetResolver:
         if p is None:
             if derivation is not None:
                 derivation.warn(f"texture '{name}' not found under the asset root")
+            return None
+        if p.stat().st_size > MAX_TEXTURE_BYTES:
+            if derivation is not None:
+                derivation.warn(f"texture '{name}' is larger than {MAX_TEXTURE_BYTES >> 20} MiB; "
+                                "not used (make it smaller)")
             return None
         return str(p)
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from . import arrays
 from . import ast as A
+from .budget import check_string_length
 from .chance import outcome
 from .ops import SHAPE_FUNCTIONS as SELECTOR_FUNCTIONS
 from .values import (
@@ -23,7 +24,9 @@ from .values import (
 
 def _arith(op: str, a, b):
     if op == "+" and (isinstance(a, str) or isinstance(b, str)):
-        return to_str(a) + to_str(b)
+        a, b = to_str(a), to_str(b)
+        check_string_length(len(a) + len(b))
+        return a + b
     if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
         return _array_arith(op, a, b)
     x, y = to_float(a, "left operand"), to_float(b, "right operand")
@@ -52,7 +55,9 @@ def _arith(op: str, a, b):
 def _array_arith(op, a, b):
     if op == "+" and ((isinstance(a, np.ndarray) and a.dtype == object) or
                       (isinstance(b, np.ndarray) and b.dtype == object)):
-        return np.array([to_str(x) + to_str(y) for x, y in np.broadcast(a, b)], dtype=object)
+        pairs = [(to_str(x), to_str(y)) for x, y in np.broadcast(a, b)]
+        check_string_length(sum(len(x) + len(y) for x, y in pairs))
+        return np.array([x + y for x, y in pairs], dtype=object)
     if isinstance(a, np.ndarray) and isinstance(b, np.ndarray) and a.shape != b.shape:
         raise CGARuntimeError(f"'{op}' on arrays of different sizes ({a.size} and {b.size})")
     if any(isinstance(x, np.ndarray) and x.dtype == object for x in (a, b)):

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .budget import check_string_length
 from .chance import outcome
 from .values import (
     CGARuntimeError,
@@ -228,8 +229,11 @@ def _count(env, a):
 
 @builtin("replace", 3)
 def _replace(env, a):
-    old = to_str(a[1])
-    return to_str(a[0]).replace(old, to_str(a[2])) if old else to_str(a[0])
+    text, old, new = to_str(a[0]), to_str(a[1]), to_str(a[2])
+    if not old:
+        return text
+    check_string_length(len(text) + text.count(old) * (len(new) - len(old)))
+    return text.replace(old, new)
 
 
 @builtin("substring", 3)
@@ -302,7 +306,9 @@ def _list_index(env, a):
 
 @builtin("listAdd", 2)
 def _list_add(env, a):
-    return to_str(a[0]) + to_str(a[1]) + ";"
+    head, item = to_str(a[0]), to_str(a[1])
+    check_string_length(len(head) + len(item) + 1)
+    return head + item + ";"
 
 
 @builtin("listRandom", 1)

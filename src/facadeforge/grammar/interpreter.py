@@ -12,7 +12,6 @@ import gc
 import math
 import sys
 import threading
-import time
 from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from ..model.labels import label_for_name
 from ..model.model import Material, Model, Part
 from ..model.shape import Shape
 from . import ast as A
+from .budget import Budget
 from .chance import outcome
 from .expressions import Evaluator
 from .functions import FUNCTIONS, bare_call
@@ -51,8 +51,12 @@ class Limits:
     """Caps that keep a derivation bounded (STYLE: "derivations and loops are bounded")."""
 
     max_depth: int = 1024
-    max_shapes: int = 2_000_000
-    max_seconds: float = 600.0
+    #: shapes of one derivation (Candler Building, a production rule, makes 12,400)
+    max_shapes: int = 1_000_000
+    #: wall-clock seconds of one derivation (``budget.Budget``); ``--max-seconds``
+    max_seconds: float = 30.0
+    #: growth of the process's memory during one derivation, MiB; ``--max-memory``
+    max_memory_mb: float = 1536.0
     max_warnings: int = 1000
 
 
@@ -167,6 +171,7 @@ class Env(Evaluator):
             mod, fdef = found
             if self.call_depth >= MAX_CALL_DEPTH:
                 raise CGARuntimeError(f"function '{name}' recurses deeper than {MAX_CALL_DEPTH} calls")
+            self.derivation.budget.check("function", name, mod.path, fdef.line)
             env = Env(self.derivation, mod, {p.name: v for p, v in zip(fdef.params, args)},
                       self.state, self.rule, self.call_depth + 1)
             return env.evaluate(fdef.body)
@@ -298,7 +303,7 @@ class Derivation:
         self._attr_busy: set = set()
         self.shape_count = 0
         self._ids = 0
-        self._deadline = 0.0
+        self.budget = Budget(self.limits.max_seconds, self.limits.max_memory_mb)
         from .ops.occlusion import OccluderSet
 
         self.occluders = OccluderSet()  # closed volumes left for occlusion queries
@@ -370,6 +375,16 @@ class Derivation:
 
     current_path = ""
 
+    def located(self, error: DerivationError, node, rule: str) -> DerivationError:
+        """``error`` with the file position of ``node`` in front, once (the innermost
+        operation that raised it is where the rule went wrong)."""
+        if getattr(error, "located", False) or not getattr(node, "line", 0):
+            return error
+        path = self.current_path or self.ruleset.main.path
+        out = DerivationError(f"{path}:{node.line}:{node.column}: {error} (in rule {rule})")
+        out.located = True
+        return out
+
     # -- main loop ---------------------------------------------------------------------------
     def run(self) -> Model:
         try:
@@ -379,9 +394,13 @@ class Derivation:
             raise DerivationError(
                 f"expressions or rule calls nest too deeply in '{self.name}' (more than Python "
                 "can follow); a function probably calls itself without end") from None
+        except MemoryError:
+            raise DerivationError(
+                f"the derivation of '{self.name}' ran out of memory; a rule that makes ever "
+                "larger values or shapes?") from None
 
     def _run(self) -> Model:
-        self._deadline = time.perf_counter() + self.limits.max_seconds
+        self.budget.start()
         root = Shape(self.start_rule, self.initial.scope, operator="initial", id=self.new_id())
         state = self.initial.copy()
         state.seed = self.seed * 0x9E3779B1 + 0x7F4A7C15
@@ -408,9 +427,7 @@ class Derivation:
             raise DerivationError(
                 f"derivation deeper than {self.limits.max_depth} levels in rule '{name}' "
                 f"({mod.path}:{rdef.line}); a rule probably calls itself without shrinking its shape")
-        if time.perf_counter() > self._deadline:
-            raise DerivationError(f"derivation took longer than {self.limits.max_seconds:.0f} s "
-                                  f"(while in rule '{name}', {mod.path}:{rdef.line})")
+        self.budget.check("rule", name, mod.path, rdef.line)
         hint = label_for_name(name.split(".")[-1])
         if hint is not None:
             state.label = hint.value
@@ -788,7 +805,9 @@ class _RunContext:
                     return self.run(chosen, state, env, origin) or consumed
             except CGARuntimeError as e:
                 self.d.warn(str(e), op, self.rule)
-            except (DerivationError, RecursionError, MemoryError, KeyboardInterrupt):
+            except DerivationError as e:
+                raise self.d.located(e, op, self.rule) from None
+            except (RecursionError, MemoryError, KeyboardInterrupt):
                 raise
             except Exception as e:  # a geometry kernel failing on odd input: keep deriving
                 self.d.warn(f"{getattr(op, 'name', type(op).__name__)} failed on this shape "

@@ -24,6 +24,15 @@ from ..user_cache import private_folder
 from . import ast as A
 
 MAX_SOURCE_BYTES = 8 * 1024 * 1024  # a rule file larger than this is not a rule file
+#: Tokens of one rule file.  Lark spends 25-120 µs a token (an array element passes ten
+#: grammar levels), so this bounds a parse to seconds; the largest real rule files we know
+#: (Esri's Candler Building, reconstructions of wide facades) hold 3,000-15,000 tokens.
+MAX_TOKENS = 250_000
+#: Brackets ``( [ {`` open at once.  Real rules nest a handful; every level costs Lark's tree
+#: and our checker stack frames.
+MAX_BRACKETS = 100
+#: Depth of the expression and operation tree (a sum of 1,000 terms is 1,000 deep).
+MAX_NESTING = 2_000
 #: The style of the declarations before any ``style`` line (CityEngine's name for it).
 DEFAULT_STYLE = "Default"
 
@@ -40,7 +49,49 @@ def _parser() -> Lark:
     cache = (str(folder / f"cga-{digest}-lark{lark.__version__}-py{sys.version_info[0]}"
                           f"{sys.version_info[1]}.pickle") if folder else False)
     return Lark(text, parser="lalr", propagate_positions=True, maybe_placeholders=True,
-                cache=cache)
+                cache=cache, postlex=_Bounds())
+
+
+class _Bounds:
+    """Lark post-lexer that stops a rule file with more than :data:`MAX_TOKENS` tokens or
+    :data:`MAX_BRACKETS` open brackets, at the token where it happens (a ``_SourceError``)."""
+
+    always_accept = ()
+    _OPEN = frozenset(("LPAR", "LSQB", "LBRACE"))
+    _CLOSE = frozenset(("RPAR", "RSQB", "RBRACE"))
+
+    def process(self, stream):
+        depth = 0
+        for n, tok in enumerate(stream):
+            if n >= MAX_TOKENS:
+                raise _SourceError(f"the rule file has more than {MAX_TOKENS:,} tokens; split it "
+                                   "into files that import each other", tok)
+            t = tok.type
+            if t in self._OPEN:
+                depth += 1
+                if depth > MAX_BRACKETS:
+                    raise _SourceError(f"brackets nest deeper than {MAX_BRACKETS} levels here",
+                                       tok)
+            elif t in self._CLOSE:
+                depth -= 1
+            yield tok
+
+
+def _deepest(items) -> tuple[int, object]:
+    """The depth of the deepest AST node below ``items`` and that node, walked without
+    recursion (the tree may be deeper than Python's stack)."""
+    best, where = 0, None
+    stack = [(x, 1) for x in items]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, tuple | list):
+            stack.extend((x, depth) for x in node)
+        elif isinstance(node, A.Node):
+            if depth > best:
+                best, where = depth, node
+            stack.extend((getattr(node, f), depth + 1) for f in node.__dataclass_fields__
+                         if f not in ("line", "column"))
+    return best, where
 
 
 def _pos(meta_or_token) -> dict:
@@ -441,22 +492,37 @@ def parse_rules(text: str, path: str = "<rules>") -> A.RuleFile:
         raise RuleSyntaxError("rule text must be a str", path)
     if len(text) > MAX_SOURCE_BYTES:
         raise RuleSyntaxError(f"rule file is larger than {MAX_SOURCE_BYTES} bytes", path)
+    if text.startswith("\ufeff"):  # a UTF-8 byte-order mark, as Windows editors write it
+        text = text[1:]
     lines = text.splitlines()
+
+    def located(x) -> RuleSyntaxError:
+        src = lines[x.line - 1] if 0 < x.line <= len(lines) else ""
+        return RuleSyntaxError(str(x), path, x.line, x.column, src)
+
+    from .interpreter import deriving  # the raised recursion limit: trees MAX_NESTING deep
+
     try:
-        tree = _parser().parse(text)
-        items = _ToAst().transform(tree).children
+        with deriving():
+            tree = _parser().parse(text)
+            items = _ToAst().transform(tree).children
+    except _SourceError as e:
+        raise located(e) from None
     except UnexpectedInput as e:
         line, col = getattr(e, "line", 0) or 0, getattr(e, "column", 0) or 0
         src = lines[line - 1] if 0 < line <= len(lines) else ""
         raise RuleSyntaxError(_describe(e), path, line, col, src) from None
     except VisitError as e:
         if isinstance(e.orig_exc, _SourceError):
-            x = e.orig_exc
-            src = lines[x.line - 1] if 0 < x.line <= len(lines) else ""
-            raise RuleSyntaxError(str(x), path, x.line, x.column, src) from None
+            raise located(e.orig_exc) from None
         raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
     except (LarkError, RecursionError, ValueError) as e:
         raise RuleSyntaxError(f"cannot parse rules: {type(e).__name__}", path) from None
+    depth, node = _deepest(items)
+    if depth > MAX_NESTING:
+        x = _SourceError(f"expressions and operations nest {depth:,} levels deep here, more "
+                         f"than {MAX_NESTING:,}; split the expression with functions", node)
+        raise located(x) from None
     version, imports = None, []
     sections: list[tuple[A.StyleDef | None, list, list, list]] = [(None, [], [], [])]
     for item in items:

@@ -12,6 +12,26 @@ from ..geometry.mesh import Mesh
 if TYPE_CHECKING:
     from .shape import Shape
 
+#: Largest coordinate a model may hold, metres from the origin.  Projected coordinates of any
+#: place on Earth stay below 2·10⁷ m; beyond 10⁹ m a glTF's float32 is off by more than 60 m
+#: and CityJSON's integer vertices overflow at 10¹⁶ m, so larger values mean the rules went
+#: wrong (``extrude(1e300)``) and would make files that other tools cannot read.
+MAX_COORDINATE = 1e9
+
+
+def extent_problem(stats: dict) -> str | None:
+    """Why a model with these :meth:`Model.stats` cannot be written (coordinates beyond
+    :data:`MAX_COORDINATE` or not finite, an area that is not finite), or ``None``."""
+    b = np.asarray(stats["bbox"], float)
+    if not np.isfinite(b).all():
+        return "its geometry has coordinates that are not finite numbers"
+    if np.abs(b).max() > MAX_COORDINATE:
+        return (f"its geometry reaches {np.abs(b).max():.3g} m from the origin, beyond "
+                f"±{MAX_COORDINATE:.0e} m (an absurd size or translation?)")
+    if not np.isfinite(stats["area"]):
+        return "its surface area is not a finite number (an absurd size?)"
+    return None
+
 
 @dataclass(frozen=True)
 class Material:

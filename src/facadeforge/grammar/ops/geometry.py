@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
 from ...errors import InputError
@@ -942,7 +940,7 @@ def _read_table(env, args):
     import csv
     import io
 
-    raw = Path(asset_file(env, to_str(args[0]), "table")).read_bytes()
+    raw = read_small_file(env, to_str(args[0]), "table")
     text = raw.decode("utf-16") if raw[:2] in (b"\xff\xfe", b"\xfe\xff") else \
         raw.decode("utf-8-sig", errors="replace")
     text = "".join(c if c.isprintable() or c in "\r\n\t" else "?" for c in text)
@@ -982,7 +980,20 @@ def _read_string_table(env, args):
 
 @shape_function("readTextFile")
 def _read_text_file(env, args):
-    return asset_file(env, to_str(args[0]), "text file").read_text(encoding="utf-8", errors="replace")
+    return read_small_file(env, to_str(args[0]), "text file").decode("utf-8", errors="replace")
+
+
+def read_small_file(env, name: str, what: str) -> bytes:
+    """The bytes of a text or table file under the asset roots (at most
+    ``assets.MAX_TEXT_BYTES``), or a CGA warning."""
+    res = env.derivation.assets
+    try:
+        data = res.read_bytes(name) if res is not None else None
+    except InputError as e:
+        raise CGARuntimeError(str(e)) from None
+    if data is None:
+        raise CGARuntimeError(f"{what} '{name}' not found under the asset root")
+    return data
 
 
 def _scope_ratio(env, axes: str) -> float:

@@ -150,6 +150,10 @@ def _read_material(env, args):
     suffix = path.suffix.lower()
     if suffix not in (".mtl", ".cgamat"):
         raise CGARuntimeError(f"readMaterial reads .mtl and .cgamat files, not '{name}'")
+    from ...geometry.assets import MAX_TEXT_BYTES
+
+    if path.stat().st_size > MAX_TEXT_BYTES:
+        raise CGARuntimeError(f"readMaterial: '{name}' is larger than {MAX_TEXT_BYTES >> 20} MiB")
     try:
         values = _mtl_material(path) if suffix == ".mtl" else _read_cgamat(path)
     except (OSError, ValueError) as e:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import DerivationError
 from ...geometry.cut import split_along_axis
 from ...geometry.holed import (
     connected_faces,
@@ -56,7 +57,12 @@ class RepeatItem:
     items: list
 
 
-def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, float]]:
+#: Pieces one split may make when no derivation bounds it by its own shape cap.
+MAX_PIECES = 1_000_000
+
+
+def resolve_split(items: list, total: float, max_pieces: int = MAX_PIECES,
+                  notes: list | None = None) -> list[tuple[A.Branch, float, float]]:
     """Positions of the pieces of a split (CityEngine semantics).
 
     Parameters
@@ -65,6 +71,12 @@ def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, floa
         The split pattern; a whole-split repeat ``{…}*`` is one ``RepeatItem``.
     total : float
         Scope size along the split axis.
+    max_pieces : int
+        More pieces than this raise :class:`DerivationError` (a repeat is never cut short
+        silently).
+    notes : list of str, optional
+        Receives a note for each repeat that makes nothing because its sizes add up to no
+        length (``{1e-300: B}*``), so the caller can warn.
 
     Returns
     -------
@@ -96,6 +108,9 @@ def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, floa
         k = groups.index(it)
         plen = pattern_len[k]
         if plen <= EPS:
+            if notes is not None:
+                notes.append(f"a repeat whose sizes add up to {plen:g} m (at most {EPS:g} m) "
+                             "makes no pieces")
             continue
         share = space * plen / all_len if all_len > 0 else 0.0
         has_float = any(x.kind == "float" for x in it.items)
@@ -105,7 +120,11 @@ def resolve_split(items: list, total: float) -> list[tuple[A.Branch, float, floa
             n = max(1, int(math.floor(share / plen + 0.5)))
         else:
             n = int(math.ceil(share / plen - 1e-9))
-        n = min(n, 1_000_000)
+        if n * len(it.items) > max_pieces:
+            raise DerivationError(
+                f"the repeat of {plen:g} m in {share:g} m makes {n * len(it.items):,} pieces, more "
+                f"than the {max_pieces:,} shapes the derivation may still make; use larger sizes "
+                "or split a smaller scope")
         flat.extend(it.items * n)
     fixed = sum(nominal(it) for it in flat if it.kind != "float")
     floats = sum(it.value for it in flat if it.kind == "float" and it.value > 0)
@@ -131,7 +150,14 @@ def call_pieces(call, total: float) -> list[tuple[A.Branch, float, float]]:
     items = _size_items(call.branches, call.env)
     if call.repeat:
         items = [RepeatItem(items)]
-    return resolve_split(items, total)
+    d = getattr(call, "derivation", None)
+    if d is None:
+        return resolve_split(items, total)
+    notes: list[str] = []
+    pieces = resolve_split(items, total, max(d.limits.max_shapes - d.shape_count, 0), notes)
+    for note in notes:
+        d.warn(f"{call.name}: {note}")
+    return pieces
 
 
 def _size_items(branches, env) -> list:
