@@ -58,6 +58,16 @@ def _angle(text: str) -> float:
     return value
 
 
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"'{text}' must be a positive number")
+    return value
+
+
 def _elevation(text: str) -> float:
     value = _angle(text)
     if not -89.0 <= value <= 89.0:
@@ -95,6 +105,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="output file: .glb, .obj, .city.json, .city.jsonl (CityJSON Text Sequences, a "
                         "building a line), or .png/.svg (2D label layout)")
     d.add_argument("--stats", action="store_true", help="print statistics as one JSON object")
+    d.add_argument("--max-seconds", type=_positive, default=None, metavar="S",
+                   help="wall-clock seconds one building's derivation may take (default 30)")
+    d.add_argument("--max-memory", type=_positive, default=None, metavar="MB",
+                   help="memory a derivation may add, MiB, shared by the worker processes "
+                        "(default 1536)")
 
     r = sub.add_parser("render", help="CPU preview render of a .glb or .obj model",
                        epilog=EXAMPLES["render"], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -180,7 +195,14 @@ def cmd_derive(args) -> int:
         print(f"footprints projected: {footprints[0].attributes['_projected']}", file=sys.stderr)
     total = len(footprints) if footprints is not None else 1
     progress = sys.stderr.isatty() and total > 1  # a city takes a while: say how far it got
-    derived = engine.derive_iter(args.rules, footprints, lot_size=args.lot,
+    from .grammar.interpreter import Limits
+
+    limits = Limits()
+    if args.max_seconds is not None:
+        limits.max_seconds = args.max_seconds
+    if args.max_memory is not None:
+        limits.max_memory_mb = args.max_memory
+    derived = engine.derive_iter(args.rules, footprints, lot_size=args.lot, limits=limits,
                                  start=args.start, style=args.style, attrs=dict(args.attr),
                                  assets=args.assets, seed=args.seed, strict=args.strict,
                                  rule=args.rule, workers=args.workers,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import os
@@ -362,9 +363,12 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
     # every initial shape is derived once for its occluders, then for real with its neighbours'
     two_pass = len(fps) > 1 and _queries_neighbours(loaded)
     if len(fps) >= 4 and n_workers > 1 and not isinstance(rules, Rules):
+        # the memory budget is the machine's: workers deriving at once share it
+        share = dataclasses.replace(limits or Limits())
+        share.max_memory_mb /= n_workers
         spec = {"rules": str(rules) if isinstance(rules, Path) else rules, "rule": rule,
                 "assets": str(assets) if assets else None, "start": start, "style": style,
-                "attrs": attrs, "seed": seed, "strict": strict, "limits": limits}
+                "attrs": attrs, "seed": seed, "strict": strict, "limits": share}
         return _derive_parallel(spec, fps, n_workers, two_pass, keep_tree, loaded)
 
     def one(fp, around=None, tree=keep_tree):

@@ -674,6 +674,7 @@ class Derivation:
 
     def count_shape(self, rule: str) -> None:
         self.shape_count += 1
+        self.budget.check("rule", rule)
         if self.shape_count > self.limits.max_shapes:
             raise DerivationError(f"more than {self.limits.max_shapes} shapes (last rule '{rule}'); "
                                   "a repeat split on a huge scope or a runaway recursion?")

@@ -143,7 +143,9 @@ class Model:
         if not mesh.n_faces:
             return {"faces": 0, "triangles": 0, "vertices": 0, "area": 0.0,
                     "bbox": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]}
-        b = mesh.bounds()
+        with np.errstate(all="ignore"):  # absurd coordinates: extent_problem says so
+            b = mesh.bounds()
+            area = mesh.area()
         return {"faces": mesh.n_faces, "triangles": mesh.triangle_count(),
-                "vertices": len(mesh.vertices), "area": mesh.area(),
+                "vertices": len(mesh.vertices), "area": area,
                 "bbox": [b[0].tolist(), b[1].tolist()]}

@@ -84,6 +84,11 @@ class OpCall:
     branches: tuple = ()
     repeat: bool = False
 
+    def tick(self) -> None:
+        """Draw on the derivation's time and memory budget (long geometry kernels call it)."""
+        if self.derivation is not None:
+            self.derivation.budget.check("operation", self.name)
+
     def num(self, i: int, default: float | None = None) -> float:
         if i >= len(self.args):
             if default is None:

@@ -401,7 +401,7 @@ def op_split_area(call):
     bounds = [pieces[0][1]] + [start + size for _, start, size in pieces]
     cuts = np.array([position(a) for a in bounds])
     cuts = np.maximum.accumulate(cuts)
-    meshes = split_along_axis(local, axis, cuts)
+    meshes = split_along_axis(local, axis, cuts, tick=call.tick)
     out = []
     n = len(pieces)
     for i, ((branch, _, _), mesh) in enumerate(zip(pieces, meshes)):

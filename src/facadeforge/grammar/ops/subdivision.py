@@ -192,7 +192,7 @@ def op_split(call):
         return []
     cuts = [pieces[0][1]] + [p[1] + p[2] for p in pieces]
     local = st.local_geometry()
-    meshes = (split_along_axis(local, axis, np.array(cuts)) if local.n_faces
+    meshes = (split_along_axis(local, axis, np.array(cuts), tick=call.tick) if local.n_faces
               else [Mesh() for _ in pieces])
     rot, org, size = st.scope.rotation, st.scope.origin, st.scope.size
     keep = [i for i, m in enumerate(meshes) if m.n_faces or not local.n_faces]
@@ -212,6 +212,8 @@ def op_split(call):
     out = []
     n = len(pieces)
     for j, i in enumerate(keep):
+        if not j & 1023:
+            call.tick()
         branch, start, width = pieces[i]
         mesh = meshes[i]
         ps = st.child(i)
