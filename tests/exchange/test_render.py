@@ -125,6 +125,11 @@ def test_empty_and_invalid():
     assert img.size == (40, 30)
     with pytest.raises(ExportError):
         render_preview(Model(), size=(0, 10))
+    # a picture whose buffers would not fit in memory (8000 x 8000 took 3.8 GB)
+    with pytest.raises(ExportError, match="too large"):
+        render_preview(Model(), size=(8000, 8000))
+    with pytest.raises(ExportError, match="too large"):
+        render_preview(Model(), size=(60000, 10))
 
 
 def test_many_faces_render(box):

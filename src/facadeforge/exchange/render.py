@@ -97,6 +97,11 @@ class _Camera:
 
 # -- public -----------------------------------------------------------------------------------
 
+#: Largest side and area of a rendered picture: the drawing buffers take about 60 bytes a
+#: pixel (an 8000 x 8000 picture took 3.8 GB), so 4096² stays near 1 GB.
+MAX_PICTURE_SIDE = 8192
+MAX_PICTURE_PIXELS = 4096 * 4096
+
 def render_preview(models: Model | Sequence[Model], path: str | os.PathLike | None = None,
                    size: tuple[int, int] = (1200, 900), azimuth: float = -35.0,
                    elevation: float = 25.0, *, perspective: bool = True, fov: float = 35.0,
@@ -134,6 +139,10 @@ def render_preview(models: Model | Sequence[Model], path: str | os.PathLike | No
     width, height = (int(v) for v in size)
     if width < 1 or height < 1 or supersample < 1:
         raise ExportError(f"invalid picture size {size} or supersample {supersample}")
+    if max(width, height) > MAX_PICTURE_SIDE or width * height > MAX_PICTURE_PIXELS:
+        raise ExportError(f"picture size {width}x{height} is too large: at most "
+                          f"{MAX_PICTURE_SIDE} pixels a side and {MAX_PICTURE_PIXELS:,} pixels "
+                          "(4096x4096)")
     faces = _scene_faces(as_models(models))
     if len(faces.tris):
         view = _View(faces, (width, height), azimuth, elevation, perspective, fov, shadow)
@@ -295,6 +304,7 @@ class _View:
         fit = faces.corners if self.shadow is None else np.concatenate([faces.corners,
                                                                          self.shadow])
         self.to_screen = _fit(self.cam, fit, size)
+        self.size = size
         self.normals = _normals(faces)
         centroid = faces.sums(faces.corners) / np.diff(faces.offsets)[:, None]
         to_eye = self.cam.eye - centroid if perspective else -self.cam.forward[None, :]
@@ -312,7 +322,9 @@ class _View:
         e1, e2 = xy[:, 1] - xy[:, 0], xy[:, 2] - xy[:, 0]
         covered = float(np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).sum() / 2)
         ss = wanted
-        while ss > 1 and covered * ss * ss > self._SAMPLE_BUDGET:
+        w, h = self.size
+        # covered pixels bound the drawing time, the whole picture its buffers' memory
+        while ss > 1 and max(covered, w * h) * ss * ss > self._SAMPLE_BUDGET:
             ss -= 1
         return ss
 
