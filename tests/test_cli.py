@@ -1,6 +1,7 @@
 """CLI in-process (cjio habit): every command, its one-line errors and exit codes."""
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -163,3 +164,31 @@ def test_derive_never_writes_over_its_footprints(rules, tmp_path, capsys):
     assert main(["derive", str(rules), "--footprint", str(lots), "-o", str(lots)]) == 2
     assert "is the --footprint file the run reads" in capsys.readouterr().err
     assert lots.read_bytes() == before
+
+
+@pytest.mark.parametrize("name, text, message", [
+    ("meta", "[" * 100_000 + "]" * 100_000, "synthetic metadata '{p}': JSON nested too deeply"),
+    ("objects", '{"label": ', "synthetic objects '{p}' is not valid JSON (line 1"),
+])
+def test_demo_reads_its_facade_files_through_the_json_reader(tmp_path, monkeypatch, name, text,
+                                                             message):
+    """Bare json.loads made a damaged file a RecursionError or a bare JSONDecodeError."""
+    from facadeforge import cli
+    from facadeforge.datasets import synthetic
+    from facadeforge.errors import InputError
+
+    def generate(n, seed, out_dir, **options):
+        out = Path(out_dir)
+        out.mkdir(parents=True)
+        for suffix in ("meta", "objects"):
+            (out / f"s.{suffix}.json").write_text("{}" if suffix == "meta" else "[]",
+                                                  encoding="utf-8-sig")
+        (out / f"s.{name}.json").write_text(text)
+        return [out / "s.jpg"]
+
+    monkeypatch.setattr(synthetic, "generate", generate)
+    with pytest.raises(InputError) as err:
+        cli._demo_reconstruct(tmp_path / "stage", tmp_path / "out")
+    p = tmp_path / "stage" / "synthetic" / f"s.{name}.json"
+    assert message.format(p=p) in str(err.value)
+    assert str(err.value).endswith("run facadeforge demo again")

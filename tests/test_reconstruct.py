@@ -223,6 +223,58 @@ def test_depths_file_overrides_and_rejects(tmp_path):
         load_depths(tmp_path / "missing.json")
 
 
+@pytest.mark.parametrize("text, message", [
+    ("[" * 100_000 + "]" * 100_000, "JSON nested too deeply"),     # the reproducer: exit 3
+    ('{"window": -0.3,}', "is not valid JSON (line 1, column 17"),
+    ("[1, 2]", "holds an array, not an object {label: metres}"),
+    ('{"windw": -0.3}', "'windw' is neither a label (background, balcony"),
+    ('{"T": -0.3}', "'T' is neither a label"),
+    ('{"window": NaN}', "depth of 'window' must be a number of metres within ±20, got nan"),
+    ('{"window": 1e999}', "got inf"),
+    ('{"window": 100000000000000000000000000000}', "within ±20, got 10000000000000000000…"),
+    ('{"window": true}', "got True"),
+    ('{"window": -21}', "got -21"),
+])
+def test_depths_files_are_read_by_the_json_reader_and_checked(tmp_path, text, message):
+    f = tmp_path / "d.json"
+    f.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_depths(f)
+    assert str(err.value).startswith(f"--depths file '{f}'") and message in str(err.value)
+    assert str(err.value).endswith('write an object such as {"window": -0.3, "balcony": 1.2}')
+
+
+def test_depths_file_with_a_byte_order_mark_and_cluster_ids(tmp_path):
+    f = tmp_path / "d.json"
+    f.write_text('{"window": -0.3, "T3": 0.5, "T3.1": -0.1, "F2": 1.0}', encoding="utf-8-sig")
+    depths = load_depths(f)
+    assert depths["window"] == -0.3 and depths["T3"] == 0.5 and depths["T3.1"] == -0.1
+    assert depths["F2"] == 1.0 and depths["balcony"] == 0.9        # defaults stay
+
+
+def test_depths_file_larger_than_the_cap_is_refused_unread(tmp_path, monkeypatch):
+    import facadeforge.reconstruction as R
+
+    monkeypatch.setattr(R, "MAX_DEPTHS_BYTES", 64)
+    f = tmp_path / "d.json"
+    f.write_text(json.dumps({"window": -0.3, "door": -0.4, "shop": -0.2, "sill": 0.1,
+                             "balcony": 1.2}))
+    assert f.stat().st_size > 64
+    with pytest.raises(InputError, match="more than the 64 bytes facadeforge reads"):
+        load_depths(f)
+
+
+def test_cli_reconstruct_reports_a_deep_depths_file_in_one_line(synthetic, tmp_path, capsys):
+    photo, meta, _ = synthetic
+    f = tmp_path / "d.json"
+    f.write_text("[" * 100_000 + "]" * 100_000)
+    code = main(["reconstruct", str(photo), "--rectified", "--width-m",
+                 str(meta["facade_size_m"][0]), "--depths", str(f), "-o", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.startswith("facadeforge: error: --depths file") and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
 # ---------------------------------------------------------------------------------- robustness
 def _facade_like(h=240, w=320, floors=4, cols=5, seed=0):
     rng = np.random.default_rng(seed)

@@ -318,11 +318,15 @@ def _demo_reconstruct(stage: Path, out: Path) -> str:
     from . import render
     from .datasets.synthetic import generate
     from .evaluation.metrics import match_boxes
+    from .jsonfile import read_json
     from .reconstruction import reconstruct
 
     photo = generate(1, seed=11, out_dir=stage / "synthetic", size=640, styles=["haussmann"])[0]
-    meta = json.loads(photo.with_suffix(".meta.json").read_text())
-    objects = json.loads(photo.with_suffix(".objects.json").read_text())
+    # the files were written just now, but through the one reader of JSON files all the same:
+    # a full disk or a tampered folder is a message naming the file, not a traceback
+    fix = "run facadeforge demo again"
+    meta = read_json(photo.with_suffix(".meta.json"), "synthetic metadata", fix=fix)
+    objects = read_json(photo.with_suffix(".objects.json"), "synthetic objects", fix=fix)
     rec = reconstruct(photo, rectified=True, width_m=meta["facade_size_m"][0])
     rec.report["input"]["photo"] = str(out / "synthetic" / photo.name)   # not the stage's
     rec.save(stage / "reconstruction")

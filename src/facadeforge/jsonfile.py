@@ -27,11 +27,25 @@ from typing import Any
 
 from .errors import FacadeForgeError, InputError
 
-__all__ = ["MAX_JSON_BYTES", "parse_json", "read_json"]
+__all__ = ["MAX_JSON_BYTES", "json_type", "parse_json", "read_json"]
 
 #: Largest JSON file read by default (bytes).  Parsing costs about five to ten times the text
 #: in memory; callers that read bigger honest files (a city's footprints) pass their own cap.
 MAX_JSON_BYTES = 256 * 2**20
+
+
+def json_type(v: Any) -> str:
+    """The JSON name of a parsed value's type (``"an array"``, ``"null"``…), for messages
+    saying a member has the wrong type."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, (int, float)):
+        return "a number"
+    if isinstance(v, str):
+        return "a string"
+    return "an array" if isinstance(v, list) else "an object"
 
 
 def _size(n: int) -> str:

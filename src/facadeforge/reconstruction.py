@@ -33,8 +33,8 @@ Confidence (not in the paper): every floor and tile split carries a score and th
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
+import re
 import shutil
 import time
 import weakref
@@ -123,27 +123,52 @@ class Reconstruction:
 
 
 # ================================================================================ input
+#: Largest ``--depths`` file read: a label or cluster a line, a few hundred bytes honestly.
+MAX_DEPTHS_BYTES = 2**20
+#: Largest depth accepted (metres, either way): a balcony sticks out a metre or two.
+MAX_DEPTH = 20.0
+#: Cluster ids ``--depths`` may name besides labels: tiles ``T3`` (``T3.1``…) and floors ``F2``.
+_CLUSTER_ID = re.compile(r"[TF][0-9]+(\.[0-9]+)*")
+
+_DEPTHS_FIX = 'write an object such as {"window": -0.3, "balcony": 1.2}'
+
+
 def load_depths(path: str | os.PathLike | None) -> dict[str, float]:
     """Per-class depths: :data:`DEFAULT_DEPTHS` updated from a JSON object ``{label: metres}``
-    (keys may also be cluster ids such as ``"T3"``)."""
+    (keys may also be cluster ids such as ``"T3"``).
+
+    Raises
+    ------
+    InputError
+        The file is missing, larger than :data:`MAX_DEPTHS_BYTES`, not JSON (or nested
+        thousands of levels deep), not an object; a key is neither a label
+        (:class:`~facadeforge.model.labels.Labels`) nor a cluster id (``T3``, ``T3.1``,
+        ``F2``); a value is not a finite number of metres within ±:data:`MAX_DEPTH`.
+    """
+    from .jsonfile import json_type, read_json
+    from .model.labels import Labels
+
     depths = dict(DEFAULT_DEPTHS)
     if path is None:
         return depths
     p = Path(path)
-    try:
-        data = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise InputError(f"--depths file {p} does not exist") from None
-    except (OSError, ValueError) as exc:
-        raise InputError(f"--depths file {p} is not valid JSON ({exc}); write an object such "
-                         'as {"window": -0.3, "balcony": 1.2}') from None
+    data = read_json(p, "--depths file", max_bytes=MAX_DEPTHS_BYTES, fix=_DEPTHS_FIX)
     if not isinstance(data, dict):
-        raise InputError(f"--depths file {p} must hold a JSON object {{label: metres}}")
+        raise InputError(f"--depths file '{p}' holds {json_type(data)}, not an object "
+                         f"{{label: metres}}; {_DEPTHS_FIX}")
+    labels = {label.value for label in Labels}
     for k, v in data.items():
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v) or abs(v) > 20:
-            raise InputError(f"--depths {p}: depth of '{k}' must be a number of metres within "
-                             f"±20, got {v!r}")
-        depths[str(k)] = float(v)
+        shown = k if len(k) <= 40 else k[:36] + "…"
+        if k not in labels and not _CLUSTER_ID.fullmatch(k):
+            raise InputError(f"--depths file '{p}': '{shown}' is neither a label "
+                             f"({', '.join(sorted(labels))}) nor a cluster id such as 'T3'; "
+                             f"{_DEPTHS_FIX}")
+        # abs(v) <= MAX_DEPTH: false for NaN and infinities, exact for integers of any size
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not abs(v) <= MAX_DEPTH:
+            value = repr(v) if len(repr(v)) <= 24 else repr(v)[:20] + "…"
+            raise InputError(f"--depths file '{p}': depth of '{shown}' must be a number of "
+                             f"metres within ±{MAX_DEPTH:g}, got {value}; {_DEPTHS_FIX}")
+        depths[k] = float(v)
     return depths
 
 

@@ -266,3 +266,43 @@ def test_loader_refuses_hostile_json(tmp_path: Path, flat: Path):
     (tmp_path / "x.meta.json").write_text("[1]")
     with pytest.raises(InputError, match="must hold a JSON object"):
         S.load_synthetic(tmp_path)
+
+
+# ------------------------------------------------------------------------------ atomic writes
+def test_a_failing_run_leaves_no_temporary_file(tmp_path: Path, monkeypatch):
+    """The reproducer: a run stopped while writing left ``NAME.tree.json.tmp`` (a fixed name)
+    behind; now what was written is whole and under its final name, and nothing else is."""
+    import os
+
+    real = os.replace
+
+    def replace(src, dst):
+        if str(dst).endswith(".tree.json"):      # the tree of the first facade
+            raise OSError(28, "No space left on device")
+        return real(src, dst)
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(OSError, match="No space left"):
+        S.generate(2, 4, tmp_path, size=WIDTH)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["synth_4_0000.jpg", "synth_4_0000.png"]
+    with Image.open(tmp_path / "synth_4_0000.jpg") as im:
+        im.load()
+
+
+def test_a_killed_runs_folder_is_removed_by_the_next_run(tmp_path: Path):
+    import subprocess
+    import sys
+
+    from facadeforge.scratch import owner_tag
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    host = owner_tag().rsplit("-", 1)[0]
+    stale = tmp_path / f"{S.STAGE_PREFIX}{host}-{dead}-abc123"
+    stale.mkdir()
+    (stale / "synth_1_0000.jpg").write_bytes(b"half a JPEG")
+    other = tmp_path / f"{S.STAGE_PREFIX}otherhost-{dead}-abc123"   # not ours to judge
+    other.mkdir()
+    S.generate(1, 1, tmp_path, size=WIDTH)
+    assert not stale.exists() and other.is_dir()
+    assert len(list(tmp_path.glob("synth_1_0000.*"))) == 5

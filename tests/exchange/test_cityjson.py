@@ -226,3 +226,160 @@ def test_hostile_json_is_a_load_error(tmp_path: Path):
         load(tmp_path / "d.city.jsonl")
     (tmp_path / "b.city.json").write_text(head, encoding="utf-8-sig")
     assert load(tmp_path / "b.city.json") == []
+
+
+# -- hostile and careless files: every member read is checked ------------------------------
+
+def _doc() -> dict:
+    """A tiny CityJSON document: one square MultiSurface with semantics, a material, a texture
+    (unit scale, so the vertex indices are the coordinates)."""
+    return {"type": "CityJSON", "version": "2.0",
+            "transform": {"scale": [1, 1, 1], "translate": [0, 0, 0]},
+            "vertices": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]],
+            "appearance": {"materials": [{"name": "m", "diffuseColor": [1, 0, 0]}],
+                           "textures": [{"type": "PNG", "image": "t.png"}],
+                           "vertices-texture": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+            "CityObjects": {"b": {"type": "Building", "geometry": [{
+                "type": "MultiSurface", "lod": "2", "boundaries": [[[0, 1, 2, 3]]],
+                "semantics": {"surfaces": [{"type": "RoofSurface"}], "values": [0]},
+                "material": {"t": {"values": [0]}},
+                "texture": {"t": {"values": [[[0, 0, 1, 2, 3]]]}}}]}}}
+
+
+def _load_doc(tmp_path: Path, doc) -> list[Model]:
+    (tmp_path / "x.city.json").write_text(json.dumps(doc))
+    return load(tmp_path / "x.city.json")
+
+
+def _set(doc: dict, path: tuple, value) -> dict:
+    target = doc
+    for key in path[:-1]:
+        target = target[key]
+    target[path[-1]] = value
+    return doc
+
+
+def test_tiny_document_reads(tmp_path: Path):
+    (model,) = _load_doc(tmp_path, _doc())
+    (part,) = model.parts
+    assert part.label == "roof" and part.material.color == (1.0, 0.0, 0.0)
+    assert part.mesh.area() == pytest.approx(1.0)
+
+
+G = ("CityObjects", "b", "geometry", 0)
+
+
+@pytest.mark.parametrize("path, value, where", [
+    (("CityObjects",), 5, "CityObjects must be an object, not a number"),  # the reproducer
+    (("CityObjects", "b"), [], 'CityObjects["b"] must be an object, not an array'),
+    (("CityObjects", "b", "geometry"), {}, 'CityObjects["b"].geometry must be an array'),
+    (G, 5, 'CityObjects["b"].geometry[0] must be an object'),
+    ((*G, "lod"), [2], ".lod must be a string"),
+    ((*G, "boundaries"), 5, ".boundaries must be an array"),
+    ((*G, "boundaries", 0), [], ".boundaries[0] a surface needs at least one ring"),
+    ((*G, "boundaries", 0, 0), [0, 1], ".boundaries[0][0] must hold at least 3 indices"),
+    ((*G, "boundaries", 0, 0, 2), 99, ".boundaries[0][0][2] is 99, but the file has 4 vertices"),
+    ((*G, "boundaries", 0, 0, 2), -1, ".boundaries[0][0][2] is -1"),
+    ((*G, "boundaries", 0, 0, 2), 1.5, ".boundaries[0][0][2] must be an integer"),
+    ((*G, "boundaries", 0, 0, 2), True, ".boundaries[0][0][2] must be an integer"),
+    ((*G, "semantics", "values", 0), 3, ".semantics.values[0] is 3, but the file has 1 semantic"),
+    ((*G, "semantics", "values"), [0, 0], ".semantics.values has 2 values for 1 surfaces"),
+    ((*G, "semantics", "surfaces", 0), "Roof", ".semantics.surfaces[0] must be an object"),
+    ((*G, "semantics", "surfaces", 0, "type"), 7, ".semantics.surfaces[0].type must be a string"),
+    ((*G, "material", "t", "values", 0), 1, 'material["t"].values[0] is 1, but the file has 1'),
+    ((*G, "material", "t"), 0, 'material["t"] must be an object'),
+    ((*G, "texture", "t", "values", 0, 0, 0), 2, 'texture["t"].values[0][0][0] is 2'),
+    ((*G, "texture", "t", "values", 0, 0), [0, 0, 1], "has 2 texture vertices for a ring of 4"),
+    ((*G, "texture", "t", "values", 0, 0, 4), 9, "values[0][0][4] is 9, but the file has 4 "
+                                                  "texture vertices"),
+    (("vertices",), {"a": 1}, "vertices must be an array"),
+    (("vertices", 1), [1, 0], "vertices[1] must hold 3 numbers, not 2"),
+    (("vertices", 1, 0), "1", "vertices[1][0] must be a number, not a string"),
+    (("vertices", 1, 0), float("nan"), "vertices[1][0] is nan, not a finite number"),
+    (("vertices", 1, 0), 10**400, "vertices[1][0] is 100000000000…, not a finite number"),
+    (("vertices", 1, 0), 10**10, "vertices[1] lies at [10000000000.0, 0.0, 0.0] once transformed"),
+    (("transform",), [1], "transform must be an object"),
+    (("transform", "scale"), [1, 1], "transform.scale must hold 3 numbers, not 2"),
+    (("transform", "scale", 0), 0, "transform.scale must not hold 0"),
+    (("transform", "translate", 2), None, "transform.translate[2] must be a number"),
+    (("transform", "scale", 0), 1e300, "vertices[1] lies at [1e+300"),
+    (("appearance",), [], "appearance must be an object"),
+    (("appearance", "materials", 0, "diffuseColor"), [2, 0, 0],
+     "diffuseColor[0] is 2, not a finite number within [0, 1]"),
+    (("appearance", "materials", 0, "transparency"), "clear", "transparency must be a number"),
+    (("appearance", "textures", 0, "image"), 5, "textures[0].image must be a string"),
+    (("appearance", "vertices-texture", 2), [1, float("inf")],
+     "vertices-texture[2][1] is inf"),
+])
+def test_malformed_members_are_load_errors_naming_their_json_path(tmp_path: Path, path,
+                                                                  value, where):
+    from facadeforge.exchange.errors import LoadError
+
+    with pytest.raises(LoadError) as err:
+        _load_doc(tmp_path, _set(_doc(), path, value))
+    message = str(err.value)
+    assert where in message
+    assert message.startswith(f"CityJSON file '{tmp_path / 'x.city.json'}': ")
+    assert message.endswith("fix the file (CityJSON 2.0)") and len(message) < 400
+
+
+def test_solid_values_are_checked_per_shell(tmp_path: Path):
+    from facadeforge.exchange.errors import LoadError
+
+    doc = _doc()
+    geom = doc["CityObjects"]["b"]["geometry"][0]
+    geom.update(type="Solid", boundaries=[geom["boundaries"]], semantics={
+        "surfaces": [{"type": "RoofSurface"}], "values": [None]},
+        material={"t": {"values": [[0]]}}, texture={"t": {"values": [[[[0, 0, 1, 2, 3]]]]}})
+    (model,) = _load_doc(tmp_path, doc)        # a null shell of semantics: no semantics
+    assert model.parts[0].mesh.area() == pytest.approx(1.0)
+    geom["material"]["t"]["values"] = [[0, 0]]
+    with pytest.raises(LoadError, match=r'material\["t"\].values\[0\] has 2 values for 1 '):
+        _load_doc(tmp_path, doc)
+
+
+def test_a_surface_with_holes_and_a_flat_outline_reads(tmp_path: Path):
+    doc = _doc()
+    doc["vertices"] += [[0, 0, 0], [2, 2, 0]]
+    _set(doc, (*G, "boundaries"), [[[0, 1, 2, 3], [4, 4, 5]]])   # the hole has no area
+    _set(doc, (*G, "texture", "t", "values"), [[[0, 0, 1, 2, 3]]])
+    (model,) = _load_doc(tmp_path, doc)
+    assert model.parts[0].mesh.area() == pytest.approx(1.0)
+    _set(doc, (*G, "boundaries"), [[[0, 1, 0], [1, 2, 3]]])     # the outline has no area
+    _set(doc, (*G, "texture", "t", "values"), [[[None]]])
+    (model,) = _load_doc(tmp_path, doc)
+    assert model.parts[0].mesh.area() == pytest.approx(0.0)
+
+
+def test_sequence_features_are_checked_naming_the_line(tmp_path: Path):
+    from facadeforge.exchange.errors import LoadError
+
+    head = {"type": "CityJSON", "version": "2.0", "CityObjects": {}, "vertices": [],
+            "transform": {"scale": [1, 1, 1], "translate": [0, 0, 0]}}
+    feature = {"type": "CityJSONFeature", "id": "b", "CityObjects": 5, "vertices": []}
+    p = tmp_path / "x.city.jsonl"
+    p.write_text(json.dumps(head) + "\n" + json.dumps(feature) + "\n")
+    with pytest.raises(LoadError, match=r"x.city.jsonl':2: CityObjects must be an object"):
+        load(p)
+    doc = _doc()
+    feature.update(CityObjects=doc["CityObjects"], vertices=doc["vertices"][:3],
+                   appearance=doc["appearance"])
+    p.write_text(json.dumps(head) + "\n" + json.dumps(feature) + "\n")
+    with pytest.raises(LoadError, match=r"jsonl':2: CityObjects\[\"b\"\].geometry\[0\]"
+                                        r".boundaries\[0\]\[0\]\[3\] is 3, but the file has 3"):
+        load(p)
+    head["transform"]["scale"] = "1"
+    p.write_text(json.dumps(head) + "\n")
+    with pytest.raises(LoadError, match=r"jsonl':1: transform.scale must be an array"):
+        load(p)
+
+
+def test_cli_render_reports_a_malformed_cityjson_in_one_line(tmp_path: Path, capsys):
+    from facadeforge.cli import main
+
+    p = tmp_path / "x.city.json"
+    p.write_text('{"type":"CityJSON","CityObjects":5}')
+    assert main(["render", str(p), "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("facadeforge: error: CityJSON file") and "CityObjects" in err
+    assert "\n" not in err and not (tmp_path / "x.png").exists()

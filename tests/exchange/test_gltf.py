@@ -139,3 +139,155 @@ def test_not_a_glb(tmp_path: Path):
         load(bad)
     with pytest.raises(FileNotFoundError):
         load(tmp_path / "missing.glb")
+
+
+# -- hostile and careless files: every member read is checked, no claim is allocated ---------
+
+def _glb(doc: dict, blob: bytes) -> bytes:
+    """A GLB container of the JSON ``doc`` and the binary chunk ``blob``."""
+    import json
+    import struct
+
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text
+    if blob:
+        body += struct.pack("<II", len(blob), 0x004E4942) + blob
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+def _triangle() -> tuple[dict, bytes]:
+    """One indexed triangle: positions (36 bytes) then indices (12 bytes)."""
+    pos = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
+    idx = np.array([0, 1, 2], np.uint32).tobytes()
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"},
+                         {"bufferView": 1, "componentType": 5125, "count": 3, "type": "SCALAR"}],
+           "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                           {"buffer": 0, "byteOffset": 36, "byteLength": 12}],
+           "buffers": [{"byteLength": 48}]}
+    return doc, pos + idx
+
+
+def test_tiny_triangle_reads(tmp_path: Path):
+    doc, blob = _triangle()
+    (tmp_path / "t.glb").write_bytes(_glb(doc, blob))
+    (model,) = load(tmp_path / "t.glb")
+    assert model.mesh().area() == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("count, view", [(10**9, False), (10**8, False), (10**8, True),
+                                         (2**26, True)])
+def test_a_small_file_claiming_huge_accessors_allocates_nothing(tmp_path: Path, count, view):
+    """The reproducer: a 1 KB .glb declaring 10^9 vertices must not allocate 12 GB."""
+    import tracemalloc
+
+    from facadeforge.exchange.errors import LoadError
+
+    doc, blob = _triangle()
+    doc["accessors"][0]["count"] = count
+    if not view:
+        del doc["accessors"][0]["bufferView"]
+    (tmp_path / "h.glb").write_bytes(_glb(doc, blob))
+    assert (tmp_path / "h.glb").stat().st_size < 1024
+    tracemalloc.start()
+    try:
+        with pytest.raises(LoadError, match="accessors\\[0\\]") as err:
+            load(tmp_path / "h.glb")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 64 * 2**20, peak
+    assert str(err.value).startswith(f"glTF file '{tmp_path / 'h.glb'}': accessors[0]")
+
+
+def _edit(doc: dict, path: tuple, value) -> dict:
+    target = doc
+    for key in path[:-1]:
+        target = target[key]
+    if value is KeyError:
+        del target[path[-1]]
+    else:
+        target[path[-1]] = value
+    return doc
+
+
+P = ("meshes", 0, "primitives", 0)
+
+
+@pytest.mark.parametrize("path, value, message", [
+    ((*P, "indices"), 7, "meshes[0].primitives[0].indices is 7, not an integer from 0 below 2"),
+    ((*P, "indices"), -1, "meshes[0].primitives[0].indices is -1"),
+    ((*P, "attributes", "POSITION"), 1, "accessors[1].type is SCALAR, but meshes[0].primitives"
+                                        "[0].attributes.POSITION must be VEC3"),
+    ((*P, "attributes", "TEXCOORD_0"), 0, "accessors[0].type is VEC3, but"),
+    (("accessors", 0, "bufferView"), 5, "accessors[0].bufferView is 5, not an integer from 0 "
+                                        "below 2"),
+    (("accessors", 0, "componentType"), 5127, "accessors[0].componentType is 5127, not one of"),
+    (("accessors", 1, "componentType"), 5126, "accessors[1].componentType is 5126, but "
+                                              "meshes[0].primitives[0].indices must be one of"),
+    (("accessors", 0, "type"), "VEC7", "accessors[0].type is 'VEC7', not one of"),
+    (("accessors", 0, "count"), -3, "accessors[0].count is -3, not an integer from 0"),
+    (("accessors", 0, "byteOffset"), -4, "accessors[0].byteOffset is -4"),
+    (("accessors", 1, "count"), 2, "holds 2 indices, not whole triangles"),
+    (("bufferViews", 0, "byteLength"), 24, "accessors[0] runs past its buffer view"),
+    (("bufferViews", 1, "byteOffset"), 40, "accessors[1] runs past its buffer view"),
+    (("bufferViews", 0, "byteStride"), 4, "bufferViews[0].byteStride is 4, not from 12"),
+    (("bufferViews", 0, "buffer"), 1, "bufferViews[0].buffer is not 0"),
+    (("nodes", 0, "mesh"), 3, "nodes[0].mesh is 3, not an integer from 0 below 1"),
+    (("nodes", 0, "children"), [0], "nodes[0].children[0] is node 0, which is reached twice"),
+    (("nodes", 0, "translation"), [0, 0], "nodes[0].translation must be an array of 3 numbers"),
+    (("nodes", 0, "matrix"), [float("nan")] * 16, "nodes[0].matrix[0] must be a finite number"),
+    (("nodes", 0, "scale"), [1e300, 1e300, 1e300], "attributes.POSITION holds positions that "
+                                                   "are not finite or lie beyond"),
+    (("scene",), 4, "scene is 4, not an integer from 0 below 1"),
+    (("scenes", 0, "nodes"), [9], "scenes[0].nodes[0] is 9"),
+    ((*P, "material"), 0, "meshes[0].primitives[0].material is 0, not an integer from 0 below 0"),
+    ((*P, "extras"), {"parts": [[0, 0, 5, 0]]}, "extras.parts[0] selects triangles 0 to 5 of "
+                                                "the primitive's 1"),
+    ((*P, "extras"), {"parts": [[0, "a", 1]]}, "extras.parts[0] must be an array [symbol"),
+    ((*P, "extras"), {"symbols": "Wall"}, "extras.symbols must be an array, not a string"),
+])
+def test_malformed_members_are_load_errors_naming_their_json_path(tmp_path: Path, path, value,
+                                                                  message):
+    from facadeforge.exchange.errors import LoadError
+
+    doc, blob = _triangle()
+    (tmp_path / "t.glb").write_bytes(_glb(_edit(doc, path, value), blob))
+    with pytest.raises(LoadError) as err:
+        load(tmp_path / "t.glb")
+    assert str(err.value).startswith(f"glTF file '{tmp_path / 't.glb'}': ")
+    assert message in str(err.value) and str(err.value).endswith("export the file again")
+
+
+def test_material_members_are_checked(tmp_path: Path):
+    from facadeforge.exchange.errors import LoadError
+
+    doc, blob = _triangle()
+    doc["meshes"][0]["primitives"][0]["material"] = 0
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0, 1],
+                                                  "baseColorTexture": {"index": 2}}}]
+    (tmp_path / "t.glb").write_bytes(_glb(doc, blob))
+    with pytest.raises(LoadError, match=r"baseColorTexture.index is 2, not an integer from 0 "
+                                        r"below 0"):
+        load(tmp_path / "t.glb")
+    doc["materials"] = [{"pbrMetallicRoughness": {"baseColorFactor": [1, 0, 0]}}]
+    (tmp_path / "t.glb").write_bytes(_glb(doc, blob))
+    with pytest.raises(LoadError, match=r"materials\[0\].pbrMetallicRoughness.baseColorFactor "
+                                        r"must be an array of 4 numbers"):
+        load(tmp_path / "t.glb")
+
+
+def test_cli_render_reports_a_malformed_glb_in_one_line(tmp_path: Path, capsys):
+    from facadeforge.cli import main
+
+    doc, blob = _triangle()
+    doc["accessors"][0]["count"] = 10**9
+    (tmp_path / "h.glb").write_bytes(_glb(doc, blob))
+    assert main(["render", str(tmp_path / "h.glb"), "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("facadeforge: error: glTF file") and "accessors[0].count" in err
+    assert "\n" not in err and not (tmp_path / "x.png").exists()

@@ -121,3 +121,35 @@ def test_bad_attribute_lines(tmp_path: Path, tag: str, message: str):
     with pytest.raises(LoadError, match=message) as err:
         load(tmp_path / "a.obj")
     assert "a.obj:2" in str(err.value) and len(str(err.value)) < 400
+
+
+@pytest.mark.parametrize("text, message", [
+    ("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n", "obj:3: cannot parse 'v nan 1 0' (nan is not a "
+                                               "finite number"),
+    ("v 0 0 0\nv 1 0 0\nv 1e300 1 0\nf 1 2 3\n", "obj:3: cannot parse 'v 1e300 1 0' (1e+300 is "
+                                                 "not a finite number of magnitude at most 1e+09"),
+    ("v 0 0 0\nv 1 0 0\nv 1 1\nf 1 2 3\n", "obj:3: cannot parse 'v 1 1' (3 numbers needed, "
+                                           "got 2)"),
+    ("v 0 0 0\nv 1 0 0\nv 1 1 0\nvt inf 0\nf 1/1 2/1 3/1\n", "obj:4: cannot parse 'vt inf 0'"),
+    ("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 7\n", "obj:4: cannot parse 'f 1 2 7' (index 7 refers to "
+                                             "none of the 3 defined above the line)"),
+    ("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 0\n", "index 0 refers to none of the 3"),
+    ("v 0 0 0\nv 1 0 0\nv 1 1 0\nf\n", "obj:4: cannot parse 'f' (a face needs the numbers"),
+])
+def test_bad_numbers_and_missing_vertices_are_load_errors(tmp_path: Path, text: str,
+                                                          message: str):
+    from facadeforge.exchange.errors import LoadError
+
+    (tmp_path / "m.obj").write_text(text)
+    with pytest.raises(LoadError) as err:
+        load(tmp_path / "m.obj")
+    assert message in str(err.value)
+
+
+def test_cli_render_reports_a_non_finite_obj_in_one_line(tmp_path: Path, capsys):
+    from facadeforge.cli import main
+
+    (tmp_path / "m.obj").write_text("v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n")
+    assert main(["render", str(tmp_path / "m.obj"), "-o", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("facadeforge: error: ") and "m.obj:3" in err and "\n" not in err

@@ -110,7 +110,8 @@ def test_cli_reports_malformed_footprints_in_one_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("text, message", [
-    ("v 1 2\nf 1 2 3\n", "vertex that does not exist"),
+    ("v 1 2 0\nf 1 2 3\n", "vertex that does not exist"),
+    ("v 1 2\nf 1 2 3\n", "a vertex needs 3 numbers, this one has 2"),
     ("v 0 0 0\nv a b c\n", "malformed OBJ line"),
     ("", "no faces"),
     ("v 0 0 0\nv 1 0 0\nv 1 0 1\nf 1 2 9\n", "vertex that does not exist"),
@@ -120,6 +121,37 @@ def test_garbage_obj_footprints_are_input_errors(tmp_path, text, message):
     p.write_text(text)
     with pytest.raises(InputError, match=message):
         load_footprints(p)
+
+
+@pytest.mark.parametrize("value, message", [
+    ("nan", "f.obj:3: coordinate nan is not a finite number of magnitude at most 1e+09"),
+    ("1e300", "f.obj:3: coordinate 1e+300 is not a finite number of magnitude at most 1e+09"),
+    ("-2e9", "f.obj:3: coordinate -2e+09 is not a finite number"),
+])
+def test_obj_footprints_with_absurd_numbers_say_so(tmp_path, value, message):
+    """The reproducer: such a vertex made the footprint 'hold no horizontal polygon'."""
+    p = tmp_path / "f.obj"
+    p.write_text(f"v 0 0 0\nv 4 0 0\nv {value} 0 3\nv 0 0 3\nf 1 2 3 4\n")
+    with pytest.raises(InputError) as err:
+        load_footprints(p)
+    assert message in str(err.value) and "horizontal" not in str(err.value)
+
+
+def test_cli_derive_reports_a_non_finite_obj_footprint(tmp_path, capsys):
+    rules = tmp_path / "x.cga"
+    rules.write_text("Lot --> X.\n")
+    p = tmp_path / "lots.obj"
+    p.write_text("v 0 0 0\nv 4 0 0\nv NaN 0 3\nf 1 2 3\n")
+    code = main(["derive", str(rules), "--footprint", str(p), "-o", str(tmp_path / "o.glb")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "lots.obj:3: coordinate nan is not a finite number" in err
+
+
+def test_obj_texture_vertices_with_one_number_still_read(tmp_path):
+    p = tmp_path / "f.obj"
+    p.write_text("v 0 0 0\nv 4 0 0\nv 4 0 -3\nvt 0.5\nvt 1\nvt 0\nf 1/1 2/2 3/3\n")
+    (fp,) = load_footprints(p)
+    assert len(fp.polygon) == 3
 
 
 def _holed_square(n: int = 40, size: float = 400.0, hole: float = 2.0) -> dict:

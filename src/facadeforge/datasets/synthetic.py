@@ -64,6 +64,8 @@ import argparse
 import io
 import json
 import math
+import os
+import shutil
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
@@ -78,6 +80,7 @@ from scipy import ndimage
 from ..errors import InputError
 from ..jsonfile import read_json
 from ..model.shape import Shape
+from ..scratch import scratch_dir
 from .folder import FacadeSample, ObjectBox, _check_folder
 from .labelsets import LabelSet, get_label_set
 
@@ -1225,10 +1228,17 @@ def _warp_box(box: Sequence[float], hmat: np.ndarray, w: int, h: int) -> list[fl
     return [round(float(bx0), 3), round(float(by0), 3), round(float(bx1), 3), round(float(by1), 3)]
 
 
-def _write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
+#: Prefix of the folder a run of :func:`generate` writes its files into before renaming each
+#: into place (``.facadeforge-synth-<host>-<pid>-<random>``, :func:`~facadeforge.scratch.scratch_dir`).
+STAGE_PREFIX = ".facadeforge-synth-"
+
+
+def _write(stage: Path, path: Path, data: bytes) -> None:
+    """Write ``path`` whole or not at all: the bytes go to a file in this run's ``stage``
+    folder (beside ``path``: same file system), which is then renamed onto ``path``."""
+    tmp = stage / path.name
     tmp.write_bytes(data)
-    tmp.replace(path)
+    os.replace(tmp, path)
 
 
 def _json_bytes(obj: Any, indent: int | None = None) -> bytes:
@@ -1270,8 +1280,6 @@ def generate(n: int, seed: int, out_dir: str | Path, size: tuple[int, int] | int
     list of Path
         The photos (``NAME.jpg``), in order.
     """
-    from ..exchange.raster import LABEL_INDEX, write_label_png
-
     if n < 0:
         raise InputError(f"number of facades must be >= 0, got {n}")
     pool = tuple(styles) if styles else STYLES
@@ -1281,6 +1289,23 @@ def generate(n: int, seed: int, out_dir: str | Path, size: tuple[int, int] | int
         size = (int(size[0]), int(size[1]))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    # every file is written in a folder of this run's own and renamed into place whole: a run
+    # that is killed leaves no half-written file under a final name nor a temporary name that
+    # the next run would reuse; the folder goes at the end, on an error or SIGTERM (the CLI
+    # makes it an exit), and after a SIGKILL with the next run (scratch_dir removes the
+    # folders of dead processes)
+    stage = scratch_dir(STAGE_PREFIX, dir=out)
+    try:
+        return _generate(n, seed, out, stage, size, px_per_m, perspective, pool, start)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _generate(n: int, seed: int, out: Path, stage: Path, size, px_per_m, perspective: bool,
+              pool: tuple, start: int) -> list[Path]:
+    """:func:`generate`'s facades, each file written through ``stage``."""
+    from ..exchange.raster import LABEL_INDEX, write_label_png
+
     written = []
     for i in range(start, start + n):
         rng = _rng(seed, i)
@@ -1320,11 +1345,12 @@ def generate(n: int, seed: int, out_dir: str | Path, size: tuple[int, int] | int
             "jpeg_quality": quality, "floors": floors, "columns": columns,
             "n_objects": len(objects), "warnings": layout.warnings,
         }
-        _write(out / f"{name}.jpg", _jpeg_bytes(img, quality))
-        write_label_png(labels, out / f"{name}.png")
-        _write(out / f"{name}.tree.json", _json_bytes(layout.tree.to_dict()))
-        _write(out / f"{name}.objects.json", _json_bytes(objects))
-        _write(out / f"{name}.meta.json", _json_bytes(meta, indent=1))
+        _write(stage, out / f"{name}.jpg", _jpeg_bytes(img, quality))
+        write_label_png(labels, stage / f"{name}.png")
+        os.replace(stage / f"{name}.png", out / f"{name}.png")
+        _write(stage, out / f"{name}.tree.json", _json_bytes(layout.tree.to_dict()))
+        _write(stage, out / f"{name}.objects.json", _json_bytes(objects))
+        _write(stage, out / f"{name}.meta.json", _json_bytes(meta, indent=1))
         written.append(out / f"{name}.jpg")
     return written
 

@@ -41,9 +41,9 @@ import numpy as np
 
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
-from ..jsonfile import parse_json, read_json
+from ..jsonfile import json_type, parse_json, read_json
 from ..model.labels import Labels, label_for_name
-from ..model.model import Material, Model, Part
+from ..model.model import MAX_COORDINATE, Material, Model, Part
 from ._ascii import format_lines
 from ._common import (
     Staging,
@@ -644,91 +644,272 @@ def _unique_id(name: str, taken: dict) -> str:
 
 # -- import -----------------------------------------------------------------------------------
 
+_FIX = "fix the file (CityJSON 2.0)"
+
+#: Geometry types read as surfaces (others, such as ``MultiPoint`` or ``GeometryInstance``,
+#: are skipped).
+_SURFACE_TYPES = ("MultiSurface", "CompositeSurface", "Solid")
+
+
 def load_cityjson(path: str | os.PathLike) -> list[Model]:
     """Read the surface geometry of a CityJSON file back into models.
 
     One model per City Object with surface geometry (``MultiSurface``, ``CompositeSurface`` or
     ``Solid``; of several geometries the one with the highest LoD), converted back to CGA axes.
-    Outer rings only (holes are dropped).  Labels come from the ``facadeforge_label`` attribute
-    of the semantic surfaces, or from their type; materials and textures from the first theme.
+    Labels come from the ``facadeforge_label`` attribute of the semantic surfaces, or from
+    their type; materials and textures from the first theme.
 
     Raises
     ------
     FileNotFoundError
         When ``path`` does not exist.
     LoadError
-        When the file is not CityJSON.
+        When the file is not CityJSON, or a member it reads has the wrong type or refers to
+        something the file does not hold (a vertex, material, texture or semantic surface): the
+        message names its JSON path, e.g. ``CityObjects["b1"].geometry[0].boundaries[3][0][2]``;
+        also vertices that are not finite or lie beyond
+        :data:`~facadeforge.model.model.MAX_COORDINATE` once transformed.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
     doc = read_json(path, "CityJSON file", fix="write it again", error=LoadError)
+    check = _Check(f"CityJSON file '{path}'")
     if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
-        raise LoadError(f"{path} is not a CityJSON file")
-    reader = _CityJsonReader(doc, path.parent)
-    return [m for oid, obj in doc.get("CityObjects", {}).items()
-            if (m := reader.model(oid, obj)) is not None]
+        raise LoadError(f"{path} is not a CityJSON file (no top-level object with \"type\": "
+                        "\"CityJSON\")")
+    return _CityJsonReader(doc, path.parent, check, check.transform(doc)).models(doc)
 
 
 def load_cityjsonseq(path: str | os.PathLike) -> list[Model]:
     """Read CityJSON Text Sequences (``.city.jsonl``): the first line's transform, then each
     ``CityJSONFeature`` with its vertices and appearance, as :func:`load_cityjson` reads a
-    file."""
+    file (and with its errors, naming the line)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no such file: {path}")
     models: list[Model] = []
-    head = None
+    transform = None
     try:
         with open(path, encoding="utf-8-sig") as fh:
             for number, line in enumerate(fh, 1):
                 if not line.strip():
                     continue
-                doc = parse_json(line, f"CityJSON sequence '{path}':{number}",
-                                 fix="write it again", error=LoadError)
-                if head is None:
+                source = f"CityJSON sequence '{path}':{number}"
+                doc = parse_json(line, source, fix="write it again", error=LoadError)
+                check = _Check(source)
+                if transform is None:
                     if not isinstance(doc, dict) or doc.get("type") != "CityJSON":
                         raise LoadError(f"{path}: the first line is not a CityJSON object")
-                    head = doc
+                    transform = check.transform(doc)
                     continue
                 if not isinstance(doc, dict) or doc.get("type") != "CityJSONFeature":
                     raise LoadError(f"{path}:{number}: not a CityJSONFeature")
-                part = {"type": "CityJSON", "transform": head.get("transform"),
-                        "vertices": doc.get("vertices", []), "appearance": doc.get("appearance"),
-                        "CityObjects": doc.get("CityObjects", {})}
-                reader = _CityJsonReader(part, path.parent)
-                models.extend(m for oid, obj in part["CityObjects"].items()
-                              if (m := reader.model(oid, obj)) is not None)
+                models.extend(_CityJsonReader(doc, path.parent, check, transform).models(doc))
     except UnicodeDecodeError as exc:
         raise LoadError(f"CityJSON sequence '{path}' is not UTF-8 text (byte {exc.start}); "
                         "write it again") from None
-    if head is None:
+    if transform is None:
         raise LoadError(f"{path} is empty")
     return models
 
 
+def _quoted(key: str) -> str:
+    """A City Object id as it appears in a JSON path (``["b1"]``), long ids shortened."""
+    return "[" + json.dumps(key if len(key) <= 40 else key[:36] + "…") + "]"
+
+
+class _Check:
+    """Typed reads from a parsed CityJSON document: every member the reader uses is checked
+    for its type (and indices for their range) before numpy or shapely see it, and a wrong one
+    is a :class:`LoadError` naming the file (``source``) and the member's JSON path, as
+    :class:`~facadeforge.geometry.footprints._GeoJson` does for footprints."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def error(self, where: str, problem: str) -> LoadError:
+        at = f" {where}" if where else ""
+        return LoadError(f"{self.source}:{at} {problem}; {_FIX}")
+
+    def obj(self, v, where: str) -> dict:
+        if not isinstance(v, dict):
+            raise self.error(where or "the top level", f"must be an object, not {json_type(v)}")
+        return v
+
+    def array(self, v, where: str) -> list:
+        if not isinstance(v, list):
+            raise self.error(where, f"must be an array, not {json_type(v)}")
+        return v
+
+    def member(self, obj: dict, key: str, where: str, kind: type, kind_name: str):
+        """``obj[key]`` when it is a ``kind`` (None when absent or null)."""
+        v = obj.get(key)
+        if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
+            return v
+        raise self.error(f"{where}.{key}" if where else key,
+                         f"must be {kind_name}, not {json_type(v)}")
+
+    def number(self, v, where: str, lo: float = -np.inf, hi: float = np.inf) -> float:
+        """``v`` as a float when it is a finite number within ``[lo, hi]``."""
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.error(where, f"must be a number, not {json_type(v)}")
+        try:
+            f = float(v)
+        except OverflowError:  # an integer of hundreds of digits
+            f = np.inf
+        if not (np.isfinite(f) and lo <= f <= hi):
+            shown = repr(v) if len(repr(v)) <= 24 else repr(v)[:12] + "…"
+            within = "" if np.isinf(lo) else f" within [{lo:g}, {hi:g}]"
+            raise self.error(where, f"is {shown}, not a finite number{within}")
+        return f
+
+    def numbers(self, v, where: str, n: int, lo: float = -np.inf,
+                hi: float = np.inf) -> np.ndarray:
+        """An array of exactly ``n`` finite numbers."""
+        self.array(v, where)
+        if len(v) != n:
+            raise self.error(where, f"must hold {n} numbers, not {len(v)}")
+        return np.array([self.number(x, f"{where}[{j}]", lo, hi) for j, x in enumerate(v)])
+
+    def rows(self, v, where: str, width: int, limit: float = np.inf) -> np.ndarray:
+        """An array of arrays of ``width`` finite numbers (vertices, texture vertices) as an
+        (N, width) float array."""
+        if v is None:
+            return np.zeros((0, width))
+        self.array(v, where)
+        if not v:
+            return np.zeros((0, width))
+        try:  # one conversion for the honest case, checked as a whole
+            a = np.array(v)
+        except (ValueError, OverflowError):
+            a = None
+        if (a is not None and a.ndim == 2 and a.shape[1] == width and a.dtype.kind in "iuf"
+                and not any(type(x) is bool for row in v for x in row)):
+            a = a.astype(float)
+            if np.isfinite(a).all() and (np.abs(a) <= limit).all():
+                return a
+        # something is wrong: row by row, for the message
+        for i, row in enumerate(v):
+            self.numbers(row, f"{where}[{i}]", width, -limit, limit)
+        return np.array(v, float)  # pragma: no cover - the loop above found every problem
+
+    def indices(self, v, where: str, count: int, what: str, at_least: int = 0) -> np.ndarray:
+        """An array of at least ``at_least`` integers in ``[0, count)`` (``what``: what they
+        index, for the message)."""
+        self.array(v, where)
+        if len(v) < at_least:
+            raise self.error(where, f"must hold at least {at_least} indices, not {len(v)}")
+        if all(type(x) is int for x in v) and (not v or (min(v) >= 0 and max(v) < count)):
+            return np.array(v, np.int64)
+        for j, x in enumerate(v):
+            self.index(x, f"{where}[{j}]", count, what, null=False)
+        raise AssertionError("unreachable")  # pragma: no cover
+
+    def index(self, v, where: str, count: int, what: str, null: bool = True) -> int | None:
+        """An integer in ``[0, count)`` (or null when ``null``)."""
+        if v is None and null:
+            return None
+        if type(v) is not int:
+            kind = "an integer or null" if null else "an integer"
+            raise self.error(where, f"must be {kind}, not {json_type(v)}")
+        if not 0 <= v < count:
+            shown = str(v) if len(str(v)) <= 24 else str(v)[:12] + "…"
+            raise self.error(where, f"is {shown}, but the file has {count} {what}")
+        return v
+
+    def transform(self, doc: dict) -> tuple[np.ndarray, np.ndarray]:
+        """``(scale, translate)`` of the document's ``transform`` (none: identity)."""
+        tr = self.member(doc, "transform", "", dict, "an object")
+        if tr is None:
+            return np.ones(3), np.zeros(3)
+        scale = self.numbers(tr.get("scale"), "transform.scale", 3)
+        if not scale.all():
+            raise self.error("transform.scale", "must not hold 0")
+        return scale, self.numbers(tr.get("translate"), "transform.translate", 3)
+
+    def lod(self, geom: dict, where: str) -> float:
+        """A geometry's level of detail (a string such as ``"2.2"`` or a number) as a float."""
+        lod = geom.get("lod", "0")
+        if isinstance(lod, str):
+            try:
+                value = float(lod)
+            except ValueError:
+                value = np.nan
+        elif isinstance(lod, (int, float)) and not isinstance(lod, bool):
+            return self.number(lod, f"{where}.lod")
+        else:
+            raise self.error(f"{where}.lod", f"must be a string such as \"2.2\", not "
+                             f"{json_type(lod)}")
+        if not np.isfinite(value):
+            raise self.error(f"{where}.lod", f"is {lod!r}, not a level of detail such as \"2.2\"")
+        return value
+
+
 class _CityJsonReader:
-    def __init__(self, doc: dict, folder: Path) -> None:
-        tr = doc.get("transform") or {"scale": [1, 1, 1], "translate": [0, 0, 0]}
-        verts = np.asarray(doc.get("vertices", []), float).reshape(-1, 3)
-        real = verts * np.asarray(tr["scale"], float) + np.asarray(tr["translate"], float)
+    """Models from one CityJSON document (or one CityJSONFeature of a sequence): its vertices,
+    appearance and City Objects, every member checked as it is read (:class:`_Check`)."""
+
+    def __init__(self, doc: dict, folder: Path, check: _Check,
+                 transform: tuple[np.ndarray, np.ndarray]) -> None:
+        self.check = c = check
+        scale, translate = transform
+        with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+            real = c.rows(doc.get("vertices"), "vertices", 3) * scale + translate
+        far = ~(np.abs(real) <= MAX_COORDINATE).all(axis=1)
+        if far.any():
+            i = int(np.argmax(far))
+            raise c.error(f"vertices[{i}]", f"lies at {real[i].tolist()} once transformed: not "
+                          f"finite or beyond ±{MAX_COORDINATE:.0e}")
         self.vertices = real @ _TO_CJ  # inverse rotation: CityJSON → CGA
-        app = doc.get("appearance") or {}
-        self.materials = app.get("materials", [])
-        self.textures = app.get("textures", [])
-        self.uvs = np.asarray(app.get("vertices-texture", []), float).reshape(-1, 2)
+        app = c.member(doc, "appearance", "", dict, "an object") or {}
+        w = "appearance.materials"
+        self.materials = [self._material_entry(m, f"{w}[{i}]")
+                          for i, m in enumerate(c.member(app, "materials", "appearance", list,
+                                                         "an array") or [])]
+        w = "appearance.textures"
+        self.textures = [c.member(c.obj(t, f"{w}[{i}]"), "image", f"{w}[{i}]", str, "a string")
+                         for i, t in enumerate(c.member(app, "textures", "appearance", list,
+                                                        "an array") or [])]
+        self.uvs = c.rows(app.get("vertices-texture"), "appearance.vertices-texture", 2,
+                          MAX_COORDINATE)
         self.folder = folder
 
-    def model(self, oid: str, obj: dict) -> Model | None:
-        geoms = [g for g in obj.get("geometry", [])
-                 if g.get("type") in ("MultiSurface", "CompositeSurface", "Solid")]
+    def _material_entry(self, m, where: str) -> tuple[str | None, tuple, float]:
+        """``(name, diffuse colour, transparency)`` of an ``appearance.materials`` entry."""
+        c = self.check
+        c.obj(m, where)
+        name = c.member(m, "name", where, str, "a string")
+        color = m.get("diffuseColor")
+        color = (1.0, 1.0, 1.0) if color is None else tuple(
+            c.numbers(color, f"{where}.diffuseColor", 3, 0.0, 1.0).tolist())
+        transparency = m.get("transparency")
+        transparency = 0.0 if transparency is None else c.number(
+            transparency, f"{where}.transparency", 0.0, 1.0)
+        return name, color, transparency
+
+    def models(self, doc: dict) -> list[Model]:
+        objects = self.check.member(doc, "CityObjects", "", dict, "an object") or {}
+        return [m for oid, obj in objects.items() if (m := self.model(oid, obj)) is not None]
+
+    def model(self, oid: str, obj) -> Model | None:
+        c = self.check
+        where = f"CityObjects{_quoted(oid)}"
+        c.obj(obj, where)
+        geoms = []
+        for i, g in enumerate(c.member(obj, "geometry", where, list, "an array") or []):
+            gw = f"{where}.geometry[{i}]"
+            c.obj(g, gw)
+            if c.member(g, "type", gw, str, "a string") in _SURFACE_TYPES:
+                geoms.append((c.lod(g, gw), g, gw))
+        attributes = c.member(obj, "attributes", where, dict, "an object")
         if not geoms:
             return None
-        geom = max(geoms, key=lambda g: float(str(g.get("lod", "0"))))
-        model = Model(name=oid, attributes=dict(obj.get("attributes") or {}))
-        surfaces, sem, mats, texs = _flatten_geometry(geom)
+        _, geom, gw = max(geoms, key=lambda t: t[0])  # the first of the highest LoD
+        model = Model(name=oid, attributes=dict(attributes or {}))
+        surfaces, sem, mats, texs, table = self._flatten(geom, gw)
         runs: dict[tuple, list[int]] = {}
-        for i, key in enumerate(self._face_keys(geom, sem, mats, texs)):
+        for i, key in enumerate(self._face_keys(table, sem, mats, texs)):
             runs.setdefault(key, []).append(i)
         for (label, symbol, mat_index, tex_index), idx in runs.items():
             meshes = [self._surface_mesh(surfaces[i], texs[i]) for i in idx]
@@ -737,17 +918,129 @@ class _CityJsonReader:
                                     symbol=symbol))
         return model
 
-    def _surface_mesh(self, ring_ids: list, refs: list) -> Mesh:
+    def _flatten(self, geom: dict, where: str) -> tuple[list, list, list, list, list]:
+        """Checked rings (outer first), semantic values, material values and texture refs (one
+        entry per surface, a Solid's shells flattened), and the semantic surfaces table."""
+        c = self.check
+        bw = f"{where}.boundaries"
+        boundaries = c.member(geom, "boundaries", where, list, "an array") or []
+        if geom["type"] == "Solid":
+            shells = [len(c.array(shell, f"{bw}[{s}]")) for s, shell in enumerate(boundaries)]
+            raw = [(surface, f"{bw}[{s}][{k}]") for s, shell in enumerate(boundaries)
+                   for k, surface in enumerate(shell)]
+        else:
+            shells, raw = None, [(surface, f"{bw}[{k}]") for k, surface in enumerate(boundaries)]
+        surfaces = [self._surface(s, w) for s, w in raw]
+        n = len(surfaces)
+
+        sw = f"{where}.semantics"
+        semantics = c.member(geom, "semantics", where, dict, "an object") or {}
+        table = [self._semantic_surface(s, f"{sw}.surfaces[{i}]") for i, s in
+                 enumerate(c.member(semantics, "surfaces", sw, list, "an array") or [])]
+        sem = self._values(semantics.get("values"), f"{sw}.values", shells, n,
+                           lambda v, w, k: c.index(v, w, len(table), "semantic surfaces"))
+
+        def material_index(v, w, k):
+            return c.index(v, w, len(self.materials), "materials")
+        mats: list = [None] * n
+        themes = c.member(geom, "material", where, dict, "an object") or {}
+        if themes:  # the first theme
+            theme, mat = next(iter(themes.items()))
+            mw = f"{where}.material{_quoted(theme)}"
+            c.obj(mat, mw)
+            if "value" in mat:
+                mats = [material_index(mat["value"], f"{mw}.value", 0)] * n
+            else:
+                mats = self._values(mat.get("values"), f"{mw}.values", shells, n, material_index)
+        texs: list = [[]] * n
+        themes = c.member(geom, "texture", where, dict, "an object") or {}
+        if themes:
+            theme, tex = next(iter(themes.items()))
+            tw = f"{where}.texture{_quoted(theme)}"
+            c.obj(tex, tw)
+            texs = self._values(tex.get("values"), f"{tw}.values", shells, n,
+                                lambda v, w, k: self._texture_refs(v, w, surfaces[k]))
+        return surfaces, sem, mats, texs, table
+
+    def _surface(self, surface, where: str) -> list[np.ndarray]:
+        """A surface: an array of rings (outer first), each of at least 3 vertex indices."""
+        self.check.array(surface, where)
+        if not surface:
+            raise self.check.error(where, "a surface needs at least one ring")
+        return [self.check.indices(ring, f"{where}[{r}]", len(self.vertices), "vertices", 3)
+                for r, ring in enumerate(surface)]
+
+    def _semantic_surface(self, s, where: str) -> dict:
+        c = self.check
+        c.obj(s, where)
+        return {key: c.member(s, key, where, str, "a string")
+                for key in ("type", "facadeforge_label", "facadeforge_symbol")}
+
+    def _values(self, values, where: str, shells: list[int] | None, n: int, item) -> list:
+        """One checked value per surface (``item(value, where, surface index)``) from a
+        geometry's ``values`` array, nested per shell for a Solid (a null shell: null values);
+        null for every surface when there is none."""
+        c = self.check
+        if values is None:
+            return [item(None, "", k) for k in range(n)]
+        c.array(values, where)
+        if shells is None:
+            if len(values) != n:
+                raise c.error(where, f"has {len(values)} values for {n} surfaces")
+            return [item(v, f"{where}[{k}]", k) for k, v in enumerate(values)]
+        if len(values) != len(shells):
+            raise c.error(where, f"has {len(values)} shells of values for {len(shells)} shells")
+        out: list = []
+        for s, (shell, size) in enumerate(zip(values, shells)):
+            if shell is None:
+                out += [item(None, "", len(out) + j) for j in range(size)]
+                continue
+            c.array(shell, f"{where}[{s}]")
+            if len(shell) != size:
+                raise c.error(f"{where}[{s}]", f"has {len(shell)} values for {size} surfaces")
+            out += [item(v, f"{where}[{s}][{j}]", len(out) + j) for j, v in enumerate(shell)]
+        return out
+
+    def _texture_refs(self, refs, where: str, rings: list[np.ndarray]) -> list:
+        """A surface's texture references, one ``[texture, uv…]`` per ring (``[null]``: none),
+        as ``(texture, uv indices)`` or None per ring."""
+        c = self.check
+        if refs is None:
+            return []
+        c.array(refs, where)
+        if len(refs) > len(rings):
+            raise c.error(where, f"has {len(refs)} ring references for a surface of "
+                          f"{len(rings)} rings")
+        out = []
+        for r, ref in enumerate(refs):
+            rw = f"{where}[{r}]"
+            c.array(ref, rw)
+            if not ref or ref[0] is None:
+                out.append(None)
+                continue
+            texture = c.index(ref[0], f"{rw}[0]", len(self.textures), "textures", null=False)
+            if len(ref) - 1 != len(rings[r]):
+                raise c.error(rw, f"has {len(ref) - 1} texture vertices for a ring of "
+                              f"{len(rings[r])} vertices")
+            for j, u in enumerate(ref[1:], 1):
+                if type(u) is not int or not 0 <= u < len(self.uvs):
+                    c.index(u, f"{rw}[{j}]", len(self.uvs), "texture vertices", null=False)
+            out.append((texture, np.array(ref[1:], np.int64)))
+        return out
+
+    def _surface_mesh(self, pts_ids: list, refs: list) -> Mesh:
         """One surface: a polygon, or, with holes, the pieces of one face with holes."""
-        pts = [self.vertices[r] for r in ring_ids]
+        pts = [self.vertices[r] for r in pts_ids]
         uvs = [self._face_uv(refs[k] if k < len(refs) else None) for k in range(len(pts))]
         if len(pts) == 1:
             return Mesh.from_polygons(pts, uvs)
+        n = polygon_normal(pts[0])
+        if not n.any():  # an outline without area has no plane to cut its holes in
+            return Mesh.from_polygons(pts[:1], uvs[:1])
         import shapely
 
         from ..geometry.polygon import simple_pieces
 
-        n = polygon_normal(pts[0])
         basis = plane_basis(n, pts[0][1] - pts[0][0])
         flat = [(q - pts[0][0]) @ basis[:, :2] for q in pts]
         shape = shapely.Polygon(flat[0], flat[1:]).buffer(0)
@@ -765,57 +1058,28 @@ class _CityJsonReader:
             HOLED, fresh_ids([0] * len(lifted)))
 
     @staticmethod
-    def _face_keys(geom: dict, sem: list, mats: list, texs: list) -> list[tuple]:
-        table = (geom.get("semantics") or {}).get("surfaces", [])
+    def _face_keys(table: list, sem: list, mats: list, texs: list) -> list[tuple]:
         keys = []
         for s, m, t in zip(sem, mats, texs):
-            surface = table[s] if s is not None and s < len(table) else {}
+            surface = table[s] if s is not None else {}
             label = surface.get("facadeforge_label")
             if label is None:
-                guess = label_for_name(str(surface.get("type", "")).replace("Surface", ""))
+                guess = label_for_name(str(surface.get("type") or "").replace("Surface", ""))
                 label = guess.value if guess else ""
-            tex = t[0][0] if t and t[0] else None
-            keys.append((label, surface.get("facadeforge_symbol", ""), m, tex))
+            tex = t[0][0] if t and t[0] is not None else None
+            keys.append((label, surface.get("facadeforge_symbol") or "", m, tex))
         return keys
 
     def _material(self, index: int | None, texture: int | None) -> Material:
         path = None
-        if texture is not None and texture < len(self.textures):
-            candidate = self.folder / self.textures[texture].get("image", "")
+        if texture is not None and self.textures[texture]:
+            candidate = self.folder / self.textures[texture]
             path = str(candidate) if candidate.is_file() else None
-        if index is None or index >= len(self.materials):
+        if index is None:
             return Material(texture=path)
-        m = self.materials[index]
-        return Material(name=m.get("name", f"material{index}"),
-                        color=tuple(float(c) for c in m.get("diffuseColor", (1, 1, 1))),
-                        opacity=1.0 - float(m.get("transparency", 0.0)), texture=path)
+        name, color, transparency = self.materials[index]
+        return Material(name=name or f"material{index}", color=color,
+                        opacity=1.0 - transparency, texture=path)
 
-    def _face_uv(self, ref: list | None) -> np.ndarray | None:
-        if not ref or ref[0] is None or len(ref) < 4:
-            return None
-        return self.uvs[np.asarray(ref[1:], np.int64)]
-
-
-def _flatten_geometry(geom: dict) -> tuple[list, list, list, list]:
-    """Rings (outer first), semantic values, material values and texture refs (one per ring),
-    one entry per surface."""
-    kind = geom["type"]
-    boundaries = geom.get("boundaries", [])
-    sem = (geom.get("semantics") or {}).get("values")
-    mat = next(iter((geom.get("material") or {}).values()), {})
-    tex = next(iter((geom.get("texture") or {}).values()), {}).get("values")
-    if kind == "Solid":
-        boundaries = [s for shell in boundaries for s in shell]
-        sem = None if sem is None else [v for shell in sem for v in (shell or [])]
-        tex = None if tex is None else [v for shell in tex for v in shell]
-    n = len(boundaries)
-    surfaces = [[np.asarray(r, np.int64) for r in surface] for surface in boundaries]
-    sem = list(sem) if sem is not None else [None] * n
-    if "value" in mat:
-        mats = [mat["value"]] * n
-    else:
-        mats = list(mat.get("values") or [None] * n)
-        if kind == "Solid" and mats and isinstance(mats[0], list):
-            mats = [v for shell in mats for v in shell]
-    texs = [[] if t is None else list(t) for t in tex] if tex is not None else [[]] * n
-    return surfaces, sem, mats, texs
+    def _face_uv(self, ref: tuple | None) -> np.ndarray | None:
+        return None if ref is None else self.uvs[ref[1]]

@@ -41,7 +41,8 @@ import numpy as np
 import pygltflib as gl
 
 from ..geometry.mesh import Mesh, column_bounds
-from ..model.model import Material, Model, Part
+from ..jsonfile import json_type
+from ..model.model import MAX_COORDINATE, Material, Model, Part
 from ._common import (
     Staging,
     corner_uvs,
@@ -348,6 +349,12 @@ def gltf_triangles(gltf: gl.GLTF2, path: Path, texture_dir) -> list:
 
 
 class _GlbReader:
+    """Models (or triangles) from a loaded glTF.  pygltflib keeps the JSON's values as they
+    are, so every member read is checked here for its type, and every index for its range,
+    before numpy sees it: a wrong one is a :class:`LoadError` naming the file and the member's
+    JSON path (``accessors[3].count``).  Accessors are checked against the binary chunk before
+    any array is made, so a small file cannot claim gigabytes."""
+
     def __init__(self, gltf: gl.GLTF2, path: Path, texture_dir) -> None:
         self.gltf = gltf
         self.path = path
@@ -356,29 +363,131 @@ class _GlbReader:
         self._materials: dict[int | None, Material] = {}
         self._images: dict[int, str | None] = {}
 
+    # typed reads -----------------------------------------------------------------------------
+    def _error(self, where: str, problem: str) -> LoadError:
+        return LoadError(f"glTF file '{self.path}': {where} {problem}; export the file again")
+
+    def _int(self, v, where: str, below: int | None = None) -> int:
+        """``v`` when it is an integer in ``[0, below)`` (no upper bound when ``below`` is
+        None)."""
+        if type(v) is not int:
+            raise self._error(where, f"must be an integer, not {json_type(v)}")
+        if v < 0 or (below is not None and v >= below):
+            shown = str(v) if len(str(v)) <= 24 else str(v)[:12] + "…"
+            bound = "" if below is None else f" below {below}"
+            raise self._error(where, f"is {shown}, not an integer from 0{bound}")
+        return v
+
+    def _list(self, v, where: str) -> list:
+        """``v`` when it is an array (None: empty)."""
+        if v is None:
+            return []
+        if not isinstance(v, list):
+            raise self._error(where, f"must be an array, not {json_type(v)}")
+        return v
+
+    def _ref(self, index, table: str, where: str, kind: type):
+        """The entry ``index`` of the top-level array ``table``, which must be a ``kind``."""
+        items = self._list(getattr(self.gltf, table), table)
+        i = self._int(index, where, len(items))
+        if not isinstance(items[i], kind):
+            raise self._error(f"{table}[{i}]", f"must be an object, not {json_type(items[i])}")
+        return items[i]
+
+    def _numbers(self, v, where: str, n: int) -> np.ndarray | None:
+        """``v`` as ``n`` finite floats (None when absent or empty)."""
+        if v is None or (isinstance(v, list) and not v):
+            return None
+        if not isinstance(v, list) or len(v) != n:
+            raise self._error(where, f"must be an array of {n} numbers")
+        for j, x in enumerate(v):
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                raise self._error(f"{where}[{j}]", f"must be a number, not {json_type(x)}")
+            try:
+                finite = np.isfinite(float(x))
+            except OverflowError:
+                finite = False
+            if not finite:
+                raise self._error(f"{where}[{j}]", "must be a finite number")
+        return np.array(v, float)
+
+    def _dict(self, v, where: str) -> dict:
+        """``v`` when it is an object (None: empty)."""
+        if v is None:
+            return {}
+        if not isinstance(v, dict):
+            raise self._error(where, f"must be an object, not {json_type(v)}")
+        return v
+
+    # scene -----------------------------------------------------------------------------------
     def _walk(self):
         """``(index, node, world matrix)`` of every node of the scene, depth first in order."""
         g = self.gltf
-        if g.scenes:
-            roots = g.scenes[g.scene or 0].nodes or []
+        nodes = self._list(g.nodes, "nodes")
+        for i, node in enumerate(nodes):
+            if not isinstance(node, gl.Node):
+                raise self._error(f"nodes[{i}]", f"must be an object, not {json_type(node)}")
+        scenes = self._list(g.scenes, "scenes")
+        if scenes:
+            s = 0 if g.scene is None else g.scene
+            scene = self._ref(s, "scenes", "scene", gl.Scene)
+            roots = [(n, f"scenes[{s}].nodes[{k}]")
+                     for k, n in enumerate(self._list(scene.nodes, f"scenes[{s}].nodes"))]
         else:
-            children = {c for n in g.nodes for c in (n.children or [])}
-            roots = [i for i in range(len(g.nodes)) if i not in children]
-        stack = [(i, np.eye(4), 0) for i in reversed(roots)]
+            children = {c for i, n in enumerate(nodes)
+                        for c in self._list(n.children, f"nodes[{i}].children")
+                        if type(c) is int}
+            roots = [(i, "") for i in range(len(nodes)) if i not in children]
+        stack = [(i, where, np.eye(4), 0) for i, where in reversed(roots)]
         seen: set[int] = set()
         while stack:
-            idx, parent, depth = stack.pop()
+            idx, where, parent, depth = stack.pop()
             if depth > 256:
-                raise LoadError(f"{self.path}: the node hierarchy is deeper than 256 (a cycle?)")
-            if idx in seen or not 0 <= idx < len(g.nodes):
+                raise self._error(where, "is deeper than 256 nodes in the hierarchy (a cycle?)")
+            idx = self._int(idx, where, len(nodes))
+            if idx in seen:
                 # glTF: a node has at most one parent (else a tiny file could repeat a mesh
                 # 2^depth times)
-                raise LoadError(f"{self.path}: node {idx} is reached twice or does not exist")
+                raise self._error(where, f"is node {idx}, which is reached twice")
             seen.add(idx)
-            node = g.nodes[idx]
-            world = parent @ _node_matrix(node)
+            node = nodes[idx]
+            world = parent @ self._node_matrix(node, f"nodes[{idx}]")
             yield idx, node, world
-            stack.extend((c, world, depth + 1) for c in reversed(node.children or []))
+            kids = self._list(node.children, f"nodes[{idx}].children")
+            stack.extend((c, f"nodes[{idx}].children[{k}]", world, depth + 1)
+                         for k, c in reversed(list(enumerate(kids))))
+
+    def _node_matrix(self, node: gl.Node, where: str) -> np.ndarray:
+        """Local 4×4 transform of a node (``matrix`` or translation/rotation/scale)."""
+        matrix = self._numbers(node.matrix, f"{where}.matrix", 16)
+        if matrix is not None:
+            return matrix.reshape(4, 4).T
+        m = np.eye(4)
+        rotation = self._numbers(node.rotation, f"{where}.rotation", 4)
+        if rotation is not None:
+            x, y, z, w = rotation
+            m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+        scale = self._numbers(node.scale, f"{where}.scale", 3)
+        if scale is not None:
+            m[:3, :3] = m[:3, :3] * scale
+        translation = self._numbers(node.translation, f"{where}.translation", 3)
+        if translation is not None:
+            m[:3, 3] = translation
+        return m
+
+    def _primitives(self, node: gl.Node, idx: int) -> list[tuple[gl.Primitive, str]]:
+        """``(primitive, JSON path)`` of the node's mesh (none without a mesh)."""
+        if node.mesh is None:
+            return []
+        mesh = self._ref(node.mesh, "meshes", f"nodes[{idx}].mesh", gl.Mesh)
+        where = f"meshes[{node.mesh}].primitives"
+        prims = self._list(mesh.primitives, where)
+        for k, prim in enumerate(prims):
+            if not isinstance(prim, gl.Primitive):
+                raise self._error(f"{where}[{k}]", f"must be an object, not {json_type(prim)}")
+        return [(prim, f"{where}[{k}]") for k, prim in enumerate(prims)]
 
     def models(self) -> list[Model]:
         out: list[Model] = []
@@ -392,131 +501,229 @@ class _GlbReader:
         """``(positions, triangles, uv or None, material)`` of every triangle primitive, the
         positions in scene coordinates and shared by the primitive's triangles."""
         out = []
-        for _, node, world in self._walk():
-            if node.mesh is None:
-                continue
-            for prim in self.gltf.meshes[node.mesh].primitives:
-                got = self._primitive_triangles(prim, world)
+        for idx, node, world in self._walk():
+            for prim, where in self._primitives(node, idx):
+                got = self._primitive_triangles(prim, world, where)
                 if got is not None:
-                    out.append((*got, self._material(prim.material)))
+                    out.append((*got, self._material(prim.material, f"{where}.material")))
         return out
 
     def _node_model(self, node: gl.Node, idx: int, world: np.ndarray) -> Model | None:
+        where = f"nodes[{idx}].extras"
         extras = node.extras if isinstance(node.extras, dict) else {}
         if node.mesh is None and not extras.get("facadeforge_model"):
             return None
-        model = Model(name=node.name or f"node{idx}",
-                      attributes=joined_attributes(extras.get("attributes"),
-                                                   extras.get("georeference")),
-                      reports={k: list(v) for k, v in (extras.get("reports") or {}).items()},
-                      warnings=list(extras.get("warnings") or []))
-        if node.mesh is not None:
-            for prim in self.gltf.meshes[node.mesh].primitives:
-                model.parts.extend(self._primitive_parts(prim, world))
+        reports = self._dict(extras.get("reports"), f"{where}.reports")
+        name = node.name if isinstance(node.name, str) and node.name else f"node{idx}"
+        model = Model(name=name,
+                      attributes=joined_attributes(
+                          self._dict(extras.get("attributes"), f"{where}.attributes"),
+                          self._dict(extras.get("georeference"), f"{where}.georeference")),
+                      reports={str(k): list(self._list(v, f"{where}.reports.{k}"))
+                               for k, v in reports.items()},
+                      warnings=[str(w) for w in self._list(extras.get("warnings"),
+                                                           f"{where}.warnings")])
+        for prim, pw in self._primitives(node, idx):
+            model.parts.extend(self._primitive_parts(prim, world, pw))
         return model
 
-    def _primitive_triangles(self, prim: gl.Primitive, world: np.ndarray):
+    # geometry --------------------------------------------------------------------------------
+    def _primitive_triangles(self, prim: gl.Primitive, world: np.ndarray, where: str):
         """``(positions, triangles, uv or None)`` of a triangle primitive, else ``None``."""
-        if prim.mode not in (None, gl.TRIANGLES) or prim.attributes.POSITION is None:
+        attrs = prim.attributes
+        if prim.mode not in (None, gl.TRIANGLES) or not isinstance(attrs, gl.Attributes) \
+                or attrs.POSITION is None:
             return None
-        pos = self._accessor(prim.attributes.POSITION).astype(float).reshape(-1, 3)
-        pos = pos @ world[:3, :3].T + world[:3, 3]
+        aw = f"{where}.attributes"
+        pos = self._accessor(attrs.POSITION, f"{aw}.POSITION", "VEC3").astype(float)
+        with np.errstate(over="ignore", invalid="ignore"):  # checked just below
+            pos = pos @ world[:3, :3].T + world[:3, 3]
+        if not (np.abs(pos) <= MAX_COORDINATE).all():
+            raise self._error(f"{aw}.POSITION", f"holds positions that are not finite or lie "
+                              f"beyond ±{MAX_COORDINATE:.0e} (node transforms applied)")
         if prim.indices is not None:
-            tris = self._accessor(prim.indices).reshape(-1, 3).astype(np.int64)
+            tris = self._accessor(prim.indices, f"{where}.indices", "SCALAR",
+                                  (gl.UNSIGNED_BYTE, gl.UNSIGNED_SHORT, gl.UNSIGNED_INT))
+            if len(tris) % 3:
+                raise self._error(f"{where}.indices", f"holds {len(tris)} indices, not whole "
+                                  "triangles (a multiple of 3)")
+            tris = tris.reshape(-1, 3).astype(np.int64)
         else:
             tris = np.arange(len(pos) - len(pos) % 3).reshape(-1, 3)
         if len(tris) and (tris.min() < 0 or tris.max() >= len(pos)):
-            raise LoadError(f"{self.path}: a triangle refers to a vertex that does not exist")
+            raise self._error(f"{where}.indices", f"refers to vertex {int(tris.max())} (or a "
+                              f"negative one) of {len(pos)}")
         uv = None
-        if prim.attributes.TEXCOORD_0 is not None:
-            uv = self._accessor(prim.attributes.TEXCOORD_0).astype(float).reshape(-1, 2)
+        if attrs.TEXCOORD_0 is not None:
+            uv = self._accessor(attrs.TEXCOORD_0, f"{aw}.TEXCOORD_0", "VEC2").astype(float)
+            if len(uv) != len(pos):
+                raise self._error(f"{aw}.TEXCOORD_0", f"has {len(uv)} elements for "
+                                  f"{len(pos)} positions")
+            if not np.isfinite(uv).all():
+                raise self._error(f"{aw}.TEXCOORD_0", "holds numbers that are not finite")
             uv = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])
         if np.linalg.det(world[:3, :3]) < 0:
             tris = tris[:, ::-1]
         return pos, tris, uv
 
-    def _primitive_parts(self, prim: gl.Primitive, world: np.ndarray) -> list[Part]:
-        got = self._primitive_triangles(prim, world)
+    def _primitive_parts(self, prim: gl.Primitive, world: np.ndarray, where: str) -> list[Part]:
+        got = self._primitive_triangles(prim, world, where)
         if got is None:
             return []
         pos, tris, uv = got
         extras = prim.extras if isinstance(prim.extras, dict) else {}
         label = str(extras.get("label", ""))
-        symbols = [str(s) for s in extras.get("symbols", [])]
-        if isinstance(extras.get("parts_accessor"), int):
-            records = self._accessor(extras["parts_accessor"]).reshape(-1, 4).astype(np.int64).tolist()
-        else:
-            records = extras.get("parts") or [[0, 0, len(tris), 0]]
-        material = self._material(prim.material)
+        symbols = [str(s) for s in self._list(extras.get("symbols"), f"{where}.extras.symbols")]
+        records = self._part_records(extras, f"{where}.extras", len(tris))
+        material = self._material(prim.material, f"{where}.material")
         parts = []
         for sym, first, count, *rest in records:
-            sel = tris[int(first):int(first) + int(count)]
+            sel = tris[first:first + count]
             parts.append(Part(_triangle_mesh(pos, uv, sel), label=label, material=material,
                               symbol=symbols[sym] if 0 <= sym < len(symbols) else "",
                               shape_id=int(rest[0]) if rest else 0))
         return parts
 
-    def _accessor(self, index: int) -> np.ndarray:
-        acc = self.gltf.accessors[index]
+    def _part_records(self, extras: dict, where: str, n_tris: int) -> list[list[int]]:
+        """``[symbol, first triangle, triangle count, shape id]`` of each part of a primitive
+        (one part of all its triangles without facadeforge's extras), checked against the
+        primitive's ``n_tris`` triangles."""
+        if isinstance(extras.get("parts_accessor"), int):
+            table = self._accessor(extras["parts_accessor"], f"{where}.parts_accessor")
+            if table.size % 4:
+                raise self._error(f"{where}.parts_accessor", "must hold 4 numbers a part")
+            records = table.reshape(-1, 4).astype(np.int64).tolist()
+        else:
+            records = self._list(extras.get("parts"), f"{where}.parts") or [[0, 0, n_tris, 0]]
+        for k, r in enumerate(records):
+            rw = f"{where}.parts[{k}]"
+            if not (isinstance(r, list) and len(r) >= 3
+                    and all(type(v) is int and abs(v) < 2**63 for v in r)):
+                raise self._error(rw, "must be an array [symbol, first triangle, count, shape]")
+            if r[1] < 0 or r[2] < 0 or r[1] + r[2] > n_tris:
+                raise self._error(rw, f"selects triangles {r[1]} to {r[1] + r[2]} of the "
+                                  f"primitive's {n_tris}")
+        return records
+
+    def _accessor(self, index, where: str, kind: str | None = None,
+                  components: tuple[int, ...] | None = None) -> np.ndarray:
+        """The elements of accessor ``index`` ((N, width) or (N,) for scalars), checked to be
+        of type ``kind`` and one of the ``components`` types when given."""
+        acc = self._ref(index, "accessors", where, gl.Accessor)
+        aw = f"accessors[{index}]"
+        if type(acc.componentType) is not int or acc.componentType not in _COMPONENT_DTYPES:
+            raise self._error(f"{aw}.componentType", f"is {acc.componentType!r}, not one of "
+                              f"{sorted(_COMPONENT_DTYPES)}")
+        if components is not None and acc.componentType not in components:
+            raise self._error(f"{aw}.componentType", f"is {acc.componentType}, but {where} "
+                              f"must be one of {list(components)}")
+        if not isinstance(acc.type, str) or acc.type not in _TYPE_WIDTH:
+            raise self._error(f"{aw}.type", f"is {acc.type!r}, not one of {list(_TYPE_WIDTH)}")
+        if kind is not None and acc.type != kind:
+            raise self._error(f"{aw}.type", f"is {acc.type}, but {where} must be {kind}")
         dtype = np.dtype(_COMPONENT_DTYPES[acc.componentType])
         width = _TYPE_WIDTH[acc.type]
-        count = int(acc.count or 0)
-        if not 0 <= count <= MAX_ACCESSOR_COUNT:
-            raise LoadError(f"{self.path}: accessor {index} claims {count} elements")
+        count = self._int(acc.count or 0, f"{aw}.count")
+        if count > MAX_ACCESSOR_COUNT:
+            raise self._error(f"{aw}.count", f"claims {count} elements, more than the "
+                              f"{MAX_ACCESSOR_COUNT} one accessor may have")
+        element = dtype.itemsize * width
         if acc.bufferView is None:  # all zeros (sparse data is not read)
-            if count * width > len(self.blob) + 1_000_000:
-                raise LoadError(f"{self.path}: accessor {index} has no data for its "
-                                f"{count} elements")
-            return np.zeros((count, width), dtype).squeeze()
-        view = self.gltf.bufferViews[acc.bufferView]
-        inside = acc.byteOffset or 0  # where the accessor starts in its view
-        offset = (view.byteOffset or 0) + inside
-        stride = view.byteStride or dtype.itemsize * width
-        span = stride * (count - 1) + dtype.itemsize * width if count else 0
-        if inside + span > (view.byteLength or 0) or offset + span > len(self.blob):
-            raise LoadError(f"{self.path}: accessor {index} runs past its buffer view")
-        arr = np.ndarray((acc.count, width), dtype, buffer=self.blob, offset=offset,
+            if count * element > len(self.blob) + 1_000_000:
+                raise self._error(aw, f"has no data for its {count} elements (no "
+                                  "bufferView), more than the file could hold")
+            return np.zeros((count, width), dtype).squeeze(axis=1) if width == 1 else \
+                np.zeros((count, width), dtype)
+        view = self._ref(acc.bufferView, "bufferViews", f"{aw}.bufferView", gl.BufferView)
+        vw = f"bufferViews[{acc.bufferView}]"
+        if view.buffer not in (0, None):
+            raise self._error(f"{vw}.buffer", "is not 0: only the GLB's binary chunk is read")
+        inside = self._int(acc.byteOffset or 0, f"{aw}.byteOffset")  # where it starts in its view
+        view_offset = self._int(view.byteOffset or 0, f"{vw}.byteOffset")
+        view_length = self._int(view.byteLength or 0, f"{vw}.byteLength")
+        stride = element if view.byteStride is None else self._int(view.byteStride,
+                                                                   f"{vw}.byteStride")
+        if not element <= stride <= max(252, element):
+            # glTF 2.0 §3.6.2.4: at least an element, at most 252 bytes; an element never
+            # overlaps the next, so an array is never larger than the bytes it is read from
+            raise self._error(f"{vw}.byteStride", f"is {stride}, not from {element} "
+                              "(the element's size) to 252")
+        offset = view_offset + inside
+        span = stride * (count - 1) + element if count else 0
+        if inside + span > view_length or offset + span > len(self.blob):
+            raise self._error(aw, f"runs past its buffer view ({count} elements of {element} "
+                              f"bytes every {stride} from byte {offset}; the view ends at "
+                              f"{view_offset + view_length}, the binary chunk at "
+                              f"{len(self.blob)})")
+        arr = np.ndarray((count, width), dtype, buffer=self.blob, offset=offset,
                          strides=(stride, dtype.itemsize)).copy()
         if acc.normalized and dtype.kind in "iu":
             arr = arr.astype(float) / np.iinfo(dtype).max
         return arr[:, 0] if width == 1 else arr
 
-    def _material(self, index: int | None) -> Material:
-        if index not in self._materials:
-            self._materials[index] = self._make_material(index)
-        return self._materials[index]
-
-    def _make_material(self, index: int | None) -> Material:
+    # appearance ------------------------------------------------------------------------------
+    def _material(self, index, where: str) -> Material:
         if index is None:
             return Material()
-        mat = self.gltf.materials[index]
-        pbr = mat.pbrMetallicRoughness or gl.PbrMetallicRoughness()
-        factor = list(pbr.baseColorFactor or [1.0, 1.0, 1.0, 1.0])
+        key = self._int(index, where, len(self._list(self.gltf.materials, "materials")))
+        if key not in self._materials:
+            self._materials[key] = self._make_material(key)
+        return self._materials[key]
+
+    def _make_material(self, index: int) -> Material:
+        where = f"materials[{index}]"
+        mat = self._ref(index, "materials", where, gl.Material)
+        pbr = mat.pbrMetallicRoughness
+        if pbr is None:
+            pbr = gl.PbrMetallicRoughness()
+        elif not isinstance(pbr, gl.PbrMetallicRoughness):
+            raise self._error(f"{where}.pbrMetallicRoughness", "must be an object")
+        pw = f"{where}.pbrMetallicRoughness"
+        factor = self._numbers(pbr.baseColorFactor, f"{pw}.baseColorFactor", 4)
+        factor = np.ones(4) if factor is None else np.clip(factor, 0.0, 1.0)
         texture = None
-        if pbr.baseColorTexture is not None:
-            source = self.gltf.textures[pbr.baseColorTexture.index].source
-            texture = None if source is None else self._image_file(source)
-        return Material(name=mat.name or f"material{index}",
+        info = pbr.baseColorTexture
+        if info is not None:
+            if not isinstance(info, gl.TextureInfo):
+                raise self._error(f"{pw}.baseColorTexture", "must be an object")
+            tex = self._ref(info.index, "textures", f"{pw}.baseColorTexture.index", gl.Texture)
+            if tex.source is not None:
+                images = self._list(self.gltf.images, "images")
+                texture = self._image_file(self._int(tex.source, f"textures[{info.index}].source",
+                                                     len(images)))
+        metallic = self._numbers([pbr.metallicFactor], f"{pw}.metallicFactor", 1) \
+            if pbr.metallicFactor is not None else None
+        roughness = self._numbers([pbr.roughnessFactor], f"{pw}.roughnessFactor", 1) \
+            if pbr.roughnessFactor is not None else None
+        return Material(name=mat.name if isinstance(mat.name, str) and mat.name
+                        else f"material{index}",
                         color=tuple(float(c) for c in factor[:3]), opacity=float(factor[3]),
                         texture=texture,
-                        metallic=1.0 if pbr.metallicFactor is None else float(pbr.metallicFactor),
-                        roughness=1.0 if pbr.roughnessFactor is None else float(pbr.roughnessFactor))
+                        metallic=1.0 if metallic is None else float(metallic[0]),
+                        roughness=1.0 if roughness is None else float(roughness[0]))
 
     def _image_file(self, index: int) -> str | None:
         if index in self._images:
             return self._images[index]
-        image = self.gltf.images[index]
+        where = f"images[{index}]"
+        image = self._ref(index, "images", where, gl.Image)
         result = None
         if image.bufferView is not None:
-            view = self.gltf.bufferViews[image.bufferView]
-            start = view.byteOffset or 0
-            data = bytes(self.blob[start:start + view.byteLength])
+            view = self._ref(image.bufferView, "bufferViews", f"{where}.bufferView",
+                             gl.BufferView)
+            vw = f"bufferViews[{image.bufferView}]"
+            start = self._int(view.byteOffset or 0, f"{vw}.byteOffset")
+            length = self._int(view.byteLength or 0, f"{vw}.byteLength")
+            if start + length > len(self.blob):
+                raise self._error(vw, "runs past the binary chunk")
+            data = bytes(self.blob[start:start + length])
             if self.texture_dir is None:
                 self.texture_dir = Path(tempfile.mkdtemp(prefix="facadeforge-glb-"))
             self.texture_dir.mkdir(parents=True, exist_ok=True)
             digest = hashlib.sha1(data).hexdigest()[:12]  # same name, same content
+            mime = image.mimeType if isinstance(image.mimeType, str) else ""
             target = self.texture_dir / (f"{self.path.stem}_image{index}_{digest}"
-                                         f"{image_extension(image.mimeType or '')}")
+                                         f"{image_extension(mime)}")
             if not target.is_file() or target.is_symlink():
                 # written whole and then renamed: parallel workers never read half a file
                 part = target.with_name(f".{target.name}.{os.getpid()}.part")
@@ -527,9 +734,14 @@ class _GlbReader:
                     part.unlink(missing_ok=True)
                     raise
             result = str(target)
-        elif image.uri and not image.uri.startswith("data:"):
-            candidate = self.path.parent / image.uri
-            result = str(candidate) if candidate.is_file() else None
+        elif isinstance(image.uri, str) and image.uri and not image.uri.startswith("data:") \
+                and "://" not in image.uri:
+            # an image beside the file or below it, as glTF's relative URIs are; never a
+            # file elsewhere that the model names
+            folder = self.path.parent.resolve()
+            candidate = (folder / image.uri).resolve()
+            if folder in candidate.parents and candidate.is_file():
+                result = str(candidate)
         self._images[index] = result
         return result
 
@@ -541,19 +753,3 @@ def _triangle_mesh(pos: np.ndarray, uv: np.ndarray | None, tris: np.ndarray) -> 
     return mesh_from_flat(pos[corners], np.arange(n), np.arange(0, n + 1, 3),
                           None if uv is None else uv[corners])
 
-
-def _node_matrix(node: gl.Node) -> np.ndarray:
-    """Local 4×4 transform of a node (``matrix`` or translation/rotation/scale)."""
-    if node.matrix:
-        return np.asarray(node.matrix, float).reshape(4, 4).T
-    m = np.eye(4)
-    if node.rotation:
-        x, y, z, w = node.rotation
-        m[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
-    if node.scale:
-        m[:3, :3] = m[:3, :3] * np.asarray(node.scale, float)
-    if node.translation:
-        m[:3, 3] = node.translation
-    return m

@@ -35,7 +35,7 @@ import numpy as np
 from ..geometry.mesh import Mesh
 from ..jsonfile import parse_json
 from ..model.labels import label_for_name
-from ..model.model import Material, Model, Part
+from ..model.model import MAX_COORDINATE, Material, Model, Part
 from ._ascii import format_lines
 from ._common import (
     Staging,
@@ -241,7 +241,9 @@ def load_obj(path: str | os.PathLike) -> list[Model]:
     FileNotFoundError
         When ``path`` does not exist.
     LoadError
-        When a line cannot be parsed or a face refers to a missing vertex.
+        When a line cannot be parsed (a vertex with fewer than three numbers, a number that is
+        not finite or larger than :data:`~facadeforge.model.model.MAX_COORDINATE`, a face
+        without vertices) or a face refers to a missing vertex.
     """
     path = Path(path)
     if not path.is_file():
@@ -268,9 +270,9 @@ def _parse_line(state: _ObjState, line: str, default_name: str) -> None:
     key, _, rest = line.partition(" ")
     rest = rest.strip()
     if key == "v":
-        state.verts.append([float(x) for x in rest.split()[:3]])
+        state.verts.append(_numbers(rest.split()[:3], 3, MAX_COORDINATE))
     elif key == "vt":
-        state.tverts.append([float(x) for x in (rest.split() + ["0"])[:2]])
+        state.tverts.append(_numbers((rest.split() + ["0"])[:2], 2, MAX_COORDINATE))
     elif key == "f":
         _parse_face(state, rest.split(), default_name)
     elif key == "o":
@@ -283,6 +285,19 @@ def _parse_line(state: _ObjState, line: str, default_name: str) -> None:
     elif key == "mtllib":
         for name in rest.split():
             state.materials.update(_read_mtl(state.folder / name))
+
+
+def _numbers(tokens: list[str], n: int, limit: float) -> list[float]:
+    """``n`` finite numbers of magnitude at most ``limit``; ``ValueError`` (which
+    :func:`load_obj` reports with the file and line) otherwise: ``float`` reads ``nan`` and
+    ``1e999`` without complaint, and such a vertex would reach every exporter and renderer."""
+    if len(tokens) < n:
+        raise ValueError(f"{n} numbers needed, got {len(tokens)}")
+    values = [float(x) for x in tokens]
+    for v in values:
+        if not abs(v) <= limit:  # NaN compares false too
+            raise ValueError(f"{v} is not a finite number of magnitude at most {limit:.0e}")
+    return values
 
 
 def _tag_object(text: str) -> dict:
@@ -314,6 +329,8 @@ def _parse_face(state: _ObjState, tokens: list[str], default_name: str) -> None:
         label = state.label or (label_for_name(state.group) or "")
         state.current = _PartBuilder(state.group, str(label), state.material, state.shape_id)
         state.models[-1][1].append(state.current)
+    if not tokens:
+        raise ValueError("a face needs the numbers of its vertices")
     vi, ti = [], []
     for token in tokens:
         parts = token.split("/")
@@ -327,7 +344,7 @@ def _resolve(index: int, count: int) -> int:
     """0-based index of a 1-based (or negative, relative) OBJ index."""
     i = index - 1 if index > 0 else count + index
     if not 0 <= i < count:
-        raise IndexError(f"index {index} out of range")
+        raise IndexError(f"index {index} refers to none of the {count} defined above the line")
     return i
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .footprints import MAX_COORDINATE
 from .mesh import Mesh
 
 MAX_ASSET_BYTES = 256 * 1024 * 1024
@@ -280,7 +281,7 @@ def load_obj(path: Path) -> Asset:
     mtllibs, first_mtl, current_mtl, face_mtl = [], None, None, []
     group, face_group = None, []
     with open(path, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
+        for number, line in enumerate(fh, 1):
             if not line or line[0] == "#":
                 continue
             parts = line.split()
@@ -289,9 +290,11 @@ def load_obj(path: Path) -> Asset:
             tag = parts[0]
             try:
                 if tag == "v":
-                    verts.append([float(x) for x in parts[1:4]])
+                    verts.append(_coordinates(parts[1:4], 3, path, number))
                 elif tag == "vt":
-                    uvs.append([float(x) for x in parts[1:3]])
+                    # "vt u" is legal OBJ: v defaults to 0
+                    uvs.append(_coordinates((parts[1:3] + ["0"] * (len(parts) == 2))[:2], 2,
+                                            path, number))
                 elif tag == "f":
                     vi, ti = [], []
                     for tok in parts[1:]:
@@ -345,6 +348,24 @@ def load_obj(path: Path) -> Asset:
     material = mats.get(first_mtl) if first_mtl in mats else (
         next(iter(mats.values())) if mats else AssetMaterial())
     return Asset(mesh, material, material_list, face_material)
+
+
+def _coordinates(tokens: list[str], n: int, path: Path, number: int) -> list[float]:
+    """The ``n`` numbers of a ``v``/``vt`` line (line ``number``), refused unless finite and
+    of magnitude at most :data:`~facadeforge.geometry.footprints.MAX_COORDINATE`: ``float``
+    reads ``nan`` and ``1e300`` without complaint, and such a vertex would otherwise surface
+    far away as a polygon that is not horizontal, or an exporter's overflow."""
+    values = [float(x) for x in tokens]  # ValueError: a malformed line, reported by the caller
+    if len(values) < n:
+        kind = "vertex" if n == 3 else "texture vertex"
+        raise InputError(f"{path}:{number}: a {kind} needs {n} numbers, this one has "
+                         f"{len(values)}; fix the OBJ file")
+    for v in values:
+        if not abs(v) <= MAX_COORDINATE:  # NaN compares false too
+            raise InputError(f"{path}:{number}: coordinate {v:g} is not a finite number of "
+                             f"magnitude at most {MAX_COORDINATE:.0e}; fix the OBJ file "
+                             "(coordinates in metres)")
+    return values
 
 
 #: MTL keys → CGA material attributes: colours, numbers, texture maps.

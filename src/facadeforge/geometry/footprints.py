@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..jsonfile import json_type
 from .mesh import EPS, polygon_normal
 from .polygon import without_repeats
 
@@ -115,19 +116,6 @@ MAX_COORDINATE = 1e9
 _GEOJSON_FIX = "fix the file (GeoJSON, RFC 7946)"
 
 
-def _json_type(v) -> str:
-    """The JSON name of a parsed value's type, for messages."""
-    if v is None:
-        return "null"
-    if isinstance(v, bool):
-        return "a boolean"
-    if isinstance(v, (int, float)):
-        return "a number"
-    if isinstance(v, str):
-        return "a string"
-    return "an array" if isinstance(v, list) else "an object"
-
-
 class _GeoJson:
     """Typed reads from a parsed GeoJSON document: every member read is checked for its type,
     and a wrong one is an :class:`InputError` naming the file and the member's JSON path
@@ -147,16 +135,16 @@ class _GeoJson:
         if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
             return v
         path = f"{where}.{key}" if where else key
-        raise self.error(path, f"must be {kind_name}, not {_json_type(v)}")
+        raise self.error(path, f"must be {kind_name}, not {json_type(v)}")
 
     def obj(self, v, where: str) -> dict:
         if not isinstance(v, dict):
-            raise self.error(where or "the top level", f"must be an object, not {_json_type(v)}")
+            raise self.error(where or "the top level", f"must be an object, not {json_type(v)}")
         return v
 
     def array(self, v, where: str) -> list:
         if not isinstance(v, list):
-            raise self.error(where, f"must be an array, not {_json_type(v)}")
+            raise self.error(where, f"must be an array, not {json_type(v)}")
         return v
 
     def ring(self, ring, where: str) -> np.ndarray:
@@ -186,7 +174,7 @@ class _GeoJson:
             raise self.error(where, f"a position needs at least 2 numbers, got {len(pos)}")
         for j, v in enumerate(pos):
             if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise self.error(f"{where}[{j}]", f"must be a number, not {_json_type(v)}")
+                raise self.error(f"{where}[{j}]", f"must be a number, not {json_type(v)}")
             if not abs(v) <= MAX_COORDINATE:  # NaN compares false too
                 shown = repr(v) if len(repr(v)) <= 24 else repr(v)[:12] + "…"
                 raise self.error(f"{where}[{j}]", f"is {shown}, not a finite number of magnitude "
@@ -231,7 +219,7 @@ class _GeoJson:
         if not isinstance(crs, dict):
             raise self.error("crs", f"must be an object such as {{\"type\": \"name\", "
                              f"\"properties\": {{\"name\": \"EPSG:25832\"}}}}, not "
-                             f"{_json_type(crs)}")
+                             f"{json_type(crs)}")
         props = self.member(crs, "properties", "crs", dict, "an object") or {}
         return self.member(props, "name", "crs.properties", str, "a string")
 

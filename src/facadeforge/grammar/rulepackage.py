@@ -22,8 +22,18 @@ from pathlib import Path, PurePosixPath
 from ..errors import InputError
 from ..scratch import scratch_dir, sigterm_as_exit
 
-MAX_UNPACKED_BYTES = 2 * 1024**3
+#: Largest total a package may unpack to (bytes).  Checked twice: before anything is written,
+#: from the sizes the archive's listing declares, and while it is written, from the bytes really
+#: decompressed (py7zr's ``max_extract_size``), so a listing that lies stops at the cap too.  A
+#: package holds rules and the assets they insert: the Candler example is 1.1 MB packed, 1.2 MB
+#: unpacked; packages with a texture library run to a few hundred megabytes.  A 7z of zeros
+#: packs 1 GiB into about 150 KiB, which this refuses before it costs the disk anything.
+MAX_UNPACKED_BYTES = 1024**3
+#: Most members (files and folders) a package may list: Candler has 28; a large asset library
+#: has thousands.  Each member is a file to create and a name to check.
 MAX_MEMBERS = 100_000
+#: Largest package file opened: beyond it even the packed bytes exceed what it may unpack to.
+MAX_PACKAGE_BYTES = MAX_UNPACKED_BYTES
 
 
 @dataclass
@@ -48,28 +58,44 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
         else the only ``.cga`` in ``rules/``, else the first with ``@StartRule``.
     """
     import py7zr
+    from py7zr.exceptions import DecompressionBombError
 
     p = Path(path)
     if not p.is_file():
         raise InputError(f"rule package '{path}' does not exist")
+    if p.stat().st_size > MAX_PACKAGE_BYTES:
+        raise InputError(f"rule package '{path}' is {p.stat().st_size >> 20} MiB, more than "
+                         f"the {MAX_PACKAGE_BYTES >> 20} MiB facadeforge unpacks; split it")
     root = scratch_dir("facadeforge-rpk-")   # also removes those of killed runs
+    cap = MAX_UNPACKED_BYTES
     try:
         try:
-            with sigterm_as_exit(), py7zr.SevenZipFile(p, "r") as z:
+            with sigterm_as_exit(), py7zr.SevenZipFile(p, "r", max_extract_size=cap) as z:
                 infos = z.list()
                 if len(infos) > MAX_MEMBERS:
-                    raise InputError(f"'{path}' has more than {MAX_MEMBERS} members")
+                    raise InputError(f"rule package '{path}' has {len(infos)} members, more "
+                                     f"than the {MAX_MEMBERS} facadeforge unpacks")
                 total = 0
                 for info in infos:
                     name = PurePosixPath(info.filename.replace("\\", "/"))
                     if name.is_absolute() or ".." in name.parts:
                         raise InputError(f"'{path}' contains an unsafe member path '{info.filename}'")
-                    total += info.uncompressed or 0
-                if total > MAX_UNPACKED_BYTES:
-                    raise InputError(f"'{path}' unpacks to more than 2 GiB")
+                    total += max(int(info.uncompressed or 0), 0)
+                if total > cap:  # a decompression bomb: refused before a byte is written
+                    raise InputError(f"rule package '{path}' unpacks to {_mib(total)}, more "
+                                     f"than the {_mib(cap)} facadeforge unpacks")
+                free = shutil.disk_usage(root).free
+                if total > free:
+                    raise InputError(f"rule package '{path}' unpacks to {_mib(total)}, but the "
+                                     f"temporary folder {root.parent} has {_mib(free)} free; "
+                                     "free some space or set TMPDIR")
                 z.extractall(path=root)
         except InputError:
             raise
+        except DecompressionBombError:  # the listing understated the sizes
+            raise InputError(f"rule package '{path}' unpacks to more than the {_mib(cap)} "
+                             "facadeforge unpacks (more than its listing says: a damaged or "
+                             "forged package)") from None
         except Exception as e:  # py7zr raises many types for corrupt archives
             raise InputError(f"'{path}' is not a readable rule package (7z): {e}") from None
         resolve_map = _read_resolvemap(root)
@@ -88,6 +114,10 @@ def open_rpk(path: str | Path, rule: str | None = None) -> RulePackage:
         if workers:
             shutil.rmtree(root, ignore_errors=True)
         raise
+
+
+def _mib(n: int) -> str:
+    return f"{n / 2**20:.1f} MiB"
 
 
 def _read_resolvemap(root: Path) -> dict:
