@@ -34,6 +34,37 @@ __all__ = ["MAX_JSON_BYTES", "json_type", "parse_json", "read_json"]
 MAX_JSON_BYTES = 256 * 2**20
 
 
+class JsonMembers:
+    """Typed reads from a parsed JSON document: each member read is checked for its type, and a
+    wrong one raises the error :meth:`error` makes, naming the member's JSON path
+    (``features[3].geometry``), so a malformed file never reaches numpy as a value of the wrong
+    kind.  Subclasses say which file and which error type (footprints, CityJSON)."""
+
+    def error(self, where: str, problem: str) -> Exception:
+        """The exception for ``problem`` at JSON path ``where``."""
+        raise NotImplementedError
+
+    def obj(self, v, where: str) -> dict:
+        """``v`` when it is an object."""
+        if not isinstance(v, dict):
+            raise self.error(where or "the top level", f"must be an object, not {json_type(v)}")
+        return v
+
+    def array(self, v, where: str) -> list:
+        """``v`` when it is an array."""
+        if not isinstance(v, list):
+            raise self.error(where, f"must be an array, not {json_type(v)}")
+        return v
+
+    def member(self, obj: dict, key: str, where: str, kind: type, kind_name: str):
+        """``obj[key]`` when it is a ``kind`` (None when absent or null)."""
+        v = obj.get(key)
+        if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
+            return v
+        raise self.error(f"{where}.{key}" if where else key,
+                         f"must be {kind_name}, not {json_type(v)}")
+
+
 def json_type(v: Any) -> str:
     """The JSON name of a parsed value's type (``"an array"``, ``"null"``…), for messages
     saying a member has the wrong type."""

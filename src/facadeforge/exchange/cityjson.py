@@ -41,7 +41,7 @@ import numpy as np
 
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
-from ..jsonfile import json_type, parse_json, read_json
+from ..jsonfile import JsonMembers, json_type, parse_json, read_json
 from ..model.labels import Labels, label_for_name
 from ..model.model import MAX_COORDINATE, Material, Model, Part
 from ._ascii import format_lines
@@ -719,7 +719,7 @@ def _quoted(key: str) -> str:
     return "[" + json.dumps(key if len(key) <= 40 else key[:36] + "…") + "]"
 
 
-class _Check:
+class _Check(JsonMembers):
     """Typed reads from a parsed CityJSON document: every member the reader uses is checked
     for its type (and indices for their range) before numpy or shapely see it, and a wrong one
     is a :class:`LoadError` naming the file (``source``) and the member's JSON path, as
@@ -731,24 +731,6 @@ class _Check:
     def error(self, where: str, problem: str) -> LoadError:
         at = f" {where}" if where else ""
         return LoadError(f"{self.source}:{at} {problem}; {_FIX}")
-
-    def obj(self, v, where: str) -> dict:
-        if not isinstance(v, dict):
-            raise self.error(where or "the top level", f"must be an object, not {json_type(v)}")
-        return v
-
-    def array(self, v, where: str) -> list:
-        if not isinstance(v, list):
-            raise self.error(where, f"must be an array, not {json_type(v)}")
-        return v
-
-    def member(self, obj: dict, key: str, where: str, kind: type, kind_name: str):
-        """``obj[key]`` when it is a ``kind`` (None when absent or null)."""
-        v = obj.get(key)
-        if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
-            return v
-        raise self.error(f"{where}.{key}" if where else key,
-                         f"must be {kind_name}, not {json_type(v)}")
 
     def number(self, v, where: str, lo: float = -np.inf, hi: float = np.inf) -> float:
         """``v`` as a float when it is a finite number within ``[lo, hi]``."""

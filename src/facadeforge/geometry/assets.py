@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .footprints import MAX_COORDINATE
+from ..model.model import MAX_COORDINATE
 from .mesh import Mesh
 
 MAX_ASSET_BYTES = 256 * 1024 * 1024

@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..jsonfile import json_type
+from ..jsonfile import JsonMembers, json_type
+from ..model.model import MAX_COORDINATE
 from .mesh import EPS, polygon_normal
 from .polygon import without_repeats
 
@@ -109,14 +110,11 @@ def load_footprints(path: str | Path) -> list[Footprint]:
 #: parsing takes several times the text in memory.
 MAX_FOOTPRINT_FILE_BYTES = 1024 * 2**20
 
-#: Largest coordinate magnitude accepted (file units).  Projected CRSs stay within 10⁷ m and
-#: degrees within 180; beyond 10⁹ float precision leaves nothing of a building.
-MAX_COORDINATE = 1e9
 
 _GEOJSON_FIX = "fix the file (GeoJSON, RFC 7946)"
 
 
-class _GeoJson:
+class _GeoJson(JsonMembers):
     """Typed reads from a parsed GeoJSON document: every member read is checked for its type,
     and a wrong one is an :class:`InputError` naming the file and the member's JSON path
     (``features[3].geometry.coordinates[0][2]``), so a malformed file never reaches numpy or
@@ -128,24 +126,6 @@ class _GeoJson:
     def error(self, where: str, problem: str) -> InputError:
         at = f" {where}" if where else ""
         return InputError(f"footprint file '{self.p}':{at} {problem}; {_GEOJSON_FIX}")
-
-    def member(self, obj: dict, key: str, where: str, kind: type, kind_name: str):
-        """``obj[key]`` when it is a ``kind`` (None when absent or null)."""
-        v = obj.get(key)
-        if v is None or (isinstance(v, kind) and not isinstance(v, bool)):
-            return v
-        path = f"{where}.{key}" if where else key
-        raise self.error(path, f"must be {kind_name}, not {json_type(v)}")
-
-    def obj(self, v, where: str) -> dict:
-        if not isinstance(v, dict):
-            raise self.error(where or "the top level", f"must be an object, not {json_type(v)}")
-        return v
-
-    def array(self, v, where: str) -> list:
-        if not isinstance(v, list):
-            raise self.error(where, f"must be an array, not {json_type(v)}")
-        return v
 
     def ring(self, ring, where: str) -> np.ndarray:
         """A ring (array of positions) as (k, 2) or (k, 3) finite floats, positions beyond the
