@@ -383,3 +383,27 @@ def test_cli_render_reports_a_malformed_cityjson_in_one_line(tmp_path: Path, cap
     err = capsys.readouterr().err.strip()
     assert err.startswith("facadeforge: error: CityJSON file") and "CityObjects" in err
     assert "\n" not in err and not (tmp_path / "x.png").exists()
+
+
+def test_texture_paths_stay_beside_the_file(tmp_path: Path):
+    """A CityJSON file naming ``../secret.png`` as a texture must not make a reader (render)
+    read pictures from elsewhere on the disk; textures beside the file still load."""
+    from PIL import Image
+
+    from facadeforge import derive, load_rules
+    from facadeforge.exchange import load_cityjson
+
+    Image.new("RGB", (8, 8), (200, 100, 50)).save(tmp_path / "brick.png")
+    rules = load_rules('Lot --> setupProjection(0, scope.xz, 4, 4) projectUV(0) '
+                       'texture("brick.png")\n', assets=tmp_path)
+    (model,) = derive(rules, lot_size="4x4")
+    out = tmp_path / "out"
+    out.mkdir()
+    export(model, out / "m.city.json")
+    (loaded,) = load_cityjson(out / "m.city.json")
+    assert loaded.parts[0].material.texture is not None
+    doc = json.loads((out / "m.city.json").read_text())
+    doc["appearance"]["textures"][0]["image"] = "../brick.png"
+    (out / "m.city.json").write_text(json.dumps(doc))
+    (loaded,) = load_cityjson(out / "m.city.json")
+    assert loaded.parts[0].material.texture is None

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geometry.assets import inside
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
 from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
 from ..jsonfile import JsonMembers, json_type, parse_json, read_json
@@ -1055,8 +1056,11 @@ class _CityJsonReader:
     def _material(self, index: int | None, texture: int | None) -> Material:
         path = None
         if texture is not None and self.textures[texture]:
-            candidate = self.folder / self.textures[texture]
-            path = str(candidate) if candidate.is_file() else None
+            # a texture is read only from the file's folder or below (SECURITY.md), like a
+            # glTF's images: a downloaded model must not show the pictures of the reader's disk
+            candidate = (self.folder / self.textures[texture]).resolve()
+            path = (str(candidate) if inside(self.folder.resolve(), candidate)
+                    and candidate.is_file() else None)
         if index is None:
             return Material(texture=path)
         name, color, transparency = self.materials[index]
