@@ -10,6 +10,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from .errors import FacadeForgeError
@@ -389,7 +390,11 @@ def main(argv: list[str] | None = None) -> int:
     from .scratch import Terminated, sigterm_as_exit
 
     try:
-        with sigterm_as_exit():   # SIGTERM: finally blocks remove temporary folders, as Ctrl-C
+        # Python warnings of the libraries (numpy's overflow on absurd sizes, pygltflib on an
+        # unknown chunk) are not the user's business: what matters reaches them as a CGA
+        # warning or as the one error line
+        with sigterm_as_exit(), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             return COMMANDS[args.command](args)
     except FacadeForgeError as e:
         first = str(e).splitlines()[0]

@@ -290,3 +290,20 @@ def test_cli_limits_are_flags(tmp_path, capsys):
     rc, _, err = _run(capsys, "derive", rule, "--lot", "4x4", "-o", tmp_path / "o.glb",
                       "--max-seconds", "0.5")
     assert rc == 2 and "longer than 0.5 s" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("call", ["primitiveSphere(2000, 2000)", "primitiveCylinder(3000000)",
+                                  "primitiveCone(1e300)"])
+def test_primitive_resolution_is_bounded(call):
+    # the faces are built in Python: 2000 x 2000 subdivisions took minutes, unchecked
+    m = derive(load_rules(f"Lot --> {call}\n"), lot_size="4x4")[0]
+    assert any("more than 100,000 faces" in w for w in m.warnings)
+
+
+def test_library_warnings_stay_off_the_error_line(tmp_path, capfd):
+    # numpy's overflow warnings on absurd sizes used to come before the one error line
+    rule = tmp_path / "r.cga"
+    rule.write_text("Lot --> s(1e300, 1, 1) extrude(1e300)\n")
+    rc = main(["derive", str(rule), "--lot", "4x4", "-o", str(tmp_path / "o.glb")])
+    err = capfd.readouterr().err
+    assert rc == 2 and err.startswith("facadeforge: error:") and err.count("\n") == 1, err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ...errors import InputError
@@ -605,6 +607,9 @@ def _flat_in_scope_plane(outline: np.ndarray, size: np.ndarray) -> Mesh:
 
 
 _SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+#: Faces one primitive may have (its subdivisions multiplied): a 300 × 300 sphere; the faces
+#: are built in Python, so 2000 × 2000 took minutes.
+MAX_PRIMITIVE_FACES = 100_000
 
 
 def _primitive_op(kind):
@@ -621,7 +626,11 @@ def _primitive_op(kind):
             raise CGARuntimeError(f"primitive{kind.title()}() takes {n_res} resolution and "
                                   f"{n_dims} size arguments, got {n} arguments")
         values = [call.num(k) for k in range(n)]
-        res = [max(3, int(round(v))) for v in values[:min(n, n_res)]]
+        res = [max(3, int(round(v))) if abs(v) < 1e9 else 10**9 for v in values[:min(n, n_res)]]
+        if math.prod(res + ([16] if kind == "sphere" and len(res) == 1 else [])) \
+                > MAX_PRIMITIVE_FACES:
+            raise CGARuntimeError(f"primitive{kind.title()}({', '.join(map(str, res))}) makes more "
+                                  f"than {MAX_PRIMITIVE_FACES:,} faces; use fewer subdivisions")
         dims = values[n_res:] if n > n_res else []
         # a negative size reaches the other way, as a negative s() does: the primitive is
         # centred in x and z anyway, and a negative height puts it below y = 0
