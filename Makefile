@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env demo test lint bench clean
+.PHONY: env train-env demo test lint bench fuzz clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -31,6 +31,14 @@ lint: env
 
 test: env lint
 	$(VENV)/bin/python -m pytest
+
+# The long fuzz run (tests/fuzz): mutated rules, footprints, classifiers, rule packages and
+# models until FUZZ_SECONDS are spent, each run bounded to 60 s and 3 GiB; FUZZ_SEED for others.
+FUZZ_SECONDS ?= 600
+FUZZ_SEED ?= 20261201
+fuzz: env
+	FACADEFORGE_FUZZ=long FACADEFORGE_FUZZ_SECONDS=$(FUZZ_SECONDS) FACADEFORGE_FUZZ_SEED=$(FUZZ_SEED) \
+		$(VENV)/bin/python -m pytest tests/fuzz -q -s -p no:cacheprovider
 
 bench: env
 	$(VENV)/bin/python benchmarks/engine.py
