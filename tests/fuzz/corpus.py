@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 import json
-import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -173,12 +172,6 @@ def npz_bytes(meta: dict | bytes, arrays: dict[str, np.ndarray], compressed: boo
     (np.savez_compressed if compressed else np.savez)(
         buf, __meta__=np.frombuffer(blob, np.uint8), **arrays)
     return buf.getvalue()
-
-
-def check_classifier_seed(data: bytes) -> None:
-    """Fail early if the seed classifier is not a readable zip (helps when the format moves)."""
-    with zipfile.ZipFile(io.BytesIO(data)) as z:
-        assert "__meta__.npy" in z.namelist()
 
 
 def photo_png(path: Path, width: int = 128, height: int = 96) -> Path:

@@ -199,7 +199,7 @@ def test_fuzz(name, tmp_path, seeds_folder):
 WORDS = [w for w in M.CGA_TOKENS if len(w) < 60]
 
 
-@settings(max_examples=1000 if LONG else 40, deadline=None, database=None, derandomize=not LONG,
+@settings(max_examples=300 if LONG else 40, deadline=None, database=None, derandomize=not LONG,
           suppress_health_check=list(HealthCheck))
 @given(body=st.lists(st.sampled_from(WORDS), max_size=12),
        head=st.sampled_from(["Lot -->", "Lot --> extrude(3)", "Lot --> extrude(3) comp(f) { side :",
