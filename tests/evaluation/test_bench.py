@@ -422,3 +422,91 @@ def test_held_out_cmp_folder_is_scored_whole(tmp_path):
         lab.save(folder / f"{name}.png")
     scored, fit, rule = select_samples("cmp", folder, "val")
     assert len(scored) == 7 and fit == [] and "held-out" in rule
+
+
+# ------------------------------------------------------------------------------- every dataset kind
+def _folder_dataset(root: Path) -> Path:
+    """A tiny generic folder: palette.json, photos and single-channel label PNGs."""
+    root.mkdir()
+    (root / "palette.json").write_text(json.dumps(
+        {"classes": ["background", "wall", "window"], "ids": [0, 1, 2], "ignore": 255}))
+    for n in range(5):
+        ids = np.ones((H, W), np.uint8)
+        ids[:3] = 0
+        ids[-2:] = IGNORE
+        for col in range(3):
+            x0 = 4 + 12 * col + n % 3
+            ids[8:14, x0:x0 + 6] = 2
+        Image.fromarray(np.full((H, W, 3), 90 + 10 * n, np.uint8)).save(root / f"f{n}.jpg")
+        Image.fromarray(ids, mode="L").save(root / f"f{n}.png")
+    return root
+
+
+def _synthetic_dataset(root: Path, perspective: bool = False) -> Path:
+    from facadeforge.datasets.synthetic import generate
+
+    generate(2, 7, root, size=96, perspective=perspective)
+    return root
+
+
+def _dataset_kinds():
+    kinds = [pytest.param("synthetic", lambda tmp: _synthetic_dataset(tmp / "synth"),
+                          id="synthetic"),
+             pytest.param("synthetic", lambda tmp: _synthetic_dataset(tmp / "persp", True),
+                          id="synthetic-perspective"),
+             pytest.param("folder", lambda tmp: _folder_dataset(tmp / "folder"), id="folder")]
+    for name in ("cmp", "ruemonge"):
+        kinds.append(pytest.param(
+            name, lambda tmp, name=name: DATA / name, id=f"{name}-shared",
+            marks=pytest.mark.skipif(not (DATA / name).is_dir(),
+                                     reason=f"shared {name} data not found at {DATA / name}")))
+    return kinds
+
+
+def test_every_registered_layout_has_an_oracle_case():
+    """A layout added to LOADERS needs a case in _dataset_kinds (the cmp fixture has its own)."""
+    covered = {p.values[0] for p in _dataset_kinds()}
+    assert set(datasets.LOADERS) <= covered
+
+
+@pytest.mark.parametrize("dataset, build", _dataset_kinds())
+def test_oracle_scores_one_on_every_dataset_kind(dataset: str, build, tmp_path: Path, register):
+    """The truth, returned as a prediction through the whole bench path (loader, default label
+    set, split, scoring, windows, sheet), scores 1.0: truth and scoring share one frame and one
+    label set on every layout."""
+    data = build(tmp_path)
+    register("oracle", oracle)
+    r = run_bench("oracle", dataset, data, split="all", limit=3, out=tmp_path / "o.json",
+                  progress=False)
+    assert r["n_images"] >= 1
+    assert r["pixel_accuracy"] == 1.0 and r["miou"] == 1.0 and r["class_avg_accuracy"] == 1.0
+    assert r["unpredicted_fraction"] == 0.0
+    assert all(p["miou"] == 1.0 and p["pixel_accuracy"] == 1.0 for p in r["per_image"])
+    if r["window_tp"] + r["window_fn"]:
+        assert r["window_f1"] == 1.0 and r["window_fp"] == r["window_fn"] == 0
+    # the sheet's error panels are white or grey: no right pixel drawn as wrong
+    sheet = np.asarray(Image.open(tmp_path / "o_sheet.png").convert("RGB"))
+    assert not (sheet == np.array(WRONG_COLOR, np.uint8)).all(axis=2).any()
+
+
+@pytest.mark.parametrize("perspective", [False, True])
+def test_synthetic_photos_are_rectified_unless_warped(tmp_path: Path, monkeypatch,
+                                                     perspective: bool):
+    """Issue 24 item 6: synthetic facades are front-on and labelled in CMP's conventions
+    (neighbours, roof and sky are background); a method that rectified them again and used the
+    street-photo classifier (ecp7: no background, neighbours are wall) scored mIoU 0.158."""
+    import facadeforge.reconstruction as reconstruction
+    from facadeforge.evaluation.methods import StructureMethod, is_rectified
+
+    samples = datasets.load_synthetic(_synthetic_dataset(tmp_path / "s", perspective))
+    assert [is_rectified(s) for s in samples] == [not perspective] * len(samples)
+    seen = []
+
+    def fake(photo, *, rectified=False, **kw):
+        seen.append(rectified)
+        raise RuntimeError("stop")
+
+    monkeypatch.setattr(reconstruction, "reconstruct", fake)
+    with pytest.raises(RuntimeError, match="stop"):
+        StructureMethod()(samples[0], samples[0].label_set)
+    assert seen == [not perspective]

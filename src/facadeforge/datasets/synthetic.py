@@ -1386,7 +1386,8 @@ def load_synthetic(root: str | Path, label_set: LabelSet | str = "cmp6") -> list
     list of FacadeSample
         Sorted by id (``NAME``); ``objects()`` are the element rectangles from
         ``NAME.objects.json`` (canonical labels, photo pixels); ``meta`` has ``dataset``,
-        ``style``, ``floors``, ``columns``, ``homography``, ``metres_per_pixel`` and the paths.
+        ``style``, ``floors``, ``columns``, ``homography``, ``rectified`` (no homography: the
+        photo is front-on, as CMP's are), ``metres_per_pixel`` and the paths.
 
     Raises
     ------
@@ -1429,6 +1430,9 @@ def load_synthetic(root: str | Path, label_set: LabelSet | str = "cmp6") -> list
                 "objects_from": "tree" if objects_path.is_file() else "components",
                 "style": meta.get("style"), "floors": meta.get("floors"),
                 "columns": meta.get("columns"), "homography": meta.get("homography"),
+                # rendered front-on unless written with --perspective: methods must treat the
+                # photo as rectified (CMP's conventions), not as a street photo to rectify
+                "rectified": meta.get("homography") is None,
                 "metres_per_pixel": meta.get("metres_per_pixel")}
         samples.append(FacadeSample(
             id=stem, image_path=photo, label_path=label, label_set=target, meta=info,

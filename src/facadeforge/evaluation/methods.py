@@ -42,7 +42,7 @@ from ..parsing import DEFAULT_BUDGET
 
 __all__ = ["LABEL_SPACES", "METHODS", "ClassifierMethod", "Method", "Prediction", "PriorBaseline",
            "GrammarMethod", "RowColPrior", "StructureMethod", "get_method",
-           "register_method"]
+           "is_rectified", "register_method"]
 
 #: Label spaces a method may predict in (see the module docstring).
 LABEL_SPACES: tuple[str, ...] = ("label_set", "canonical")
@@ -107,6 +107,20 @@ class Method:
 
 #: Datasets whose photos are rectified already (methods skip rectification, as ``--rectified``).
 RECTIFIED_DATASETS = frozenset({"cmp"})
+
+
+def is_rectified(sample: FacadeSample) -> bool:
+    """Whether ``sample``'s photo is rectified already, so a method skips rectification and
+    uses the rectified-photo classifier (``cmp12``, CMP's conventions: neighbours, roof and sky
+    are background) rather than the street-photo one (``ecp7``, RueMonge's: no background).
+
+    ``sample.meta["rectified"]`` decides where the loader sets it (synthetic facades: rectified
+    unless written with ``--perspective``); else the dataset, :data:`RECTIFIED_DATASETS`.
+    """
+    flag = sample.meta.get("rectified")
+    if flag is not None:
+        return bool(flag)
+    return sample.meta.get("dataset") in RECTIFIED_DATASETS
 
 #: Registered methods by name (``facadeforge bench --method NAME``).
 METHODS: dict[str, Method] = {}
@@ -296,8 +310,9 @@ class StructureMethod:
     path: elements detected by the shipped classifier — ``cmp6`` on rectified CMP, ``ecp7`` on
     street photos — structure the shape tree): windows
     are the shape tree's window leaves, labels its rasterised leaves (canonical labels), mapped
-    back to the photo through the rectifying homography.  Photos of rectified datasets (CMP)
-    skip rectification, as ``--rectified`` does on the command line.  ``structure-edges`` is
+    back to the photo through the rectifying homography.  Rectified photos (CMP, synthetic
+    facades without perspective: :func:`is_rectified`) skip rectification, as ``--rectified``
+    does on the command line.  ``structure-edges`` is
     the paper's edge-only path (``--no-classifier``)."""
 
     def __init__(self, classifier: bool = True) -> None:
@@ -307,7 +322,7 @@ class StructureMethod:
         from ..reconstruction import reconstruct
 
         rec = reconstruct(sample.image(), model=False,
-                          rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS,
+                          rectified=is_rectified(sample),
                           classifier=None if self.classifier else False)
         floors = rec.report["floors"]
         windows = np.array(rec.windows(frame="input"), np.float64).reshape(-1, 4)
@@ -373,8 +388,9 @@ class GrammarMethod:
     """Grammar-driven parsing (``simon2011`` ch. 4–5, :func:`facadeforge.parsing.parse.parse`):
     the shipped classifier of the dataset's label set, the default parse grammar (``grid``)
     seeded from the classifier's window grid and fitted by ``search`` within ``budget`` derivations; labels are the derived
-    layout mapped back to the photo (the classifier's labels outside the rectified facade).  CMP
-    photos are rectified already, as ``--rectified`` says on the command line."""
+    layout mapped back to the photo (the classifier's labels outside the rectified facade).  Rectified
+    photos (:func:`is_rectified`) are not rectified again, as ``--rectified`` says on the command
+    line."""
 
     def __init__(self, search: str = "hill", budget: int | None = None) -> None:
         self.search = search
@@ -386,7 +402,7 @@ class GrammarMethod:
 
         result = parse(sample.image(), classifier=default_classifier(label_set.name),
                        method=self.search, budget=self.budget, model=False,
-                       rectified=sample.meta.get("dataset") in RECTIFIED_DATASETS)
+                       rectified=is_rectified(sample))
         return Prediction(labels=result.labels_input())
 
 
