@@ -1,4 +1,4 @@
-"""Write the benchmark tables of README.md and benchmarks/README.md from benchmarks/results/*.json.
+"""Write the benchmark tables of README.md, docs/benchmarks.md and benchmarks/README.md from benchmarks/results/*.json.
 
 Run after a benchmark: ``.venv/bin/python benchmarks/report.py``.  The tables sit between
 ``<!-- bench:engine -->`` markers so the text around them stays hand-written.
@@ -155,7 +155,8 @@ def main() -> None:
     methods = methods_table()
     rec = reconstruct_table()
     parsing = parsing_table()
-    for p in (ROOT / "README.md", ROOT / "benchmarks" / "README.md"):
+    for p in (ROOT / "README.md", ROOT / "docs" / "benchmarks.md",
+              ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
         replace(p, "methods", methods)
         replace(p, "reconstruct", rec)
