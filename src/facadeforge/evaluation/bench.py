@@ -73,6 +73,7 @@ from ..datasets import (
     LabelSet,
     dev_split,
     get_label_set,
+    ruemonge_split,
 )
 from ..datasets.folder import objects_from_labels
 from ..errors import InputError
@@ -193,11 +194,11 @@ def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
     if split == "val" and not _has_dev_ids(base, RUEMONGE_VAL_IDS):
         return base, [], (f"all {len(base)} photos of {data}/train: held-out photos (none of the "
                           "development val ids), scored whole; no training set")
-    scored = dev_split(base, split)
-    fit = dev_split(base, "train")
-    return scored, fit, (f"development split {split!r} (every 5th sorted id is val) of the "
-                         f"{len(base)} photos in {data}/train (no {data}/val folder); fitted on "
-                         f"its train part ({len(fit)})")
+    scored = ruemonge_split(base, split)
+    fit = ruemonge_split(base, "train")
+    return scored, fit, (f"development split {split!r} by building (val: stretches of the street "
+                         f"no training photo sees; datasets.splits) of the {len(base)} photos in "
+                         f"{data}/train; fitted on its train part ({len(fit)})")
 
 
 # ---------------------------------------------------------------------------------- scoring
