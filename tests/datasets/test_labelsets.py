@@ -19,10 +19,11 @@ from facadeforge.errors import InputError
 from facadeforge.model.labels import Labels
 
 CMP12, CMP6, ECP7 = LABEL_SETS["cmp12"], LABEL_SETS["cmp6"], LABEL_SETS["ecp7"]
+LMF9 = LABEL_SETS["lmf9"]
 
 
 def test_builtin_sets_and_lookup():
-    assert list(LABEL_SETS) == ["cmp12", "cmp6", "ecp7"]
+    assert list(LABEL_SETS)[:4] == ["cmp12", "cmp6", "ecp7", "lmf9"]
     assert get_label_set("CMP6") is CMP6
     assert get_label_set(ECP7) is ECP7
     assert CMP12.classes == ("background", "wall", "window", "door", "cornice", "sill",
@@ -79,6 +80,13 @@ def test_from_canonical_names():
     # ecp7 has no background: background → sky; vegetation, ground, other → wall
     names = np.array(["background", "vegetation", "ground", "other", "roof", "blind"])
     assert ECP7.from_canonical(names).tolist() == [5, 1, 1, 1, 4, 0]
+    # occluders and the street: background in CMP, wall in ecp7 (in front of the facade, or the
+    # street RueMonge leaves unlabelled), their own classes in lmf9 (people are "various")
+    names = np.array(["car", "person", "pavement", "road"])
+    assert CMP6.from_canonical(names).tolist() == [0, 0, 0, 0]
+    assert CMP12.from_canonical(names).tolist() == [0, 0, 0, 0]
+    assert ECP7.from_canonical(names).tolist() == [1, 1, 1, 1]
+    assert LMF9.from_canonical(names).tolist() == [2, 0, 4, 5]
     # Labels members and dataset words are accepted
     assert CMP6.from_canonical([Labels.DOOR, "facade"]).tolist() == [3, 1]
     with pytest.raises(InputError, match="not a canonical label"):
@@ -205,3 +213,62 @@ def test_project_proba_floors_classes_no_channel_reaches_and_keeps_its_own():
     assert cmp6.project_proba(own, cmp6.classes) is own    # already in this set: unchanged
     with pytest.raises(InputError, match="one channel per class"):
         cmp6.project_proba(own, ("window", "wall"))
+
+
+# ------------------------------------------------------------------------------- LabelMeFacade
+def test_lmf9_classes_names_and_colours():
+    assert LMF9.classes == ("other", "wall", "car", "door", "pavement", "road", "sky",
+                            "vegetation", "window")
+    assert LMF9.dataset_names == ("various", "building", "car", "door", "pavement", "road", "sky",
+                                  "vegetation", "window")
+    assert LMF9.colors.tolist() == [[0, 0, 0], [128, 0, 0], [128, 0, 128], [128, 128, 0],
+                                    [128, 128, 128], [128, 64, 0], [0, 128, 128], [0, 128, 0],
+                                    [0, 0, 128]]
+    assert LMF9.ignore_index is None and LMF9.ignore_color is None
+    rgb = LMF9.colors[np.array([[1, 8], [6, 0]])]
+    assert LMF9.from_color(rgb).tolist() == [[1, 8], [6, 0]]
+    assert LMF9.from_color(np.array([[[1, 2, 3]]], np.uint8)).tolist() == [[IGNORE]]
+
+
+def test_lmf9_canonical_fallbacks():
+    """building is the facade with its balconies, shops, roofs and parts; blinds are windows;
+    CMP's background (mostly sky) is sky; the ground in front of a facade is its pavement."""
+    def name(label):
+        return LMF9.dataset_names[LMF9.index(label)]
+
+    assert {c: name(c) for c in ("wall", "balcony", "shop", "roof", "cornice", "sill", "deco",
+                                 "molding", "pillar")} == dict.fromkeys(
+        ("wall", "balcony", "shop", "roof", "cornice", "sill", "deco", "molding", "pillar"),
+        "building")
+    assert name("blind") == "window"
+    assert name("background") == "sky"
+    assert name("other") == "various" and name("person") == "various"
+    assert name("ground") == "pavement"
+    # a cmp12 truth map in lmf9, and lmf9 truth in cmp6 (everything not the building is
+    # background there) and ecp7
+    assert convert(np.arange(12).reshape(1, -1), CMP12, LMF9).tolist() == [
+        [6, 1, 8, 3, 1, 1, 1, 8, 1, 1, 1, 1]]
+    assert convert(np.arange(9).reshape(1, -1), LMF9, CMP6).tolist() == [
+        [1, 1, 0, 3, 0, 0, 0, 0, 2]]
+    assert convert(np.arange(9).reshape(1, -1), LMF9, ECP7).tolist() == [
+        [1, 1, 1, 3, 1, 1, 5, 1, 0]]
+
+
+def test_name_hints_of_occluders_and_street():
+    from facadeforge.model.labels import label_for_name
+
+    guesses = {n: label_for_name(n) for n in (
+        "CarBody", "ParkedCars", "Vehicle", "Pedestrian", "People", "person", "Sidewalk",
+        "SidewalkTile", "road", "Roadway", "Street", "StreetFacade", "StreetFloor", "CarDoor",
+        "CarriageBay", "Cartouche", "Broadway", "TreeCrown", "PalmTree", "StreetTree")}
+    assert {n: (g.value if g else None) for n, g in guesses.items()} == {
+        "CarBody": "car", "ParkedCars": "car", "Vehicle": "car", "Pedestrian": "person",
+        "People": "person", "person": "person", "Sidewalk": "pavement",
+        "SidewalkTile": "pavement", "road": "road", "Roadway": "road", "Street": "road",
+        "StreetFacade": "wall", "StreetFloor": "wall", "CarDoor": "door",
+        "CarriageBay": None, "Cartouche": None, "Broadway": None, "TreeCrown": "vegetation",
+        "PalmTree": "vegetation", "StreetTree": "vegetation"}
+    # the canonical indices of earlier labels did not move
+    assert [label.value for label in Labels][-5:] == ["ground", "car", "person", "pavement",
+                                                      "road"]
+    assert CANONICAL_INDEX["ground"] == 16 and CANONICAL_INDEX["road"] == 20

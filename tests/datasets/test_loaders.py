@@ -336,7 +336,7 @@ def test_objects_from_labels_min_size_and_ignore():
 
 
 def test_loader_registry():
-    assert set(LOADERS) == {"cmp", "ruemonge", "folder", "synthetic"}
+    assert set(LOADERS) == {"cmp", "ruemonge", "labelmefacade", "folder", "synthetic"}
     with pytest.raises(InputError, match="unknown dataset layout"):
         load_dataset("nope", ".")
 

@@ -267,7 +267,8 @@ def test_counts_and_later_layouts_plug_in(cmp_dir: Path, tmp_path: Path, registe
 def test_unknown_method_and_dataset_name_the_choices(cmp_dir: Path, tmp_path: Path):
     with pytest.raises(InputError, match=r"unknown method 'nope'.*prior.*rowcol-prior"):
         run_bench("nope", "cmp", cmp_dir, out=tmp_path / "x.json")
-    with pytest.raises(InputError, match=r"unknown dataset 'nope'.*cmp, ruemonge, folder"):
+    with pytest.raises(InputError,
+                       match=r"unknown dataset 'nope'.*cmp, ruemonge, labelmefacade, folder"):
         run_bench("prior", "nope", cmp_dir, out=tmp_path / "x.json")
     with pytest.raises(InputError, match=r"unknown split 'test'.*train, val, all"):
         run_bench("prior", "cmp", cmp_dir, split="test", out=tmp_path / "x.json")
@@ -450,13 +451,38 @@ def _synthetic_dataset(root: Path, perspective: bool = False) -> Path:
     return root
 
 
+def _labelmefacade_dataset(root: Path) -> Path:
+    """A tiny LabelMeFacade folder: images/, RGBA colour labels/, train.txt and test.txt."""
+    colors = LABEL_SETS["lmf9"].colors
+    (root / "images").mkdir(parents=True)
+    (root / "labels").mkdir()
+    names = [f"street_{n}" for n in range(4)]
+    for n, name in enumerate(names):
+        ids = np.ones((H, W), np.uint8)             # building
+        ids[:4] = 6                                 # sky
+        ids[-5:] = 5                                # road
+        ids[-8:-5] = 4                              # pavement
+        ids[14:22, 2 + n:12 + n] = 2                # a car
+        for col in range(2):
+            ids[6:11, 18 + 10 * col:24 + 10 * col] = 8   # windows
+        Image.fromarray(np.full((H, W, 3), 100 + 20 * n, np.uint8)).save(
+            root / "images" / f"{name}.jpg")
+        rgba = np.dstack([colors[ids], np.full((H, W), 255, np.uint8)])
+        Image.fromarray(rgba, mode="RGBA").save(root / "labels" / f"{name}.png")
+    (root / "train.txt").write_text("\n".join(names[:2]) + "\n")
+    (root / "test.txt").write_text("\n".join(names[2:]) + "\n")
+    return root
+
+
 def _dataset_kinds():
     kinds = [pytest.param("synthetic", lambda tmp: _synthetic_dataset(tmp / "synth"),
                           id="synthetic"),
              pytest.param("synthetic", lambda tmp: _synthetic_dataset(tmp / "persp", True),
                           id="synthetic-perspective"),
-             pytest.param("folder", lambda tmp: _folder_dataset(tmp / "folder"), id="folder")]
-    for name in ("cmp", "ruemonge"):
+             pytest.param("folder", lambda tmp: _folder_dataset(tmp / "folder"), id="folder"),
+             pytest.param("labelmefacade", lambda tmp: _labelmefacade_dataset(tmp / "lmf"),
+                          id="labelmefacade")]
+    for name in ("cmp", "ruemonge", "labelmefacade"):
         kinds.append(pytest.param(
             name, lambda tmp, name=name: DATA / name, id=f"{name}-shared",
             marks=pytest.mark.skipif(not (DATA / name).is_dir(),

@@ -8,8 +8,8 @@ sorted by id:
 >>> val[0].image().shape, val[0].labels().dtype                    # (H, W, 3), uint8
 
 Label maps are ``(H, W)`` uint8 class indices of a :class:`LabelSet` (``cmp12``, ``cmp6``,
-``ecp7`` or a ``palette.json`` set), with :data:`IGNORE` (255) where not scored.  Predictions in
-canonical labels are scored in any set with :meth:`LabelSet.from_canonical`.
+``ecp7``, ``lmf9`` or a ``palette.json`` set), with :data:`IGNORE` (255) where not scored.
+Predictions in canonical labels are scored in any set with :meth:`LabelSet.from_canonical`.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from .folder import (
     read_image,
     read_label_image,
 )
+from .labelmefacade import LABELMEFACADE_SPLITS, load_labelmefacade
 from .labelsets import (
     CANONICAL_FALLBACK,
     CANONICAL_INDEX,
@@ -56,9 +57,10 @@ from .synthetic import load_synthetic
 
 __all__ = [
     "CANONICAL_FALLBACK", "CANONICAL_INDEX", "CMP_VAL_IDS", "DEFAULT_LABEL_SETS", "DEV_SPLITS",
-    "IGNORE", "IMAGE_SUFFIXES", "load_synthetic", "LABEL_SETS", "LOADERS", "RUEMONGE_VAL_IDS", "SPLITS_DOC",
-    "SPLIT_NAMES", "FacadeSample", "LabelSet", "ObjectBox", "cmp_split", "convert", "dev_split",
-    "get_label_set", "load_cmp", "load_dataset", "load_folder", "load_palette", "load_ruemonge",
+    "IGNORE", "IMAGE_SUFFIXES", "LABELMEFACADE_SPLITS", "LABEL_SETS", "LOADERS",
+    "RUEMONGE_VAL_IDS", "SPLITS_DOC", "SPLIT_NAMES", "FacadeSample", "LabelSet", "ObjectBox",
+    "cmp_split", "convert", "dev_split", "get_label_set", "load_cmp", "load_dataset",
+    "load_folder", "load_labelmefacade", "load_palette", "load_ruemonge", "load_synthetic",
     "objects_from_labels", "palette_label_set", "read_cmp_xml", "read_image", "read_label_image",
     "ruemonge_split",
 ]
@@ -67,13 +69,15 @@ __all__ = [
 LOADERS: Mapping[str, Callable[..., list[FacadeSample]]] = MappingProxyType({
     "cmp": load_cmp,
     "ruemonge": load_ruemonge,
+    "labelmefacade": load_labelmefacade,
     "folder": load_folder,
     "synthetic": load_synthetic,
 })
 
 #: Label set each layout is scored in by default.
 DEFAULT_LABEL_SETS: Mapping[str, str | None] = MappingProxyType({
-    "cmp": "cmp6", "ruemonge": "ecp7", "folder": None, "synthetic": "cmp6"})
+    "cmp": "cmp6", "ruemonge": "ecp7", "labelmefacade": "lmf9", "folder": None,
+    "synthetic": "cmp6"})
 
 
 def load_dataset(name: str, root: str | Path, **options: Any) -> list[FacadeSample]:
@@ -81,12 +85,13 @@ def load_dataset(name: str, root: str | Path, **options: Any) -> list[FacadeSamp
 
     Parameters
     ----------
-    name : {"cmp", "ruemonge", "folder"}
+    name : {"cmp", "ruemonge", "labelmefacade", "folder", "synthetic"}
         Layout (:data:`LOADERS`).
     root : str or Path
         Dataset folder.
     **options
-        Passed to the loader (``label_set=``, ``split=`` for RueMonge, ``palette=``…).
+        Passed to the loader (``label_set=``, ``split=`` for RueMonge and LabelMeFacade,
+        ``palette=``…).
 
     Returns
     -------

@@ -82,7 +82,7 @@ from ..jsonfile import read_json
 from ..model.shape import Shape
 from ..scratch import scratch_dir
 from .folder import FacadeSample, ObjectBox, _check_folder
-from .labelsets import LabelSet, get_label_set
+from .labelsets import CANONICAL_INDEX, LabelSet, get_label_set
 
 __all__ = ["OBJECT_LABELS", "STYLES", "SyntheticFacade", "add_parser", "cmd_synth",
            "draw_attributes", "generate", "grammar_path", "homography_from_points",
@@ -1408,7 +1408,8 @@ def load_synthetic(root: str | Path, label_set: LabelSet | str = "cmp6") -> list
             canon = get_label_set(LabelSet("canonical", tuple(LABEL_INDEX), PALETTE,
                                            {i: i for i in range(len(LABEL_INDEX))}))
             return target.from_canonical(canon.from_color(raw))
-        return target.from_canonical(np.where(raw < 17, raw, 255).astype(np.uint8))
+        return target.from_canonical(
+            np.where(raw < len(CANONICAL_INDEX), raw, 255).astype(np.uint8))
 
     samples = []
     for photo in photos:

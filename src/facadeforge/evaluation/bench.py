@@ -17,18 +17,22 @@ Splits
     ``DIR/val/img`` exists, ``--split val`` scores all of ``DIR/val`` and fits on all of
     ``DIR/train``; otherwise it scores the development ``val`` part of ``DIR/train`` and fits on
     its ``train`` part.  A split folder given directly (``--data DIR/val --split val``) is scored
-    whole; other split names (``test``) score the whole ``DIR/<split>`` folder.  The method is
-    always fitted on the ``train`` split, also when that split (or ``all``) is the one scored.
+    whole; other split names (``test``) score the whole ``DIR/<split>`` folder.  LabelMeFacade
+    has its own split files and no ``val``: ``test`` scores the photos of ``DIR/test.txt``,
+    ``train`` those of ``DIR/train.txt``, ``all`` every labelled photo of ``DIR/images``.  The
+    method is always fitted on the ``train`` split, also when that split (or ``all``) is the one
+    scored.
 Scoring
     A prediction with a homography is warped into the photo's frame by inverse mapping, nearest
     neighbour at pixel centres; photo pixels the prediction does not cover — and pixels the
     method labels :data:`~facadeforge.datasets.IGNORE` — are *unpredicted*: they count as wrong
     wherever the truth is labelled (a method cannot raise its score by abstaining).  Truth pixels
-    labelled :data:`~facadeforge.datasets.IGNORE` are not scored.  Scores pool pixels over the
-    data set (see :mod:`facadeforge.evaluation.metrics`).  ``confusion`` counts predicted
-    classes only; ``unpredicted`` counts the rest of each truth row, and ``confusion_percent``
-    rows are percent of the row's scored pixels, so a row adds up to 100 minus its unpredicted
-    share.
+    labelled :data:`~facadeforge.datasets.IGNORE` are not scored (colour-coded truth in no class's
+    colour among them: ``unknown_color_pixels`` counts those of LabelMeFacade).  Scores pool
+    pixels over the data set (see :mod:`facadeforge.evaluation.metrics`).  ``confusion`` counts
+    predicted classes only; ``unpredicted`` counts the rest of each truth row, and
+    ``confusion_percent`` rows are percent of the row's scored pixels, so a row adds up to 100
+    minus its unpredicted share.
 Windows
     Truth: the sample's object boxes labelled ``window`` (CMP XML rectangles; connected components
     of the label map elsewhere).  Prediction: ``Prediction.windows`` mapped through the homography
@@ -67,6 +71,7 @@ from .. import datasets
 from ..datasets import (
     CMP_VAL_IDS,
     IGNORE,
+    LABELMEFACADE_SPLITS,
     RUEMONGE_VAL_IDS,
     SPLIT_NAMES,
     FacadeSample,
@@ -93,7 +98,8 @@ __all__ = ["EXAMPLES", "RESULT_KEYS", "add_parser", "box_to_image", "check_outpu
 
 #: Keys every RESULT.json has (``floor_count_*`` / ``column_count_*`` only when available).
 RESULT_KEYS: tuple[str, ...] = (
-    "method", "dataset", "split", "label_set", "classes", "n_images", "pixel_accuracy",
+    "method", "dataset", "split", "label_set", "classes", "canonical_classes", "n_images",
+    "pixel_accuracy",
     "class_avg_accuracy", "miou", "per_class", "confusion", "confusion_percent", "unpredicted",
     "unpredicted_fraction", "window_precision", "window_recall", "window_f1", "window_tp",
     "window_fp", "window_fn", "windows_from", "seconds_per_image", "peak_memory_mb",
@@ -105,6 +111,7 @@ EXAMPLES = """examples:
   facadeforge bench --method rowcol-prior --dataset cmp --data ../shared/data/cmp -o bench.json
   facadeforge bench --method prior --dataset ruemonge --data ../shared/data/ruemonge --split val --labels ecp7 -o prior_rm.json
   facadeforge bench --method rowcol-prior --dataset cmp --data held-out/cmp --split all --limit 20 -o out/result.json
+  facadeforge bench --method prior --dataset labelmefacade --data ../shared/data/labelmefacade --split test -o prior_lmf.json
 writes RESULT.json, RESULT.md (summary, per-class table, confusion) and RESULT_sheet.png
 (photo | truth | prediction | error of the 3 best and 3 worst facades)."""
 
@@ -127,7 +134,8 @@ def select_samples(dataset: str, data: str | Path, split: str = "val",
     data : str or Path
         Dataset folder.
     split : str
-        ``train``, ``val``, ``all``, or (RueMonge) the name of a split folder.
+        ``train``, ``val``, ``all``, or (RueMonge) the name of a split folder; LabelMeFacade:
+        ``train``, ``test``, ``all``.
     labels : str or LabelSet, optional
         Label set to score in; default the layout's own (``cmp6``, ``ecp7``, the palette).
 
@@ -154,6 +162,8 @@ def select_samples(dataset: str, data: str | Path, split: str = "val",
     data = Path(data).expanduser()
     if dataset == "ruemonge":
         return _ruemonge_samples(load, data, split, options)
+    if dataset == "labelmefacade":
+        return _labelmefacade_samples(load, data, split, options)
     if split not in SPLIT_NAMES:
         raise InputError(f"unknown split {split!r} for dataset {dataset!r}; use one of "
                          f"{', '.join(SPLIT_NAMES)}")
@@ -199,6 +209,28 @@ def _ruemonge_samples(load, data: Path, split: str, options: dict[str, Any]):
     return scored, fit, (f"development split {split!r} by building (val: stretches of the street "
                          f"no training photo sees; datasets.splits) of the {len(base)} photos in "
                          f"{data}/train; fitted on its train part ({len(fit)})")
+
+
+def _labelmefacade_samples(load, data: Path, split: str, options: dict[str, Any]):
+    """LabelMeFacade's own split files: score ``split``, fit on ``train.txt`` (module docstring)."""
+    if split not in LABELMEFACADE_SPLITS:
+        hint = ("LabelMeFacade has a train and a test split (train.txt, test.txt), no val: use "
+                "--split test to score the test photos with the method fitted on train"
+                if split == "val" else "LabelMeFacade's splits are its split files")
+        raise InputError(f"unknown split {split!r} for dataset 'labelmefacade'; {hint} (splits: "
+                         f"{', '.join(LABELMEFACADE_SPLITS)})")
+    scored = load(data, split=split, **options)
+    if split == "train":
+        fit = scored
+    elif (data / "train.txt").is_file():
+        fit = load(data, split="train", **options)
+    else:
+        fit = []
+    what = {"train": f"{data}/train.txt", "test": f"{data}/test.txt",
+            "all": f"{data}/images with a label (train and test)"}[split]
+    fitted = (f"fitted on the {len(fit)} photos of {data}/train.txt" if fit
+              else f"no training set (no {data}/train.txt)")
+    return scored, fit, f"all {len(scored)} photos of {what}; {fitted}"
 
 
 # ---------------------------------------------------------------------------------- scoring
@@ -399,9 +431,13 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
     data : str or Path
         Dataset folder.
     split : str
-        ``val`` (default), ``train``, ``all``, or a RueMonge split folder name (module docstring).
-    labels : {"cmp6", "cmp12", "ecp7"}, optional
-        Label set to score in; default the layout's own.
+        ``val`` (default), ``train``, ``all``, a RueMonge split folder name, or LabelMeFacade's
+        ``test`` (module docstring).
+    labels : {"cmp6", "cmp12", "ecp7", "lmf9"}, optional
+        Label set to score in; default the layout's own.  Results name the classes as the
+        dataset does (``classes`` and ``per_class`` keys are the set's ``dataset_names``:
+        LabelMeFacade's "building", CMP's "facade"); ``canonical_classes`` gives their canonical
+        labels.
     limit : int, optional
         Score only the first ``limit`` facades of the split (sorted by id).
     out : str or Path
@@ -432,6 +468,9 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
                          "(train, val, all) or check the folder")
     label_set = scored[0].label_set
     k = label_set.num_classes
+    names = label_set.dataset_names
+    if len(set(names)) != len(names):   # a hand-made set with clashing names: canonical ones
+        names = label_set.classes
 
     fit_seconds = 0.0
     if m.fit is not None:
@@ -504,14 +543,15 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
     secs = [r["seconds"] for r in per_image]
     result: dict[str, Any] = {
         "method": method, "method_description": m.description, "dataset": dataset,
-        "split": split, "label_set": label_set.name, "classes": list(label_set.classes),
+        "split": split, "label_set": label_set.name, "classes": list(names),
+        "canonical_classes": list(label_set.classes),
         "n_images": len(scored), "limit": limit,
         "pixel_accuracy": _num(seg["pixel_accuracy"]),
         "class_avg_accuracy": _num(seg["class_avg_accuracy"]),
         "miou": _num(seg["miou"]),
         "per_class": {name: {"accuracy": _num(seg["accuracy"][c]), "iou": _num(seg["iou"][c]),
                              "support": int(seg["support"][c])}
-                      for c, name in enumerate(label_set.classes)},
+                      for c, name in enumerate(names)},
         "confusion": confusion.tolist(),
         "confusion_percent": [[_num(v, 3) for v in row] for row in percent],
         "unpredicted": full[:k, k].tolist(),
@@ -524,6 +564,9 @@ def run_bench(method: str, dataset: str, data: str | Path, split: str = "val",
         quantity = key.split("_count_")[0]
         if getattr(counts, quantity + "s").n_images:
             result[key] = value
+    unknown = [s.meta["unknown_color_pixels"] for s in scored if "unknown_color_pixels" in s.meta]
+    if unknown:   # colour-coded truth (LabelMeFacade): pixels in no class's colour, not scored
+        result["unknown_color_pixels"] = int(sum(unknown))
     result.update({
         "seconds_per_image": round(float(np.mean(secs)), 5),
         "peak_memory_mb": round(max(r["peak_memory_mb"] for r in per_image), 2),
@@ -601,6 +644,8 @@ def markdown_summary(result: dict[str, Any]) -> str:
         f"{r['n_images']} facades from `{r['data']}`; {r['split_rule']}.",
         f"Measured {r['date'][:10]} at commit `{r['commit']}` on {r['machine']['cores']} cores "
         f"({r['machine']['cpu']}), Python {r['machine']['python']}.",
+        *([f"{r['unknown_color_pixels']} truth pixels have colours of no class and are not "
+           "scored."] if r.get("unknown_color_pixels") else []),
         "",
         "| score | value |",
         "|---|---|",
@@ -666,15 +711,17 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--method", required=True, metavar="NAME",
                    help=f"registered method ({', '.join(sorted(METHODS))})")
-    p.add_argument("--dataset", required=True, metavar="cmp|ruemonge|synthetic|folder",
+    p.add_argument("--dataset", required=True,
+                   metavar="cmp|ruemonge|labelmefacade|synthetic|folder",
                    help="dataset layout")
     p.add_argument("--data", required=True, metavar="DIR", help="dataset folder")
     p.add_argument("--split", default="val", metavar="S",
                    help="train, val (default) or all: the fixed development split; RueMonge: "
-                        "val/ when DIR/val exists, or any split folder name")
-    p.add_argument("--labels", default=None, metavar="cmp6|cmp12|ecp7",
-                   help="label set to score in (default: cmp6 for cmp, ecp7 for ruemonge, the "
-                        "palette for folder)")
+                        "val/ when DIR/val exists, or any split folder name; LabelMeFacade: "
+                        "test, train (its split files) or all")
+    p.add_argument("--labels", default=None, metavar="cmp6|cmp12|ecp7|lmf9",
+                   help="label set to score in (default: cmp6 for cmp, ecp7 for ruemonge, lmf9 "
+                        "for labelmefacade, the palette for folder)")
     p.add_argument("--limit", type=_positive_int, default=None, metavar="N",
                    help="score only the first N facades of the split")
     p.add_argument("-o", "--output", required=True, metavar="RESULT.json",
@@ -692,4 +739,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
           f"{_fmt(r['class_avg_accuracy'])}, mIoU {_fmt(r['miou'])}, window F1 "
           f"{_fmt(r['window_f1'])}, {r['seconds_per_image']:.3f} s/facade → {files['json']} "
           f"(+ {Path(files['markdown']).name}, {Path(files['sheet']).name})")
+    if r.get("unknown_color_pixels"):
+        print(f"note: {r['unknown_color_pixels']} truth pixels have colours outside the "
+              "dataset's palette; they are not scored")
     return 0

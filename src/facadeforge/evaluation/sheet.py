@@ -157,7 +157,7 @@ def write_sheet(rows: Sequence[SheetRow], label_set: LabelSet, path: str | Path,
         for i, panel in enumerate(panels):
             sheet.paste(panel, (_PAD + i * (col_width + _PAD), y))
         y += panel_height + _PAD
-    for i, name in enumerate(label_set.classes):
+    for i, name in enumerate(label_set.dataset_names):   # the dataset's own class names
         x = _PAD + (i % per_row) * _LEGEND_STEP
         yy = y + (i // per_row) * line
         draw.rectangle((x, yy + 2, x + 12, yy + 14), fill=tuple(int(c) for c in

@@ -91,6 +91,12 @@ DEFAULT_SEMANTIC_MAP: dict[str, str | None] = {
     Labels.OTHER.value: "WallSurface",
     Labels.BACKGROUND.value: "WallSurface",
     Labels.SKY.value: "WallSurface",
+    # occluders as vegetation is, the street as the ground (the label survives in the
+    # semantic object's facadeforge_label; None would drop it)
+    Labels.CAR.value: "WallSurface",
+    Labels.PERSON.value: "WallSurface",
+    Labels.PAVEMENT.value: "GroundSurface",
+    Labels.ROAD.value: "GroundSurface",
     "": "WallSurface",
 }
 

@@ -54,6 +54,10 @@ LABEL_COLORS: dict[str, tuple[int, int, int]] = {
     "vegetation": (44, 160, 44),
     "other": (197, 176, 213),
     "ground": (90, 90, 90),
+    "car": (255, 152, 150),
+    "person": (196, 156, 148),
+    "pavement": (199, 199, 199),
+    "road": (52, 52, 60),
 }
 
 _LABEL_NAMES = list(LABEL_INDEX)

@@ -31,16 +31,30 @@ class Labels(StrEnum):
     VEGETATION = "vegetation"
     OTHER = "other"
     GROUND = "ground"
+    # Occluders and the street (LabelMeFacade labels them); appended so earlier indices stay.
+    CAR = "car"
+    PERSON = "person"
+    PAVEMENT = "pavement"
+    ROAD = "road"
 
 
 # Words found in rule names written by people (``Window``, ``WindowFrame``, ``GroundFloorDoor``,
 # ``RoofTile``…) and the label they most likely mean.  Order matters: the first hit wins, so more
-# specific words come first ("balcony" before "floor", "shopwindow" is a shop).
-_NAME_HINTS: tuple[tuple[str, Labels], ...] = (
+# specific words come first ("balcony" before "floor", "shopwindow" is a shop).  A plain string
+# matches anywhere in the lower-cased letters of the name; a compiled pattern must match a whole
+# word of it (``CarBody`` → car, ``ParkedCars`` → car, but ``CarriageBay``, ``Cartouche`` and
+# ``Broadway`` are no cars or roads, and ``Street`` holds no tree).  The street comes last:
+# ``StreetFacade`` and ``StreetFloor`` are wall, only a bare ``Street`` is the road.
+_NAME_HINTS: tuple[tuple[str | re.Pattern[str], Labels], ...] = (
     ("shop", Labels.SHOP),
     ("storefront", Labels.SHOP),
     ("door", Labels.DOOR),
     ("entrance", Labels.DOOR),
+    (re.compile(r"cars?"), Labels.CAR),
+    ("vehicle", Labels.CAR),
+    ("pedestrian", Labels.PERSON),
+    ("person", Labels.PERSON),
+    ("people", Labels.PERSON),
     ("balcon", Labels.BALCONY),
     ("railing", Labels.BALCONY),
     ("window", Labels.WINDOW),
@@ -60,14 +74,22 @@ _NAME_HINTS: tuple[tuple[str, Labels], ...] = (
     ("ornament", Labels.DECO),
     ("roof", Labels.ROOF),
     ("chimney", Labels.ROOF),
-    ("tree", Labels.VEGETATION),
+    (re.compile(r"tree.*|.*trees?"), Labels.VEGETATION),
     ("plant", Labels.VEGETATION),
+    ("pavement", Labels.PAVEMENT),
+    ("sidewalk", Labels.PAVEMENT),
+    (re.compile(r"roads?|roadway"), Labels.ROAD),
     ("ground", Labels.GROUND),
     ("wall", Labels.WALL),
     ("facade", Labels.WALL),
     ("floor", Labels.WALL),
     ("tile", Labels.WALL),
+    ("street", Labels.ROAD),
 )
+
+# Words of a name: camel-case humps, upper-case runs and lower-case runs (``CarBody`` → car,
+# body; ``GLASS_Car`` → glass, car).
+_WORDS = re.compile(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+")
 
 
 @lru_cache(maxsize=4096)
@@ -84,7 +106,14 @@ def label_for_name(name: str) -> Labels | None:
         return Labels(key)
     except ValueError:
         pass
-    for word, label in _NAME_HINTS:
-        if word in key:
+    words: list[str] | None = None
+    for hint, label in _NAME_HINTS:
+        if isinstance(hint, str):
+            if hint in key:
+                return label
+            continue
+        if words is None:
+            words = [w.lower() for w in _WORDS.findall(name)]
+        if any(hint.fullmatch(w) for w in words):
             return label
     return None
