@@ -11,7 +11,9 @@
 
 Shipped models (``facadeforge/data/classifiers``, ``KIND-LABELSET.npz``), trained on the
 development train splits of the shared data (the exact commands are in their metadata and in
-README.md).  The default classifier of a label set is the first shipped kind of
+README.md).  The default classifier of a label set is the model :data:`PROJECTED` names for it
+when that is shipped — the street network, trained on every labelled dataset at once, with its
+probabilities summed into the label set's classes — else the first shipped kind of
 :data:`SHIPPED_KINDS`.
 """
 
@@ -28,7 +30,7 @@ from .model import (
     save_classifier,
 )
 
-__all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "SHIPPED_KINDS", "ClassifierFileError",
+__all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "PROJECTED", "SHIPPED_KINDS", "ClassifierFileError",
            "PixelClassifier", "default_classifier", "default_label_set", "load_classifier",
            "resolve_classifier", "save_classifier", "shipped_model_path"]
 
@@ -37,6 +39,12 @@ MODEL_DIR = Path(__file__).resolve().parent.parent / "data" / "classifiers"
 
 #: Kinds of shipped models, best first (CMP val mIoU in README.md's classifier table).
 SHIPPED_KINDS: tuple[str, ...] = ("ensemble", "convnet", "autocontext")
+
+#: Label sets served by a shipped model of other classes, projected onto theirs
+#: (:meth:`~facadeforge.datasets.LabelSet.project_proba`).  The street network ``street12``
+#: (RueMonge, CMP and LabelMeFacade, :mod:`.street`) is the default for street photos (ecp7)
+#: and for LabelMeFacade's classes (lmf9).
+PROJECTED: dict[str, str] = {"ecp7": "convnet-street12", "lmf9": "convnet-street12"}
 
 _LOADED: dict[tuple[str, str | None], PixelClassifier] = {}
 
@@ -57,6 +65,12 @@ def default_classifier(label_set: str, kind: str | None = None) -> PixelClassifi
     """The shipped classifier for ``label_set`` (of ``kind``, else the best shipped), loaded
     once per process."""
     key = (label_set, kind)
+    projected = MODEL_DIR / f"{PROJECTED.get(label_set, '')}.npz"
+    if key not in _LOADED and kind is None and label_set in PROJECTED and projected.is_file():
+        from .ensemble import EnsembleClassifier
+
+        _LOADED[key] = EnsembleClassifier([load_classifier(projected)], label_set,
+                                          {"projected_from": projected.name})
     if key not in _LOADED:
         path = shipped_model_path(label_set, kind)
         if not path.is_file():

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import math
 import sys
 import time
 from collections.abc import Sequence
@@ -56,7 +57,8 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
                      kind: str = "autocontext", stages: int = 2, trees: int = 10,
                      max_depth: int | None = None, per_image: int = 3000, folds: int = 2,
                      seed: int = 0, jobs: int = 2, epochs: int = 40, width: int = 16,
-                     quiet: bool = True, meta: dict[str, Any] | None = None) -> PixelClassifier:
+                     quiet: bool = True, checkpoint=None,
+                     meta: dict[str, Any] | None = None) -> PixelClassifier:
     """Train a ``forest`` (§4.3.1), ``autocontext`` or ``convnet`` classifier on labelled
     ``samples``.
 
@@ -77,6 +79,11 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
         folds of photos.
     epochs, width : int
         Convnet: training epochs and channels of the first level (:mod:`.convnet_train`).
+    checkpoint : callable, optional
+        Convnet: called with the network so far after every epoch.
+
+    Samples may come from several datasets in different label sets (a convnet only): each
+    supervises the classes of ``label_set`` its classes may be (:mod:`.street`).
     """
     from .autocontext import AutoContextClassifier, stage_features
     from .features import analysis_image, appearance_features
@@ -100,6 +107,10 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
             spec = ConvNetSpec(width=width)
         except ValueError as exc:
             raise InputError(f"--width {width}: {exc}; use 1-256 (default 16)") from None
+    mixed = sorted({s.label_set.name for s in samples if s.label_set.name != label_set.name})
+    if mixed and kind != "convnet":
+        raise InputError(f"photos labelled in {', '.join(mixed)}, not {label_set.name}: only a "
+                         "convnet learns from datasets with different classes")
     k = label_set.num_classes
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -118,10 +129,21 @@ def train_classifier(samples: Sequence[FacadeSample], label_set: LabelSet | str,
             picks.append(_sample_pixels(lab, k, per_image, rng))
     if kind == "convnet":
         from .convnet_train import train_convnet
+        from .street import partial_table
 
         info = {k_: v for k_, v in info.items() if k_ not in ("kind", "trees", "per_image")}
+        partial = [None if s.label_set.name == label_set.name
+                   else partial_table(s.label_set, label_set) for s in samples]
+        # several datasets: a small one is drawn more often, by sqrt(largest / its size)
+        sizes: dict[str, int] = {}
+        for s in samples:
+            sizes[s.meta.get("dataset", "")] = sizes.get(s.meta.get("dataset", ""), 0) + 1
+        repeat = [max(1, round(math.sqrt(max(sizes.values()) / sizes[s.meta.get("dataset", "")])))
+                  for s in samples]
         return train_convnet(smalls, labels, label_set.classes, label_set.name,
-                             spec=spec, epochs=epochs, seed=seed,
+                             spec=spec, epochs=epochs, seed=seed, partial=partial,
+                             augment="street" if any(t is not None for t in partial)
+                             else "basic", repeat=repeat, checkpoint=checkpoint,
                              threads=jobs, progress=None if quiet else
                              (lambda m: _progress(m, False)), meta=info)
     y = np.concatenate([lab.ravel()[p] for lab, p in zip(labels, picks)]).astype(np.int64)
@@ -178,9 +200,12 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
                     "photo's scribbles; ensemble averages trained models (--members).")
     p.add_argument("--kind", default="autocontext",
                    choices=(*TRAINABLE_KINDS, "gmm", "ensemble"))
-    p.add_argument("--dataset", choices=("cmp", "ruemonge", "folder"),
-                   help="dataset layout (forest, autocontext, convnet)")
-    p.add_argument("--data", help="dataset folder (forest, autocontext, convnet)")
+    p.add_argument("--dataset",
+                   help="dataset layout: cmp, ruemonge, labelmefacade or folder (forest, "
+                        "autocontext, convnet); a convnet may train on several at once, "
+                        "comma-separated (ruemonge,cmp,labelmefacade), each supervising only "
+                        "the classes it labels")
+    p.add_argument("--data", help="dataset folder (comma-separated, one per --dataset)")
     p.add_argument("--split", default="train",
                    help="split to train on: train (default, the development train split) or all")
     p.add_argument("--labels", help="label set (default: the dataset's, cmp6 / ecp7)")
@@ -195,7 +220,9 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--epochs", type=int, default=40, help="convnet: training epochs (default 40)")
     p.add_argument("--width", type=int, default=16,
                    help="convnet: channels of the first level (default 16)")
-    p.add_argument("--limit", type=int, help="train on the first N photos only")
+    p.add_argument("--limit", type=int, help="train on the first N photos only (of each dataset)")
+    p.add_argument("--checkpoint", metavar="PATH",
+                   help="convnet: save the network so far to PATH (.npz) after every epoch")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("-o", "--output", required=True, help="model file to write (.npz)")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -230,13 +257,34 @@ def cmd_train_classifier(args: argparse.Namespace) -> int:
     else:
         if not args.dataset or not args.data:
             raise InputError(f"--kind {args.kind} needs --dataset and --data")
+        names, folders = args.dataset.split(","), args.data.split(",")
+        if len(names) != len(folders):
+            raise InputError(f"--dataset names {len(names)} layouts and --data {len(folders)} "
+                             "folders; give one folder per layout, in the same order")
+        if len(names) > 1 and args.kind != "convnet":
+            raise InputError(f"--kind {args.kind} trains on one dataset; only a convnet learns "
+                             "from several datasets with different classes")
         from ..evaluation.bench import select_samples
 
-        scored, _fit, rule = select_samples(args.dataset, args.data, args.split, args.labels)
-        if args.limit:
-            scored = scored[:args.limit]
-        label_set = scored[0].label_set if scored else get_label_set(args.labels or "ecp7")
+        scored, rules = [], []
+        for name, folder in zip(names, folders):
+            # several datasets: each is read in its own classes, the network's are --labels
+            picked, _fit, rule = select_samples(name, folder, args.split,
+                                                args.labels if len(names) == 1 else None)
+            scored += picked[:args.limit] if args.limit else picked
+            rules.append(rule)
+        rule = "; ".join(rules)
+        label_set = (get_label_set(args.labels) if args.labels and len(names) > 1
+                     else scored[0].label_set if scored else get_label_set(args.labels or "ecp7"))
+        checkpoint = None
+        if args.checkpoint:
+            if not args.checkpoint.endswith(".npz"):
+                raise InputError(f"--checkpoint {args.checkpoint}: use a .npz path")
+
+            def checkpoint(net, path=Path(args.checkpoint)):
+                save_classifier(net, path)
         clf = train_classifier(scored, label_set, kind=args.kind, stages=args.stages,
+                               checkpoint=checkpoint,
                                trees=args.trees, per_image=args.per_image, seed=args.seed,
                                epochs=args.epochs, width=args.width, quiet=args.quiet,
                                meta={"command": command, "dataset": args.dataset,

@@ -504,6 +504,19 @@ _ECP7 = LabelSet(
     ignore_color=(0, 0, 0),
 )
 
+# The street classifier's classes (facadeforge.classify.street): the union of what RueMonge, CMP
+# and LabelMeFacade label; display colours are the canonical ones (exchange.raster.LABEL_COLORS).
+_STREET12 = LabelSet(
+    name="street12",
+    classes=("wall", "window", "door", "balcony", "shop", "roof", "sky", "vegetation", "car",
+             "pavement", "road", "other"),
+    colors=np.array([(214, 196, 160), (31, 119, 180), (140, 86, 75), (255, 127, 14),
+                     (227, 119, 194), (214, 39, 40), (158, 218, 229), (44, 160, 44),
+                     (255, 152, 150), (199, 199, 199), (52, 52, 60), (197, 176, 213)], np.uint8),
+    id_map={i: i for i in range(12)},
+    canonical_map={"ground": 9, "background": 6, "person": 11},
+)
+
 # LabelMeFacade: dataset name, canonical label and colour of each class, in class-index order.
 _LMF9_CLASSES = (
     ("various", "other", (0, 0, 0)),
@@ -527,7 +540,7 @@ _LMF9 = LabelSet(
 
 #: The built-in label sets by name.
 LABEL_SETS: Mapping[str, LabelSet] = MappingProxyType(
-    {"cmp12": _CMP12, "cmp6": _CMP6, "ecp7": _ECP7, "lmf9": _LMF9})
+    {"cmp12": _CMP12, "cmp6": _CMP6, "ecp7": _ECP7, "lmf9": _LMF9, "street12": _STREET12})
 
 
 def get_label_set(name: LabelSet | str) -> LabelSet:

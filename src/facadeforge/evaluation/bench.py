@@ -11,9 +11,10 @@ dataset's own pixel frame.  It writes three files:
   per-image mIoU.
 
 Splits
-    ``train``, ``val`` and ``all`` follow the fixed development rule of
-    :mod:`facadeforge.datasets.splits` (every 5th sorted id is ``val``), applied to the ids the
-    folder holds, so held-out folders of the same layout get their own split.  RueMonge: when
+    ``train``, ``val`` and ``all`` follow the fixed development splits of
+    :mod:`facadeforge.datasets.splits` (CMP and folders: every 5th sorted id is ``val``;
+    RueMonge: by building, from the photos' cameras).  A folder holding none of the development
+    val ids is held-out data, scored whole by ``--split val``.  RueMonge: when
     ``DIR/val/img`` exists, ``--split val`` scores all of ``DIR/val`` and fits on all of
     ``DIR/train``; otherwise it scores the development ``val`` part of ``DIR/train`` and fits on
     its ``train`` part.  A split folder given directly (``--data DIR/val --split val``) is scored
