@@ -28,7 +28,8 @@ EXAMPLES = {
   facadeforge reconstruct photo.jpg -o out/
   facadeforge reconstruct facade.png --rectified --width-m 18.5 -o out/
   facadeforge reconstruct photo.jpg --depths depths.json -o out/     # {"window": -0.3, "balcony": 1.2}
-  facadeforge reconstruct facade.png --rectified --no-classifier -o out/   # the paper's edge-only path""",
+  facadeforge reconstruct facade.png --rectified --no-classifier -o out/   # the paper's edge-only path
+  facadeforge reconstruct corner.jpg --facades one -o out/    # the whole photo as one facade""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -133,6 +134,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     c.add_argument("--height-m", type=float, help="facade height in metres")
     c.add_argument("--depths", help="JSON {label or cluster: depth in metres}, negative = recessed")
     c.add_argument("--seed", type=int, default=0, help="random seed of the rectification RANSAC")
+    c.add_argument("--facades", choices=("auto", "one"), default="auto",
+                   help="auto (default): find the facades of a street photo (the two sides of "
+                        "a corner, houses side by side) and model each alone, in OUTDIR/"
+                        "facade_01/, facade_02/… when there are several; one: the photo is "
+                        "one facade")
     k = c.add_mutually_exclusive_group()
     k.add_argument("--classifier", help="pixel classifier .npz whose windows, doors and shops "
                    "structure the facade (default: the shipped cmp6 model with --rectified, "
@@ -269,14 +275,34 @@ def _summary(rec, out) -> str:
     return "\n".join(lines)
 
 
-def cmd_reconstruct(args) -> int:
-    from .reconstruction import reconstruct
+def _facades_summary(result, out) -> str:
+    """What ``reconstruct`` prints for a photo of several facades."""
+    r = result.report
+    lines = [f"{len(r['facades'])} facades found, {len(result.facades)} modelled "
+             f"(find_facades {r['timings']['facades']:.2f} s)"]
+    for e in r["facades"]:
+        if e["folder"] is None:
+            lines.append(f"facade {e['id']}: not modelled: {'; '.join(e['flags'])}")
+    for rec, folder in zip(result.facades, result.folders()):
+        lines.append(f"{folder}: " + _summary(rec, f"{out}/{folder}"))
+    lines += [f"note: {n}" for n in r.get("notes", [])]
+    lines.append(f"wrote {out}/: {' '.join(f + '/' for f in result.folders())} facades.png "
+                 "labels_input.png report.json")
+    return "\n".join(lines)
 
-    rec = reconstruct(args.photo, rectified=args.rectified, width_m=args.width_m,
-                      height_m=args.height_m, depths=args.depths, out_dir=args.output,
-                      classifier=False if args.no_classifier else args.classifier,
-                      seed=args.seed)
-    print(_summary(rec, args.output))
+
+def cmd_reconstruct(args) -> int:
+    from .reconstruction import reconstruct_facades
+
+    result = reconstruct_facades(args.photo, facades=args.facades, rectified=args.rectified,
+                                 width_m=args.width_m, height_m=args.height_m,
+                                 depths=args.depths, out_dir=args.output,
+                                 classifier=False if args.no_classifier else args.classifier,
+                                 seed=args.seed)
+    if result.single is not None:
+        print(_summary(result.single, args.output))
+    else:
+        print(_facades_summary(result, args.output))
     return 0
 
 

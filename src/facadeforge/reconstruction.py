@@ -28,6 +28,13 @@
 
 Confidence (not in the paper): every floor and tile split carries a score and the facade gets a
 ``needs_review`` flag with reasons (:func:`review_flags`).
+
+One facade at a time (not in the paper): :func:`reconstruct_facades`, which ``facadeforge
+reconstruct`` calls, first cuts a street photo into its facades
+(:func:`~facadeforge.imaging.facades.find_facades`, stage ``facades``: the two planes of a
+corner, houses side by side), then runs stages 3–9 on each usable facade's own rectified crop
+(:func:`_analyse`, the one entry point after ``rectify`` for a whole photo and for a facade of
+it) and writes a folder per facade; with one facade its OUTDIR is :func:`reconstruct`'s.
 """
 
 from __future__ import annotations
@@ -50,8 +57,9 @@ from .model.model import Model
 from .model.shape import INSERT, Shape
 from .photo import MAX_ANALYSIS_SIDE, MIN_SIDE, analysis_copy, as_rgb, check_facade_size, check_size
 
-__all__ = ["DEFAULT_DEPTHS", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE", "Reconstruction",
-           "load_depths", "reconstruct", "review_flags", "structure_image"]
+__all__ = ["DEFAULT_DEPTHS", "FACADE_MODES", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE",
+           "PhotoReconstruction", "Reconstruction", "load_depths", "reconstruct",
+           "reconstruct_facades", "review_flags", "structure_image"]
 
 #: Default depth per class in metres: negative = recessed behind the wall plane (§5 rule 15).
 DEFAULT_DEPTHS: dict[str, float] = {"window": -0.25, "door": -0.35, "shop": -0.3,
@@ -512,7 +520,35 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     InputError
         Unreadable, corrupt or too small photos; bad sizes or depths.
     """
-    timings: dict[str, float] = {}
+    loaded = _load(photo, rectified=rectified, width_m=width_m, height_m=height_m,
+                   depths=depths, out_dir=out_dir, classifier=classifier)
+    t = time.perf_counter()
+    rect_img, H, rect = _rectify_whole(loaded.work, rectified, seed)
+    loaded.timings["rectify"] = time.perf_counter() - t
+    rec = _analyse(loaded, rect_img, H @ loaded.to_work, rect, applied=not rectified,
+                   width_m=width_m, height_m=height_m, model=model, refine=refine)
+    if out_dir is not None:
+        rec.save(out_dir)         # adds the export time to the report it writes last
+    return rec
+
+
+@dataclass
+class _Loaded:
+    """A photo read and checked, with what every facade of it is analysed with."""
+
+    rgb: np.ndarray
+    name: str
+    work: np.ndarray            # the analysis copy
+    to_work: np.ndarray         # photo pixels -> analysis copy pixels
+    clf: object
+    depth_map: dict
+    inputs: dict
+    timings: dict
+
+
+def _load(photo, *, rectified: bool, width_m, height_m, depths, out_dir, classifier) -> _Loaded:
+    """Stage ``load``: the checks that fail before any analysis, the photo and its analysis
+    copy, the depths and the classifier."""
     t = time.perf_counter()
     check_facade_size(width_m, height_m)
     inputs = {"photo": photo, "--classifier": classifier, "--depths": depths}
@@ -526,9 +562,13 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
                                                                             **depths}
     work, to_work = analysis_copy(rgb)
     clf = _classifier(classifier, rectified)   # a bad model file fails before any analysis
-    timings["load"] = time.perf_counter() - t
+    return _Loaded(rgb, name, work, to_work, clf, depth_map, inputs,
+                   {"load": time.perf_counter() - t})
 
-    t = time.perf_counter()
+
+def _rectify_whole(work: np.ndarray, rectified: bool, seed: int):
+    """Stage ``rectify`` for the photo as one facade: the rectified image, the homography from
+    the analysis copy to it, and ``(ok, reason, confidence)``."""
     rect_ok, rect_reason, rect_conf = True, "", 1.0
     if rectified:
         rect_img, H = work, np.eye(3)
@@ -541,9 +581,18 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     if min(rect_img.shape[:2]) < MIN_SIDE:    # a degenerate crop: analyse the photo itself
         rect_ok, rect_reason = False, "rectified crop too small"
         rect_img, H = work, np.eye(3)
-    homography = H @ to_work
-    timings["rectify"] = time.perf_counter() - t
+    return rect_img, H, (rect_ok, rect_reason, rect_conf)
 
+
+def _analyse(loaded: _Loaded, rect_img: np.ndarray, homography: np.ndarray, rect, *,
+             applied: bool, width_m=None, height_m=None, model: bool = True,
+             refine: bool = True, timings: dict | None = None) -> Reconstruction:
+    """Stages ``classify`` to ``model`` on one rectified facade: ``rect_img`` and the
+    ``homography`` from photo pixels to it; ``rect`` is ``(ok, reason, confidence)`` of its
+    rectification (``applied``: it was rectified here)."""
+    rgb, name, clf, depth_map = loaded.rgb, loaded.name, loaded.clf, loaded.depth_map
+    timings = dict(loaded.timings) if timings is None else timings
+    rect_ok, rect_reason, rect_conf = rect
     t = time.perf_counter()
     prob = clf.predict_proba(rect_img) if clf is not None else None
     crop = _facade_extent(prob, clf.classes) if prob is not None else None
@@ -636,7 +685,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     w_m, h_m = frame.size_m
     report = {
         "input": {"photo": name, "width_px": int(rgb.shape[1]), "height_px": int(rgb.shape[0])},
-        "rectification": {"applied": not rectified, "ok": rect_ok, "confidence": round(rect_conf, 4),
+        "rectification": {"applied": applied, "ok": rect_ok, "confidence": round(rect_conf, 4),
                           "reason": rect_reason, "homography": homography.tolist()},
         # the facade's box in the rectified photo before the crop (None: all of it)
         "facade_crop": None if crop is None else {
@@ -660,15 +709,253 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     rec = Reconstruction(photo=rgb, rectified=rect_img, homography=homography,
                          inverse=np.linalg.inv(homography), tree=tree, rules=rules, labels=labels,
                          report=report, texture=texture, structure=structure,
-                         regions=regions or [], inputs=inputs)
+                         regions=regions or [], inputs=loaded.inputs)
     if model:
         t = time.perf_counter()
         rec.model, rec.workdir = _derive_model(rec, frame)
         timings["model"] = time.perf_counter() - t
     report["timings"]["total"] = sum(v for k, v in timings.items() if k != "total")
-    if out_dir is not None:
-        rec.save(out_dir)         # adds the export time to the report it writes last
     return rec
+
+
+# ================================================================================ facades
+#: ``--facades`` choices: ``auto`` finds the facades of a street photo
+#: (:func:`~facadeforge.imaging.facades.find_facades`), ``one`` models the photo as one.
+FACADE_MODES = ("auto", "one")
+
+
+@dataclass
+class PhotoReconstruction:
+    """What :func:`reconstruct_facades` made of a photo: one :class:`Reconstruction` per
+    modelled facade (``facades``, with their regions in ``regions``), the split of the photo
+    (``split``, ``None`` for ``--facades one`` and rectified photos) and the top-level
+    ``report``.  With one facade modelled, ``single`` is it and :meth:`save` writes the OUTDIR
+    of one facade; with several, a folder per facade (see :func:`reconstruct_facades`).
+    """
+
+    photo: np.ndarray
+    facades: list[Reconstruction]
+    regions: list = field(default_factory=list)      # the FacadeRegion of each facade
+    split: object = None
+    report: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)
+    to_work: np.ndarray = field(default_factory=lambda: np.eye(3))   # photo -> split's pixels
+    layout: str = "one"                              # "one" facade's OUTDIR, or "facades"
+
+    @property
+    def single(self) -> Reconstruction | None:
+        """The one facade modelled, when the OUTDIR is a single facade's."""
+        return self.facades[0] if self.layout == "one" else None
+
+    def folders(self) -> list[str]:
+        return [f"facade_{r.id:02d}" for r in self.regions]
+
+    def labels_input(self) -> np.ndarray:
+        """Every facade's labels mapped back into the photo, each inside its own outline."""
+        import cv2
+
+        if self.single is not None:
+            return self.single.labels_input()
+        out = np.zeros(self.photo.shape[:2], np.uint8)
+        back = np.linalg.inv(self.to_work)
+        for rec, region in zip(self.facades, self.regions):
+            lab = rec.labels_input()
+            mask = np.zeros(out.shape, np.uint8)
+            poly = _apply_h(back, region.polygon)
+            poly = np.clip(poly, -4 * max(out.shape), 5 * max(out.shape))
+            cv2.fillPoly(mask, [np.round(poly).astype(np.int32).reshape(-1, 1, 2)], 1)
+            put = (mask > 0) & (lab > 0)
+            out[put] = lab[put]
+        return out
+
+    def facades_image(self) -> np.ndarray:
+        """``facades.png``: the photo with each facade's outline and id."""
+        from .imaging.facades import draw_facades
+
+        if self.split is None:
+            return self.photo
+        return draw_facades(self.photo, self.split, np.linalg.inv(self.to_work))
+
+    def save(self, out_dir: str | os.PathLike) -> list[Path]:
+        """Write the OUTDIR atomically (one staging folder for all of it)."""
+        if self.single is not None:
+            return self.single.save(out_dir)
+        from PIL import Image
+
+        from .exchange.raster import write_label_png
+        from .outdir import write_json, write_outdir
+
+        def write(stage: Path) -> None:
+            t0 = time.perf_counter()
+            for rec, folder in zip(self.facades, self.folders()):
+                (stage / folder).mkdir()
+                _write_files(rec, stage / folder)
+            Image.fromarray(self.facades_image()).save(stage / "facades.png", compress_level=1)
+            write_label_png(self.labels_input(), stage / "labels_input.png")
+            timings = self.report["timings"]
+            timings["export"] = time.perf_counter() - t0
+            timings.pop("total", None)
+            timings["total"] = sum(timings.values())
+            write_json(stage / "report.json", self.report)
+
+        return write_outdir(Path(out_dir), write, self.inputs)
+
+
+def _apply_h(H: np.ndarray, pts) -> np.ndarray:
+    p = np.asarray(pts, float).reshape(-1, 2)
+    q = np.c_[p, np.ones(len(p))] @ np.asarray(H, float).T
+    return q[:, :2] / q[:, 2:3]
+
+
+def _region_entry(region, to_work: np.ndarray, folder: str | None, rec=None,
+                  reason: str | None = None) -> dict:
+    """A facade of ``report["facades"]``: where it is (photo pixels), whether and where it
+    was modelled, its flags, quality and the summary of its reconstruction."""
+    entry = region.to_dict()
+    back = np.linalg.inv(to_work)
+    entry["polygon"] = [[round(float(x), 1), round(float(y), 1)]
+                        for x, y in _apply_h(back, region.polygon)]
+    entry["homography"] = (np.asarray(region.homography) @ to_work).tolist()
+    entry["folder"] = folder
+    if reason:
+        entry["flags"] = [*entry["flags"], reason]
+        entry["ok"] = False
+    if rec is not None:
+        r = rec.report
+        entry["summary"] = {"width_m": r["facade"]["width_m"], "height_m": r["facade"]["height_m"],
+                            "floors": r["floors"], "tiles": r["tiles"], "elements": r["elements"],
+                            "needs_review": r["needs_review"], "flags": r["flags"]}
+    return entry
+
+
+def _region_confidence(q: dict) -> float:
+    """As :attr:`~.imaging.rectify.Rectification.confidence`: inlier counts and the share of
+    the lines the vanishing points explain."""
+    c = np.sqrt(max(0.0, min(1.0, float(q.get("line_share", 0.0)))))
+    for key in ("horizontal_inliers", "vertical_inliers"):
+        c *= min(1.0, q.get(key, 0) / 12.0)
+    return float(c)
+
+
+def reconstruct_facades(photo, *, facades: str = "auto", rectified: bool = False,
+                        width_m: float | None = None, height_m: float | None = None,
+                        depths: Mapping[str, float] | str | None = None,
+                        out_dir: str | os.PathLike | None = None, model: bool = True,
+                        refine: bool = True, classifier=None, seed: int = 0
+                        ) -> PhotoReconstruction:
+    """A street photo → one reconstruction per facade it shows (``facadeforge reconstruct``).
+
+    ``facades="auto"`` (the default) cuts the photo into its facades first
+    (:func:`facadeforge.imaging.facades.find_facades`: the planes of a corner view, the houses
+    side by side) and reconstructs each usable one alone from its own rectified crop
+    (:func:`reconstruct`'s stages after ``rectify``); ``"one"`` is :func:`reconstruct` itself.
+    Photos given as ``rectified`` are one facade.  Other parameters as :func:`reconstruct`;
+    ``width_m`` / ``height_m`` describe one facade, so with several they are not applied (a
+    note in the report says so).
+
+    OUTDIR (``out_dir``):
+
+    * one facade usable (or none, or ``"one"``): the files of :func:`reconstruct`, exactly as
+      for one facade; a split photo's ``report.json`` also lists every facade found
+      (``facades``) and the one modelled (``folder`` ``"."``);
+    * several: ``facade_01/``, ``facade_02/``, … (left to right; each the files of
+      :func:`reconstruct`, its ``report.json`` with its ``region``), and at the top
+      ``facades.png`` (the photo with each facade's outline and id; those not modelled red
+      and dashed, with their first flag), ``labels_input.png`` (every facade's labels in the
+      photo) and ``report.json``: ``facades``, a list of ``id``, ``plane``, ``polygon`` (photo
+      pixels), ``folder`` (``None``: not modelled), ``ok``, ``flags``, ``quality`` and the
+      modelled facade's ``summary``; ``split`` (planes, vanishing points, focal length) and
+      ``timings``.
+
+    A facade that cannot be rectified well (``ok`` false: few lines, weak vanishing points,
+    too oblique, a narrow sliver) is listed with its flags and no model.
+    """
+    if facades not in FACADE_MODES:
+        raise InputError(f"--facades {facades!r}: use {' or '.join(FACADE_MODES)}")
+    options = {"width_m": width_m, "height_m": height_m, "model": model, "refine": refine}
+    if facades == "one" or rectified:
+        rec = reconstruct(photo, rectified=rectified, depths=depths, out_dir=out_dir,
+                          classifier=classifier, seed=seed, **options)
+        return PhotoReconstruction(rec.photo, [rec], inputs=rec.inputs)
+    loaded = _load(photo, rectified=False, width_m=width_m, height_m=height_m, depths=depths,
+                   out_dir=out_dir, classifier=classifier)
+    from .imaging.facades import find_facades
+
+    t = time.perf_counter()
+    split = find_facades(loaded.work, rng=seed)
+    loaded.timings["facades"] = time.perf_counter() - t
+    small = [r for r in split.regions if r.ok and min(r.size) < MIN_SIDE]
+    usable = [r for r in split.regions if r.ok and min(r.size) >= MIN_SIDE]
+    too_small = {id(r): f"too small ({r.size[1]}x{r.size[0]} px rectified)" for r in small}
+    to_work = loaded.to_work
+
+    if len(split.regions) == 1 or not usable:
+        # one facade (or none usable): the photo as one facade, rectified as a whole
+        t = time.perf_counter()
+        rect_img, H, rect = _rectify_whole(loaded.work, False, seed)
+        loaded.timings["rectify"] = time.perf_counter() - t
+        rec = _analyse(loaded, rect_img, H @ to_work, rect, applied=True, **options)
+        rec.report["facades"] = [_region_entry(r, to_work, "." if len(split.regions) == 1
+                                               else None, rec if len(split.regions) == 1
+                                               else None, too_small.get(id(r)))
+                                 for r in split.regions]
+        if len(split.regions) > 1:
+            rec.report["flags"].append(f"none of the {len(split.regions)} facades found could "
+                                       "be rectified well: the photo is modelled as one")
+            rec.report["needs_review"] = True
+        result = PhotoReconstruction(rec.photo, [rec], split=split, inputs=loaded.inputs,
+                                     to_work=to_work)
+    else:
+        several = len(usable) > 1
+        if several and (width_m is not None or height_m is not None):
+            options.update(width_m=None, height_m=None)
+        folder = {id(r): (f"facade_{r.id:02d}" if several else ".") for r in usable}
+        recs = []
+        for region in usable:
+            t = time.perf_counter()
+            rect_img = region.rectified(loaded.work)
+            # several facades: each report times its own stages, the top-level one the rest
+            timings = {} if several else dict(loaded.timings)
+            timings["rectify"] = time.perf_counter() - t
+            rect = (True, "", _region_confidence(region.quality))
+            rec = _analyse(loaded, rect_img, region.homography @ to_work, rect, applied=True,
+                           timings=timings, **options)
+            rec.report["region"] = _region_entry(region, to_work, folder[id(region)])
+            recs.append(rec)
+        rec_of = {id(r): rec for r, rec in zip(usable, recs)}
+        entries = [_region_entry(r, to_work, folder.get(id(r)), rec_of.get(id(r)),
+                                 too_small.get(id(r))) for r in split.regions]
+        notes = []
+        if several and (width_m is not None or height_m is not None):
+            notes.append(f"--width-m/--height-m describe one facade; the photo has "
+                         f"{len(usable)}, so the floor-height prior sets each one's scale "
+                         "(give --facades one to model the photo as one facade of that size)")
+        if not several:
+            rec = recs[0]
+            rec.report["facades"] = entries
+            others = [e for e in entries if e["folder"] is None]
+            rec.report["notes"].append(
+                f"the photo shows {len(entries)} facades; facade {usable[0].id} is modelled, "
+                + ", ".join(f"{e['id']} not ({e['flags'][0]})" for e in others))
+            result = PhotoReconstruction(rec.photo, recs, regions=usable, split=split,
+                                         inputs=loaded.inputs, to_work=to_work)
+        else:
+            timings = {"load": loaded.timings["load"], "facades": loaded.timings["facades"]}
+            for r, rec in zip(usable, recs):
+                timings[f"facade_{r.id:02d}"] = rec.report["timings"]["total"]
+            report = {
+                "input": recs[0].report["input"],
+                "facades": entries,
+                "split": {k: v for k, v in split.to_dict().items() if k != "facades"},
+                "notes": notes,
+                "timings": timings,
+            }
+            result = PhotoReconstruction(recs[0].photo, recs, regions=usable, split=split,
+                                         report=report, inputs=loaded.inputs, to_work=to_work,
+                                         layout="facades")
+    if out_dir is not None:
+        result.save(out_dir)
+    return result
 
 
 def _write_workdir(rec: Reconstruction, work: Path) -> None:
@@ -730,32 +1017,38 @@ def structure_image(rec: Reconstruction) -> np.ndarray:
 
 
 def _save(rec: Reconstruction, out: Path) -> list[Path]:
+    from .outdir import write_outdir
+
+    return write_outdir(out, lambda stage: _write_files(rec, stage), rec.inputs)
+
+
+def _write_files(rec: Reconstruction, stage: Path) -> None:
+    """The OUTDIR files of one facade, into the folder ``stage`` (of :func:`write_outdir`)."""
     from PIL import Image
 
     from .exchange import export
     from .exchange.raster import write_label_png
-    from .outdir import write_json, write_outdir
+    from .outdir import write_json
 
-    def write(stage: Path) -> None:
-        t0 = time.perf_counter()
-        # photo-sized RGB PNGs: zlib level 1 writes them ~4x faster than the
-        # default 6 for 17 % more bytes (measured on a 1600x1200 synthetic facade)
-        Image.fromarray(rec.rectified).save(stage / "rectified.png", compress_level=1)
-        Image.fromarray(structure_image(rec)).save(stage / "structure.png", compress_level=1)
-        write_label_png(rec.labels, stage / "labels.png")
-        write_label_png(rec.labels_input(), stage / "labels_input.png")
-        write_json(stage / "shape_tree.json", rec.tree.to_dict(), indent=1)
-        if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
-            shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)
-        else:
-            _write_workdir(rec, stage)
-        if rec.model is not None:
-            for suffix in ("glb", "obj", "city.json"):
-                export(rec.model, stage / f"model.{suffix}")
-        timings = rec.report["timings"]     # the report, written last, carries the export time
-        timings["export"] = time.perf_counter() - t0
-        timings.pop("total", None)                  # the total goes last again
-        timings["total"] = sum(timings.values())
-        write_json(stage / "report.json", rec.report)
-
-    return write_outdir(out, write, rec.inputs)
+    t0 = time.perf_counter()
+    # photo-sized RGB PNGs: zlib level 1 writes them ~4x faster than the
+    # default 6 for 17 % more bytes (measured on a 1600x1200 synthetic facade)
+    Image.fromarray(rec.rectified).save(stage / "rectified.png", compress_level=1)
+    Image.fromarray(structure_image(rec)).save(stage / "structure.png", compress_level=1)
+    write_label_png(rec.labels, stage / "labels.png")
+    write_label_png(rec.labels_input(), stage / "labels_input.png")
+    write_json(stage / "shape_tree.json", rec.tree.to_dict(), indent=1)
+    if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
+        mode = stage.stat().st_mode
+        shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)
+        os.chmod(stage, mode)       # not the scratch folder's 0700 (a facade_NN/ folder)
+    else:
+        _write_workdir(rec, stage)
+    if rec.model is not None:
+        for suffix in ("glb", "obj", "city.json"):
+            export(rec.model, stage / f"model.{suffix}")
+    timings = rec.report["timings"]     # the report, written last, carries the export time
+    timings["export"] = time.perf_counter() - t0
+    timings.pop("total", None)                  # the total goes last again
+    timings["total"] = sum(timings.values())
+    write_json(stage / "report.json", rec.report)
