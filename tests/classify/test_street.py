@@ -78,3 +78,26 @@ def test_street_augmentation_keeps_labels_and_is_seeded():
     for r, lab_out in outs[0]:
         bright = r.mean(2) > r.mean()
         assert (lab_out[bright & (lab_out != IGNORE)] == 3).mean() > 0.9
+
+
+def test_a_shipped_street_network_serves_the_label_sets_it_is_projected_onto(tmp_path, monkeypatch):
+    import facadeforge.classify as classify
+    from facadeforge.classify import save_classifier
+    from facadeforge.classify.convnet import ConvNetClassifier, ConvNetSpec
+
+    spec = ConvNetSpec(width=2, multipliers=(1, 2, 3), rowcol=(2,))
+    rng = np.random.default_rng(0)
+    weights = {n: rng.normal(0, 0.3, s).astype(np.float32) for n, s in spec.shapes(12).items()}
+    net = ConvNetClassifier(spec, weights, STREET_CLASSES, "street12", {"note": "random"})
+    monkeypatch.setattr(classify, "MODEL_DIR", tmp_path)
+    monkeypatch.setattr(classify, "_LOADED", {})
+    with pytest.raises(Exception, match="no shipped"):
+        classify.default_classifier("ecp7")                     # nothing shipped here
+    save_classifier(net, tmp_path / "convnet-street12.npz")
+    for name in ("ecp7", "lmf9"):
+        clf = classify.default_classifier(name)
+        assert clf.kind == "ensemble" and clf.label_set == name
+        assert clf.classes == get_label_set(name).classes
+        p = clf.predict_proba(rng.integers(0, 255, (40, 30, 3), dtype=np.uint8))
+        assert p.shape == (40, 30, get_label_set(name).num_classes)
+        np.testing.assert_allclose(p.sum(2), 1, atol=1e-4)

@@ -119,3 +119,32 @@ def test_coarse_probabilities_warp_straight_into_the_energy_frame():
     # the composition's order matters: the inverse left out samples the wrong pixels
     wrong = _warp_prob(coarse.astype(np.float32), to_energy @ H @ to_prob, (eh, ew))
     assert np.abs(wrong - long).mean() > 0.05
+
+
+def test_labels_input_weighs_the_derivation_against_the_evidence():
+    """The derivation is a prior worth EVIDENCE nats: a confident classifier overrides it (sky
+    above the roof line, a class the grammar lacks), an unsure one does not."""
+    from facadeforge.datasets import get_label_set
+    from facadeforge.exchange.raster import LABEL_INDEX
+    from facadeforge.parsing.parse import Parse
+
+    ls = get_label_set("cmp6")
+
+    derived = np.full((20, 20), LABEL_INDEX["wall"], np.uint8)
+    derived[8:14, 6:14] = LABEL_INDEX["window"]
+    prob = np.full((20, 20, ls.num_classes), 0.02, np.float32)
+    prob[..., ls.index("wall")] = 0.9
+    prob[:4, :, ls.index("background")] = 0.97          # confident: the sky
+    prob[:4, :, ls.index("wall")] = 0.01
+    prob[8:14, 6:14, ls.index("window")] = 0.4          # unsure window under the derived one
+    prob[8:14, 6:14, ls.index("wall")] = 0.5
+    prob /= prob.sum(2, keepdims=True)
+    eye = np.eye(3)
+    p = Parse(photo=np.zeros((20, 20, 3), np.uint8), rectified=np.zeros((20, 20, 3), np.uint8),
+              homography=eye, inverse=eye, fit=None, tree=None, labels=derived,
+              fallback=derived, rules="", report={}, prob=prob, label_set="cmp6", evidence=1.0)
+    out = p.labels_input()
+    assert (out[:4] == LABEL_INDEX["background"]).all()          # overridden: 97 % against 1 %
+    assert (out[8:14, 6:14] == LABEL_INDEX["window"]).all()      # kept: 0.5 / 0.4 < e
+    assert (p.labels_input(float("inf")) == derived).all()
+    assert (p.labels_input(0.0)[8:14, 6:14] == LABEL_INDEX["wall"]).all()   # the classifier

@@ -15,8 +15,8 @@ Stages (``report.json`` times each):
    its own where the grammar allows it (:mod:`.differentiate`, §3.2.3);
 5. **derive**: the engine derives the fitted rules into the shape tree and the 3D model.
 
-OUTDIR: ``labels.png`` (rectified frame) and ``labels_input.png`` (photo frame; outside the
-rectified facade the classifier's own labels), ``shape_tree.json``, ``rules.cga`` (the grammar
+OUTDIR: ``labels.png`` (the derivation, rectified frame) and ``labels_input.png`` (photo frame:
+the derivation *checked against the evidence*, :meth:`Parse.labels_input`), ``shape_tree.json``, ``rules.cga`` (the grammar
 with the fitted values as attribute defaults, so it derives the same layout on its own),
 ``model.glb``, ``model.obj``, ``model.city.json``, ``rectified.png``, ``energy.png`` (the
 search's best energy per derivation) and ``report.json``.
@@ -43,6 +43,7 @@ from ..model import Model, Shape
 from . import DEFAULT_BUDGET
 from .fit import (
     ENERGY_SIDE,
+    EVIDENCE,
     FitResult,
     energy_shape,
     fit_grammar,
@@ -72,14 +73,49 @@ class Parse:
     height_m: float = 0.0
     _files: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)   # the input files: save() never writes over them
+    prob: np.ndarray | None = None        # the classifier's probabilities, photo frame (coarse)
+    label_set: str | None = None          # ... in these classes
+    evidence: float = 0.0                 # see labels_input
 
-    def labels_input(self) -> np.ndarray:
+    def labels_derived(self) -> np.ndarray:
         """Canonical labels in the photo frame: the derivation inside the rectified facade, the
         classifier's argmax outside it."""
         from ..frames import warp_to_image
 
         warped = warp_to_image(self.labels, self.inverse, self.photo.shape[:2])
         return np.where(warped == IGNORE, self.fallback, warped).astype(np.uint8)
+
+    def labels_input(self, evidence: float | None = None) -> np.ndarray:
+        """Canonical labels in the photo frame: the derivation where the classifier's evidence
+        does not clearly contradict it.
+
+        A pixel keeps the derived label ``g`` unless the classifier finds another class ``c``
+        more than ``exp(evidence)`` times as likely as ``g`` (``log p_c − log p_g > evidence``):
+        the grammar is a prior worth ``evidence`` nats per pixel.  That handles what the
+        grammar cannot draw (sky above the roof line, a tree or a car in front of the facade:
+        classes the derivation lacks), and moves element boundaries the coarse fit left a few
+        pixels off to where the photo puts them, while the repetition the grammar imposes
+        stands wherever the classifier is unsure.  ``evidence=inf`` is the derivation alone
+        (:meth:`labels_derived`), ``0`` the classifier alone.  The default,
+        :data:`~facadeforge.parsing.fit.EVIDENCE`, was chosen on the development train splits.
+        """
+        import cv2
+
+        derived = self.labels_derived()
+        evidence = self.evidence if evidence is None else float(evidence)
+        if self.prob is None or not np.isfinite(evidence):
+            return derived
+        ls = get_label_set(self.label_set)
+        h, w = derived.shape
+        logp = np.log(np.maximum(cv2.resize(self.prob, (w, h), interpolation=cv2.INTER_LINEAR)
+                                 .reshape(h, w, -1), 1e-6))
+        g = ls.from_canonical(derived)                      # derived labels in the set's classes
+        best = np.argmax(logp, axis=2)
+        gain = np.take_along_axis(logp, best[..., None], 2)[..., 0] - np.take_along_axis(
+            logp, np.where(g == IGNORE, best, g)[..., None].astype(np.int64), 2)[..., 0]
+        override = (gain > evidence) | (g == IGNORE)
+        top = ls.to_canonical(best.astype(np.uint8))
+        return np.where(override, top, derived).astype(np.uint8)
 
     def save(self, out_dir: str | os.PathLike) -> list[Path]:
         """Write OUTDIR atomically: a staging folder beside it, swapped in for it at the end (the
@@ -253,7 +289,8 @@ def parse(photo, *, grammar: str | os.PathLike | None = None, classifier=None,
     }
     return Parse(rgb, rect_img, H, np.linalg.inv(H), fit, tree, labels, fallback, text, report,
                  derived if model else None, fit.width_m, fit.height_m,
-                 inputs={"photo": photo, "--grammar": grammar, "--classifier": classifier})
+                 inputs={"photo": photo, "--grammar": grammar, "--classifier": classifier},
+                 prob=prob, label_set=label_set.name, evidence=EVIDENCE)
 
 
 def _energy_png(curve: list[float], path: Path, title: str) -> None:
