@@ -15,12 +15,16 @@ parser tables), the figure is the median of the rest.  ``start-up`` is ``facadef
 process: the floor under every command.  JSON (machine, date, commit) to
 ``benchmarks/results/cli_speed.json``.
 
-    .venv/bin/python benchmarks/cli_speed.py [--runs 4] [--data ../shared/data]
+    .venv/bin/python benchmarks/cli_speed.py [--runs 4] [--data ../shared/data] [--src OTHER/src]
+
+``--src OTHER/src`` times another checkout side by side (its package first on ``PYTHONPATH``,
+same interpreter and libraries), runs alternating with this checkout's.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import subprocess
 import sys
@@ -38,9 +42,12 @@ ROOT = Path(__file__).resolve().parents[1]
 CLI = [str(Path(sys.executable).with_name("facadeforge"))]
 
 
-def _time(cmd: list[str]) -> float:
+def _time(cmd: list[str], src: str | None = None) -> float:
+    env = dict(os.environ)
+    if src:
+        env["PYTHONPATH"] = src
     t0 = time.perf_counter()
-    run = subprocess.run(cmd, capture_output=True, text=True)
+    run = subprocess.run(cmd, capture_output=True, text=True, env=env)
     dt = time.perf_counter() - t0
     if run.returncode:
         raise SystemExit(f"{' '.join(cmd)} failed: {run.stderr.strip()[-400:]}")
@@ -73,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=4)
     ap.add_argument("--data", default=str(ROOT.parent / "shared" / "data"))
+    ap.add_argument("--src", help="another checkout's src/ to time side by side")
     ap.add_argument("-o", "--output", default=str(ROOT / "benchmarks" / "results" /
                                                    "cli_speed.json"))
     args = ap.parse_args(argv)
@@ -85,17 +93,27 @@ def main(argv: list[str] | None = None) -> int:
                      "median_s": round(statistics.median(startup[1:] or startup), 3)})
         for name, photo in _photos(tmpd, Path(args.data)).items():
             for command in ("reconstruct", "parse"):
-                times = [_time([*CLI, command, str(photo), "-o", str(tmpd / f"{command}{name}{r}")])
-                         for r in range(args.runs)]
+                times, other = [], []
+                for r in range(args.runs):
+                    times.append(_time([*CLI, command, str(photo), "-o",
+                                        str(tmpd / f"{command}{name}{r}")]))
+                    if args.src:
+                        other.append(_time([*CLI, command, str(photo), "-o",
+                                            str(tmpd / f"{command}{name}{r}o")], args.src))
                 row = {"command": f"facadeforge {command}", "photo": name,
                        "pixels": "x".join(map(str, Image.open(photo).size)),
                        "first_s": round(times[0], 3),
                        "median_s": round(statistics.median(times[1:] or times), 3),
                        "runs_s": [round(t, 3) for t in times]}
+                if args.src:
+                    row["other_median_s"] = round(statistics.median(other[1:] or other), 3)
+                    row["other_runs_s"] = [round(t, 3) for t in other]
                 rows.append(row)
                 print(f"{command} {name} {row['pixels']}: median {row['median_s']} s "
-                      f"(first {row['first_s']} s)")
+                      f"(first {row['first_s']} s)"
+                      + (f"; other checkout {row['other_median_s']} s" if args.src else ""))
     result = {"benchmark": "cli_speed", **provenance(), "runs": args.runs, "rows": rows,
+              "other_src": args.src,
               "targets_s": {"reconstruct": 3.0, "parse": 2.5}}
     save_result(result, args.output)
     print(f"→ {args.output}")
