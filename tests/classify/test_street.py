@@ -92,8 +92,10 @@ def test_a_shipped_street_network_serves_the_label_sets_it_is_projected_onto(tmp
     monkeypatch.setattr(classify, "MODEL_DIR", tmp_path)
     monkeypatch.setattr(classify, "_LOADED", {})
     with pytest.raises(Exception, match="no shipped"):
-        classify.default_classifier("ecp7")                     # nothing shipped here
+        classify.default_classifier("lmf9")                     # nothing shipped here
     save_classifier(net, tmp_path / "convnet-street12.npz")
+    assert set(classify.PROJECTED) == {"lmf9"}           # ecp7 keeps its forest (README)
+    monkeypatch.setitem(classify.PROJECTED, "ecp7", "convnet-street12")
     for name in ("ecp7", "lmf9"):
         clf = classify.default_classifier(name)
         assert clf.kind == "ensemble" and clf.label_set == name
