@@ -27,7 +27,7 @@ import numpy as np
 from ..datasets import get_label_set
 from ..errors import InputError
 from .features import resize_proba
-from .model import CLASSIFIER_KINDS, PixelClassifier, register_kind
+from .model import CLASSIFIER_KINDS, PixelClassifier, _load_kinds, register_kind
 
 __all__ = ["EnsembleClassifier", "MAX_MEMBERS"]
 
@@ -84,6 +84,7 @@ class EnsembleClassifier(PixelClassifier):
         members = []
         for i, info in enumerate(infos):
             kind = info["kind"]
+            _load_kinds(kind)
             if kind not in CLASSIFIER_KINDS or kind == cls.kind:
                 raise ValueError(f"member {i} has kind {kind!r}")
             prefix = f"m{i}."

@@ -189,8 +189,8 @@ def load_classifier(path: str | Path) -> PixelClassifier:
         raise ClassifierFileError(f"classifier {path}: format version {meta.get('version')} is "
                                   f"newer than this facadeforge reads ({FORMAT_VERSION}); "
                                   "upgrade facadeforge")
-    _load_kinds()
     kind = meta.get("kind")
+    _load_kinds(kind)
     if kind not in CLASSIFIER_KINDS:
         raise ClassifierFileError(f"classifier {path}: unknown kind {kind!r}; this facadeforge "
                                   f"reads {', '.join(sorted(CLASSIFIER_KINDS))}")
@@ -264,6 +264,18 @@ def _read_arrays(path: Path) -> dict[str, np.ndarray]:
                      f"({exc.__class__.__name__}: {exc})") from None
 
 
-def _load_kinds() -> None:
-    """Import the implementations so they register themselves."""
-    from . import autocontext, convnet, ensemble, forest, gmm  # noqa: F401
+#: The module implementing each kind (imported on demand: the forests need numba, whose import
+#: alone takes 1.4–1.8 s, which a command using a network should not pay).
+_KIND_MODULES: dict[str, str] = {"forest": "forest", "autocontext": "autocontext",
+                                 "convnet": "convnet", "ensemble": "ensemble", "gmm": "gmm"}
+
+
+def _load_kinds(kind: object = None) -> None:
+    """Import the implementation of ``kind`` (every one when it is not a known kind) so that it
+    registers itself."""
+    import importlib
+
+    known = isinstance(kind, str) and kind in _KIND_MODULES
+    names = [_KIND_MODULES[kind]] if known else list(_KIND_MODULES.values())
+    for name in names:
+        importlib.import_module(f"{__package__}.{name}")
