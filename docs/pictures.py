@@ -5,7 +5,9 @@ classifiers have not seen them):
 - ``docs/images/reconstruct.jpg``: ``facadeforge reconstruct`` — the photo with the found
   elements (input frame), ``structure.png``, ``labels.png`` and the derived model;
 - ``docs/images/parse.jpg``: ``facadeforge parse`` (default grammar, search and budget) — the
-  photo, the classifier's labels, the derivation's labels (input frame) and the derived model.
+  photo, the classifier's labels, the derivation's labels (input frame) and the derived model;
+- ``docs/images/facades.jpg``: a RueMonge val photo of a corner cut into its facades
+  (``reconstruct``'s ``facades.png``) and each usable facade rectified on its own.
 
     .venv/bin/python docs/pictures.py
 """
@@ -19,7 +21,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"
-PHOTOS = (("cmp", "cmp_b0187", True), ("ruemonge", "IMG_5722", False))
+PHOTOS = (("cmp", "cmp_b0187", True), ("ruemonge", "IMG_5778", False))
+CORNER = "IMG_5901"
 ROW_HEIGHT = 420
 
 
@@ -71,6 +74,21 @@ def parse_row(dataset: str, sample_id: str, rectified: bool) -> np.ndarray:
     return _join(tiles, axis=1)
 
 
+def facades_row(sample_id: str = CORNER) -> np.ndarray:
+    from facadeforge.evaluation.bench import select_samples
+    from facadeforge.imaging.facades import draw_facades, find_facades
+    from facadeforge.photo import analysis_copy
+
+    val, _, _ = select_samples("ruemonge", DATA / "ruemonge", "val")
+    (sample,) = [s for s in val if s.id == sample_id]
+    photo = sample.image()
+    work, to_work = analysis_copy(photo)
+    split = find_facades(work)
+    drawn = draw_facades(photo, split, np.linalg.inv(to_work))
+    crops = [r.rectified(work) for r in split.regions if r.ok]
+    return _join([_fit(drawn), *(_fit(c) for c in crops)], axis=1)
+
+
 def _join(parts: list[np.ndarray], axis: int) -> np.ndarray:
     """Parts side by side (axis 1) or stacked (axis 0) with white 6-px gaps."""
     if axis == 0:
@@ -96,6 +114,10 @@ def main() -> int:
             continue
         out = ROOT / "docs" / "images" / name
         Image.fromarray(_join(rows, axis=0)).save(out, quality=85)
+        print(f"wrote {out}")
+    if (DATA / "ruemonge").is_dir():
+        out = ROOT / "docs" / "images" / "facades.jpg"
+        Image.fromarray(facades_row()).save(out, quality=85)
         print(f"wrote {out}")
     return 0
 
