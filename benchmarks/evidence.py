@@ -15,16 +15,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import platform
-import subprocess
 import time
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
 from facadeforge.classify import default_classifier
-from facadeforge.evaluation.bench import select_samples
+from facadeforge.evaluation.bench import provenance, select_samples
 from facadeforge.evaluation.methods import is_rectified
 from facadeforge.evaluation.metrics import (
     class_average_accuracy,
@@ -37,14 +34,6 @@ from facadeforge.parsing.parse import parse
 VALUES = (0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, float("inf"))
 
 
-def _commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", default="../shared/data")
@@ -52,9 +41,7 @@ def main() -> None:
     ap.add_argument("-o", "--output", default="benchmarks/results/evidence.json")
     args = ap.parse_args()
     data = Path(args.data)
-    out: dict = {"machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
-                 "cores": __import__("os").cpu_count(),
-                 "date": datetime.now(UTC).strftime("%Y-%m-%d"), "commit": _commit(),
+    out: dict = {"benchmark": "evidence", **provenance(),
                  "values": [v if np.isfinite(v) else "inf" for v in VALUES], "datasets": {}}
     t0 = time.perf_counter()
     for dataset in ("ruemonge", "cmp"):

@@ -28,12 +28,14 @@ __all__ = ["STREET_CLASSES", "UMBRELLA", "partial_table"]
 STREET_CLASSES: tuple[str, ...] = ("wall", "window", "door", "balcony", "shop", "roof", "sky",
                                    "vegetation", "car", "pavement", "road", "other")
 
+# CMP: "background" is whatever is not the facade: sky, roofs, trees, cars, street, people
+_CMP_BACKGROUND = {"background": ("sky", "roof", "vegetation", "car", "pavement", "road", "other")}
+
 #: Dataset classes that stand for several street classes: label set → dataset class name →
 #: the street classes it may be.
 UMBRELLA: Mapping[str, Mapping[str, tuple[str, ...]]] = MappingProxyType({
-    # CMP: "background" is whatever is not the facade: sky, roofs, trees, cars, street, people
-    "cmp12": {"background": ("sky", "roof", "vegetation", "car", "pavement", "road", "other")},
-    "cmp6": {"background": ("sky", "roof", "vegetation", "car", "pavement", "road", "other")},
+    "cmp12": _CMP_BACKGROUND,
+    "cmp6": _CMP_BACKGROUND,
     # LabelMeFacade: "building" is the facade around the windows and doors labelled, with its
     # balconies, shop fronts, roofs, and the many windows and doors nobody outlined; "various"
     # is whatever was left unlabelled (trucks, hedges, fire escapes, poles, people): anything

@@ -48,12 +48,14 @@ from ..frames import warp
 from .rectify import (
     _families,
     _normalizer,
-    _ransac_vp,
     _sin_to_vp,
     detect_segments,
     rectifying_homography,
     segment_geometry,
     to_rgb8,
+)
+from .rectify import (
+    _fit_family as _fit_vp_family,
 )
 
 __all__ = ["FacadeRegion", "FacadeSplit", "draw_facades", "find_facades"]
@@ -211,18 +213,10 @@ def _u_coord(vp_v: np.ndarray | None, pts: np.ndarray, y_ref: float) -> np.ndarr
 
 
 def _fit_family(seg: np.ndarray, mask: np.ndarray, T: np.ndarray, gen) -> tuple:
-    """RANSAC vanishing point of the segments ``mask`` selects: (vp in pixels or None, full
-    inlier mask, inlier length)."""
-    Tinv = np.linalg.inv(T)
-    seg_n = np.c_[seg[:, 0:2] * T[0, 0] + T[0:2, 2], seg[:, 2:4] * T[0, 0] + T[0:2, 2]]
-    fit = _ransac_vp(seg_n[mask], gen)
-    full = np.zeros(len(seg), bool)
-    full[np.flatnonzero(mask)] = fit.inliers
-    vp = None
-    if fit.vp is not None:
-        vp = Tinv @ fit.vp
-        vp = vp / np.linalg.norm(vp)
-    return vp, full, fit.support
+    """RANSAC vanishing point of the segments ``mask`` selects (rectify's fit): (vp in pixels or
+    None, full inlier mask, inlier length)."""
+    fit = _fit_vp_family(seg, mask, T, gen)
+    return fit.vp, fit.inliers, fit.support
 
 
 def _angle_to(seg: np.ndarray, vp: np.ndarray | None) -> np.ndarray:

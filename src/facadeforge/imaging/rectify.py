@@ -236,23 +236,25 @@ def _families(segments: np.ndarray, family_deg: float = FAMILY_ANGLE_DEG):
     return from_vertical < t, (from_horizontal < t) & ~(from_vertical < t)
 
 
+def _fit_family(seg: np.ndarray, mask: np.ndarray, T: np.ndarray, rng) -> _VPFit:
+    """RANSAC vanishing point of the segments ``mask`` selects, in normalised coordinates
+    (:func:`_normalizer` ``T``), returned in pixels with the inlier mask over all of ``seg``."""
+    seg_n = np.c_[seg[:, 0:2] * T[0, 0] + T[0:2, 2], seg[:, 2:4] * T[0, 0] + T[0:2, 2]]
+    fit = _ransac_vp(seg_n[mask], rng)
+    full = np.zeros(len(seg), bool)
+    full[np.flatnonzero(mask)] = fit.inliers
+    vp = None
+    if fit.vp is not None:
+        vp = np.linalg.inv(T) @ fit.vp
+        vp = vp / np.linalg.norm(vp)
+    return _VPFit(vp, full, fit.support)
+
+
 def _fit_both(segments: np.ndarray, shape: tuple[int, int], rng: np.random.Generator):
     T = _normalizer(shape)
     seg = np.asarray(segments, dtype=np.float64).reshape(-1, 4)
-    seg_n = np.c_[seg[:, 0:2] * T[0, 0] + T[0:2, 2], seg[:, 2:4] * T[0, 0] + T[0:2, 2]]
     fam_v, fam_h = _families(seg)
-    fits = []
-    Tinv = np.linalg.inv(T)
-    for fam in (fam_v, fam_h):
-        fit = _ransac_vp(seg_n[fam], rng)
-        full = np.zeros(len(seg), bool)
-        full[np.flatnonzero(fam)] = fit.inliers
-        vp = None
-        if fit.vp is not None:
-            vp = Tinv @ fit.vp
-            vp = vp / np.linalg.norm(vp)
-        fits.append(_VPFit(vp, full, fit.support))
-    return fits[0], fits[1]
+    return _fit_family(seg, fam_v, T, rng), _fit_family(seg, fam_h, T, rng)
 
 
 def vanishing_points(segments: np.ndarray, image_shape: tuple[int, ...] | None = None,
