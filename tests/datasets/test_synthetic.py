@@ -79,7 +79,7 @@ def test_styles_cover_the_vocabulary():
         f = S.make_facade(style, np.random.default_rng(1), size=96, attrs=forced[style])
         seen |= {r.label for r in f.leaves}
     assert {"wall", "window", "door", "balcony", "shop", "roof", "sky", "cornice", "sill",
-            "blind", "deco", "molding", "pillar", "vegetation", "other", "ground",
+            "blind", "deco", "molding", "pillar", "vegetation", "car", "ground",
             "background"} <= seen
 
 

@@ -201,10 +201,10 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--kind", default="autocontext",
                    choices=(*TRAINABLE_KINDS, "gmm", "ensemble"))
     p.add_argument("--dataset",
-                   help="dataset layout: cmp, ruemonge, labelmefacade or folder (forest, "
-                        "autocontext, convnet); a convnet may train on several at once, "
-                        "comma-separated (ruemonge,cmp,labelmefacade), each supervising only "
-                        "the classes it labels")
+                   help="dataset layout: cmp, ruemonge, labelmefacade, synthetic or folder "
+                        "(forest, autocontext, convnet); several, comma-separated: a convnet "
+                        "learns from each the classes it labels (ruemonge,cmp,labelmefacade), "
+                        "a forest reads all in --labels (labelmefacade,synthetic --labels lmf9)")
     p.add_argument("--data", help="dataset folder (comma-separated, one per --dataset)")
     p.add_argument("--split", default="train",
                    help="split to train on: train (default, the development train split) or all")
@@ -261,16 +261,19 @@ def cmd_train_classifier(args: argparse.Namespace) -> int:
         if len(names) != len(folders):
             raise InputError(f"--dataset names {len(names)} layouts and --data {len(folders)} "
                              "folders; give one folder per layout, in the same order")
-        if len(names) > 1 and args.kind != "convnet":
-            raise InputError(f"--kind {args.kind} trains on one dataset; only a convnet learns "
-                             "from several datasets with different classes")
+        if len(names) > 1 and args.kind != "convnet" and not args.labels:
+            raise InputError(f"--kind {args.kind} learns from several datasets only when all "
+                             "are read in one label set: give --labels (e.g. lmf9); only a "
+                             "convnet learns from datasets with different classes")
         from ..evaluation.bench import select_samples
 
+        # several datasets: a convnet reads each in its own classes (the network's are
+        # --labels); a forest reads all of them in --labels
+        own = len(names) > 1 and args.kind == "convnet"
         scored, rules = [], []
         for name, folder in zip(names, folders):
-            # several datasets: each is read in its own classes, the network's are --labels
             picked, _fit, rule = select_samples(name, folder, args.split,
-                                                args.labels if len(names) == 1 else None)
+                                                None if own else args.labels)
             scored += picked[:args.limit] if args.limit else picked
             rules.append(rule)
         rule = "; ".join(rules)

@@ -15,7 +15,7 @@ Styles (``grammars/*.cga``, in our CGA dialect)
     garage, eaves, tiled roof with dormers.  Every style has irregularities driven by attributes
     and stochastic rules (missing and shifted windows, blinds, mezzanine, a distinct ground
     floor) and occluders (``occluders.cga``: street trees ``vegetation``, parked cars
-    ``other``).  See the head of each grammar for its conventions.
+    ``car``).  See the head of each grammar for its conventions.
 
 Output layout (one set of files per facade, ``NAME = synth_<seed>_<i:04d>``)::
 
@@ -24,8 +24,8 @@ Output layout (one set of files per facade, ``NAME = synth_<seed>_<i:04d>``)::
                            (facadeforge.exchange.raster.LABEL_INDEX, the order of
                            facadeforge.model.Labels: 0 background, 1 wall, 2 window, 3 door,
                            4 balcony, 5 shop, 6 roof, 7 sky, 8 cornice, 9 sill, 10 blind, 11 deco,
-                           12 molding, 13 pillar, 14 vegetation, 15 other, 16 ground); colours are
-                           raster.LABEL_COLORS.  Aligned with the photo (warped with it when the
+                           12 molding, 13 pillar, 14 vegetation, 15 other, 16 ground, 17 car);
+                           colours are raster.LABEL_COLORS.  Aligned with the photo (warped with it when the
                            photo has perspective).
     DIR/NAME.tree.json     the shape tree, ``Shape.to_dict()`` (metres, x right, y up, z out)
     DIR/NAME.objects.json  one rectangle per element (a maximal subtree whose visible leaves all
@@ -94,7 +94,7 @@ STYLES: tuple[str, ...] = ("haussmann", "modern", "residential")
 
 #: Canonical labels written as objects (walls, roof, sky, ground and background are regions).
 OBJECT_LABELS: tuple[str, ...] = ("window", "door", "balcony", "shop", "cornice", "sill", "blind",
-                                  "deco", "molding", "pillar", "vegetation", "other")
+                                  "deco", "molding", "pillar", "vegetation", "car", "other")
 
 GRAMMAR_DIR = Path(__file__).resolve().parent / "grammars"
 DEFAULT_WIDTH_PX = 480
