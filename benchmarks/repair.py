@@ -272,33 +272,30 @@ def _mean(values: list[float | None]) -> float | None:
 # ---------------------------------------------------------------------------------- sheet
 def write_sheet(rows: list[tuple[OccludedSample, dict[str, np.ndarray]]], path: Path,
                 height: int = 200, quality: int = 80) -> None:
-    """JPEG sheet: one row per facade (clean, occluded, each method), tiles ``height`` px tall,
-    each column as wide as its widest tile; a caption strip above each tile."""
+    """JPEG sheet: one row per facade (clean, occluded, each method), tiles ``height`` px tall
+    at the facade's aspect, a caption above each; the file is kept under 400 KB."""
     if not rows:
         return
-    names = ["clean", "occluded"] + list(rows[0][1])
-    cap = 16
-    tiles: list[list[np.ndarray]] = []
-    widths = [0] * len(names)
+    cap, gap = 14, 4
+    lines = []
     for sample, images in rows:
-        line = []
-        for k, im in enumerate([sample.clean, sample.occluded] + list(images.values())):
+        named = [(f"{sample.id} clean", sample.clean), ("occluded", sample.occluded),
+                 *images.items()]
+        tiles = []
+        for name, im in named:
             h, w = im.shape[:2]
             tw = max(1, round(w * height / h))
-            line.append(np.asarray(Image.fromarray(im).resize((tw, height), Image.LANCZOS)))
-            widths[k] = max(widths[k], tw)
-        tiles.append(line)
-    sheet = Image.new("RGB", (sum(widths) + 4 * (len(names) - 1),
-                              len(rows) * (height + cap)), (255, 255, 255))
+            tiles.append((name, Image.fromarray(im).resize((tw, height), Image.LANCZOS)))
+        lines.append(tiles)
+    width = max(sum(t.width for _, t in tiles) + gap * (len(tiles) - 1) for tiles in lines)
+    sheet = Image.new("RGB", (width, len(lines) * (height + cap)), (255, 255, 255))
     draw = ImageDraw.Draw(sheet)
-    for r, ((sample, _), line) in enumerate(zip(rows, tiles)):
-        x = 0
-        y = r * (height + cap)
-        for k, tile in enumerate(line):
-            sheet.paste(Image.fromarray(tile), (x, y + cap))
-            label = names[k] if k else f"{sample.id} clean"
-            draw.text((x + 2, y + 2), label, fill=(0, 0, 0))
-            x += widths[k] + 4
+    for r, tiles in enumerate(lines):
+        x, y = 0, r * (height + cap)
+        for name, tile in tiles:
+            sheet.paste(tile, (x, y + cap))
+            draw.text((x + 2, y + 1), name, fill=(0, 0, 0))
+            x += tile.width + gap
     path.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(path, "JPEG", quality=quality, optimize=True)
     while path.stat().st_size > 400_000 and quality > 40:   # keep the repo light

@@ -22,9 +22,10 @@ Cutting (per component of a class, 8-connected):
   colours (the polygon drawn around a bare winter tree holds the sky and houses behind it) or
   when its top rows are cut straight (:data:`MAX_FLAT_TOP`: a crown hanging into the photo);
 - LabelMe labels are hand-drawn polygons and run a pixel or two past the object: the alpha is
-  the component eroded by 1 px (3 × 3) and feathered (Gaussian σ = :data:`FEATHER_SIGMA` px,
-  cut below 0.05, so the soft rim is one pixel wide), limited to the component; colours
-  outside the eroded component are not used (its nearest body pixel's colour stands there).
+  the component eroded by 1 px (3 × 3) and feathered inwards (Gaussian σ =
+  :data:`FEATHER_SIGMA` px: the outermost pixels of the eroded body are 55–80 % opaque,
+  outside it alpha is 0); colours outside the eroded body are not used (the nearest body
+  pixel's colour stands there).
 
 Pasting rule (:func:`paste_occluders`), sizes relative to the facade:
 
@@ -42,7 +43,9 @@ Pasting rule (:func:`paste_occluders`), sizes relative to the facade:
   image (never more than its upper bound, at most ``max_items`` items); trees are drawn behind
   cars (vegetation first, then other classes, then cars, each group in placement order).
 
-The occluded image is the alpha-composite; its mask is the composite alpha > 0.5.  Every random
+The occluded image is the alpha-composite; its mask is the composite alpha > 0.5, which is
+every pixel the paste changed (the matte is feathered inwards only, and is re-made at the
+pasted size, so the soft rim stays one pixel wide at any scale).  Every random
 choice comes from the ``rng`` passed, so a seed gives the same images on every machine.
 """
 
@@ -158,7 +161,7 @@ class OccludedSample:
     mask : (H, W) bool
         Composite alpha > 0.5: what a repair must fill.
     alpha : (H, W) float32
-        The composite alpha (pixels with 0 < alpha ≤ 0.5 are the matte's 1-px rim).
+        The composite alpha (0 off the mask; 0.55–1 on it, below 1 on the objects' 1-px rim).
     labels : (H, W) uint8
         The clean facade's ``cmp12`` class-index map (255 unlabelled).
     occluder_labels : (H, W) uint8
@@ -185,11 +188,13 @@ class OccludedSample:
 
 # ------------------------------------------------------------------------------------ cutting
 def _feather(hard: np.ndarray) -> np.ndarray:
-    """Soft alpha (0–1) of a binary matte: Gaussian σ = FEATHER_SIGMA; > 0.5 exactly on
-    ``hard`` (its rim pixels keep at least 0.55, the ring around it gets ≈ 0.25)."""
-    g = ndimage.gaussian_filter(hard.astype(np.float32), FEATHER_SIGMA)
-    g[g < 0.05] = 0.0           # the tail past the first ring: the rim stays 1 px wide
-    return np.where(hard, np.maximum(g, 0.55), np.minimum(g, 0.45)).astype(np.float32)
+    """Soft alpha (0–1) of a binary matte, feathered inwards only: Gaussian σ = FEATHER_SIGMA
+    on ``hard`` (its rim pixels get 0.55–0.8, the body 1), exactly 0 off it.  So every pixel a
+    paste changes is in the mask (alpha > 0.5): a pixel outside it tinted by the object would
+    be a halo no method given the mask can remove, and a seed that boundary-driven fills
+    (Telea, biharmonic) smear into the hole."""
+    g = ndimage.gaussian_filter(hard.astype(np.float32), FEATHER_SIGMA, mode="constant")
+    return np.where(hard, np.maximum(g, 0.55), 0.0).astype(np.float32)
 
 
 def _matte(mask: np.ndarray) -> np.ndarray:
@@ -496,7 +501,7 @@ def _paste(rgb: np.ndarray, occluders: Sequence[Occluder], *, rng: np.random.Gen
         placed[0]["target_coverage"] = round(target, 5)
     occluded = np.clip(np.round(out), 0, 255).astype(np.uint8)
     mask = total > 0.5
-    top[~mask] = IGNORE     # two soft rims overlapping: no single top occluder
+    top[~mask] = IGNORE
     return occluded, total, top, placed
 
 
