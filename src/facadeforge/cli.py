@@ -30,6 +30,10 @@ EXAMPLES = {
   facadeforge reconstruct photo.jpg --depths depths.json -o out/     # {"window": -0.3, "balcony": 1.2}
   facadeforge reconstruct facade.png --rectified --no-classifier -o out/   # the paper's edge-only path
   facadeforge reconstruct corner.jpg --facades one -o out/    # the whole photo as one facade""",
+    "repair": """examples:
+  facadeforge repair facade.png --rectified -o out/            # occluders found by the classifiers
+  facadeforge repair facade.png --rectified --mask trees.png -o out/   # white = occluded
+  facadeforge repair photo.jpg --labels labels.png --label-set cmp12 -o out/""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -145,7 +149,30 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    "else ecp7, trained on Parisian street photos)")
     k.add_argument("--no-classifier", action="store_true",
                    help="elements from image edges only (Müller 2007 §2–3, no classifier)")
+    c.add_argument("--no-repair", action="store_true",
+                   help="texture the model with the photo as it is (default: trees, cars and "
+                        "people in front of the facade are found and repaired first)")
     c.add_argument("-o", "--output", required=True, help="output folder")
+
+    e = sub.add_parser("repair", help="remove trees, cars and people from a facade photo "
+                       "(Shang 2023): repaired.png, mask.png, labels_completed.png, report.json",
+                       epilog=EXAMPLES["repair"],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    e.add_argument("photo", help="facade photo")
+    e.add_argument("--mask", help="what to repair: a PNG of the photo's size, non-zero = occluded "
+                                  "(default: found by the classifiers)")
+    e.add_argument("--labels", help="label PNG of the photo (its occluder pixels are the mask "
+                                    "when there is no --mask; default: the facade classifier's)")
+    e.add_argument("--label-set", default="canonical",
+                   help="label set of --labels: canonical (default), cmp12, ecp7, lmf9 …")
+    e.add_argument("--rectified", action="store_true",
+                   help="the photo is already fronto-parallel (else it is rectified, repaired on "
+                        "the facade and mapped back)")
+    e.add_argument("--wall", choices=("quilt", "patchmatch"), default="quilt",
+                   help="how wall is filled: image quilting from the visible wall (default, "
+                        "§3.4) or label-guided PatchMatch")
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("-o", "--output", required=True, help="output folder")
 
     if wanted("parse"):
         from .parsing import DEFAULT_BUDGET
@@ -269,10 +296,22 @@ def _summary(rec, out) -> str:
              f"(elements from {src})",
              "timings: " + ", ".join(f"{k} {v:.2f} s" for k, v in t.items()),
              ("needs review: " + "; ".join(r["flags"])) if r["needs_review"] else "no review flags",
+             _repair_line(r.get("repair")),
              *(f"note: {n}" for n in r.get("notes", [])),
              f"wrote {out}/: rectified.png structure.png labels.png labels_input.png "
              "shape_tree.json rules.cga model.glb model.obj model.city.json report.json"]
     return "\n".join(lines)
+
+
+def _repair_line(rep) -> str:
+    """What the texture repair did, one line."""
+    if rep is None:
+        return "texture: the photo as it is (--no-repair)"
+    if not rep["mask"]["pixels"]:
+        return "texture: no occluder found in front of the facade"
+    filled = ", ".join(f"{k} {v} px" for k, v in rep["filled"].items() if v)
+    return (f"texture repaired: {100 * rep['mask']['fraction']:.1f} % of the facade occluded "
+            f"(mask from {rep['mask']['source']}), filled by {filled}")
 
 
 def _facades_summary(result, out) -> str:
@@ -298,7 +337,7 @@ def cmd_reconstruct(args) -> int:
                                  width_m=args.width_m, height_m=args.height_m,
                                  depths=args.depths, out_dir=args.output,
                                  classifier=False if args.no_classifier else args.classifier,
-                                 seed=args.seed)
+                                 repair=not args.no_repair, seed=args.seed)
     if result.single is not None:
         print(_summary(result.single, args.output))
     else:
@@ -398,6 +437,55 @@ def cmd_parse(args) -> int:
     return 0
 
 
+def _read_labels(path: str, label_set: str):
+    """A label PNG as canonical label indices (``label_set`` says how to read it; canonical:
+    the index or palette PNG ``reconstruct`` and ``repair`` write, or its colours)."""
+    import numpy as np
+
+    from .datasets.folder import read_label_image
+    from .errors import InputError
+
+    raw = read_label_image(path, palette_as_color=False)
+    if label_set == "canonical":
+        from .exchange.raster import PALETTE
+
+        if raw.ndim == 2:
+            return np.asarray(raw, np.int64)
+        key = (raw[..., 0].astype(np.int64) << 16) | (raw[..., 1].astype(np.int64) << 8) | raw[..., 2]
+        pal = (PALETTE[:, 0].astype(np.int64) << 16) | (PALETTE[:, 1].astype(np.int64) << 8) | PALETTE[:, 2]
+        order = np.argsort(pal)
+        pos = np.clip(np.searchsorted(pal[order], key), 0, len(pal) - 1)
+        if not (pal[order][pos] == key).all():
+            raise InputError(f"--labels {path}: colours that are not canonical label colours; "
+                             "give --label-set (cmp12, ecp7, lmf9 …) for a dataset's label PNG")
+        return order[pos].astype(np.int64)
+    from .datasets.labelsets import CANONICAL_INDEX, IGNORE, get_label_set
+
+    ls = get_label_set(label_set)
+    if raw.ndim == 3:
+        idx = ls.from_color(raw, strict=True)
+    else:
+        idx = ls.from_dataset(raw, strict=True)
+    canon = ls.to_canonical(idx).astype(np.int64)
+    canon[canon == IGNORE] = CANONICAL_INDEX["other"]   # unlabelled: a piece of the scene
+    return canon
+
+
+def cmd_repair(args) -> int:
+    from .repair.pipeline import repair_photo
+
+    labels = _read_labels(args.labels, args.label_set) if args.labels else None
+    r = repair_photo(args.photo, mask=args.mask, labels=labels, rectified=args.rectified,
+                     wall=args.wall, seed=args.seed, out_dir=args.output)
+    rep = r.report
+    filled = ", ".join(f"{k} {v} px" for k, v in rep["filled"].items() if v) or "nothing"
+    print(f"repaired {args.photo}: mask from {rep['mask']['source']} "
+          f"({100 * rep['mask']['fraction']:.1f} % of the photo); filled by {filled}; "
+          f"{rep['timings']['total']:.2f} s → {args.output}/repaired.png mask.png "
+          "labels_completed.png report.json")
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -406,7 +494,7 @@ def cmd_train_classifier(args) -> int:
 
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
-            "train-classifier": cmd_train_classifier, "parse": cmd_parse}
+            "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -330,7 +330,8 @@ def _leaf_info(chosen: Mapping[int, str], depths: Mapping[str, float]):
 
 
 def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
-                             valid: np.ndarray | None = None) -> np.ndarray:
+                             valid: np.ndarray | None = None,
+                             occluded: np.ndarray | None = None) -> np.ndarray:
     """The rectified photo with every tile replaced by the mean of its cluster (§4: the IF keeps
     the intensities of all repetitions, so each tile is textured with their average —
     occluders and noise present in few tiles fade).
@@ -338,13 +339,16 @@ def cluster_averaged_texture(rgb: np.ndarray, tree: Shape,
     ``valid`` (H, W) bool marks the pixels the photo covers (a rectified street photo leaves
     wedges outside it): the means weigh valid pixels only, so a tile partly outside the photo
     is completed from its repetitions, and the pixels no repetition covers take the colour of
-    the nearest valid pixel.
+    the nearest valid pixel.  ``occluded`` (H, W) bool marks valid pixels whose colour was
+    repaired (:mod:`facadeforge.repair`): they are kept where no repetition covers them, but
+    the means weigh only what the camera saw.
     """
     import cv2
 
     out = rgb.copy()
-    ok = np.ones(rgb.shape[:2], bool) if valid is None else np.asarray(valid, bool)
-    filled = ok.copy()
+    filled = np.ones(rgb.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    ok = filled if occluded is None else filled & ~np.asarray(occluded, bool)
+    filled = filled.copy()
     groups: dict[str, list[list[int]]] = {}
     for node in tree.walk():
         if node.symbol == "Tile":
@@ -483,7 +487,8 @@ def _detect(prob, clf, gray, px_per_m, edges):
 def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
                 height_m: float | None = None, depths: Mapping[str, float] | str | None = None,
                 out_dir: str | os.PathLike | None = None, model: bool = True,
-                refine: bool = True, classifier=None, seed: int = 0) -> Reconstruction:
+                refine: bool = True, classifier=None, repair: bool = True,
+                seed: int = 0) -> Reconstruction:
     """Reconstruct a procedural facade from one photo (Müller et al. 2007, all sections).
 
     Parameters
@@ -514,6 +519,10 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         ``None``: the shipped model (``cmp12`` with ``rectified``, else ``ecp7``:
         :func:`facadeforge.classify.default_label_set`); ``False``: the paper's edge-based
         path only.
+    repair : bool
+        Texture the model with the facade repaired (:mod:`facadeforge.repair`: trees, cars
+        and people in front of it found and filled, ``report["repair"]`` says what); ``False``
+        keeps the photo as it is.
 
     Raises
     ------
@@ -526,7 +535,8 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
     rect_img, H, rect = _rectify_whole(loaded.work, rectified, seed)
     loaded.timings["rectify"] = time.perf_counter() - t
     rec = _analyse(loaded, rect_img, H @ loaded.to_work, rect, applied=not rectified,
-                   width_m=width_m, height_m=height_m, model=model, refine=refine)
+                   width_m=width_m, height_m=height_m, model=model, refine=refine,
+                   repair=repair)
     if out_dir is not None:
         rec.save(out_dir)         # adds the export time to the report it writes last
     return rec
@@ -584,9 +594,34 @@ def _rectify_whole(work: np.ndarray, rectified: bool, seed: int):
     return rect_img, H, (rect_ok, rect_reason, rect_conf)
 
 
+def _repair(rect_img: np.ndarray, tree: Shape, labels: np.ndarray, covered):
+    """Stage ``repair`` (seed ``shang2023``): occluders in front of the facade found and
+    filled before the texture is made — the tiles of each cluster are the repetition groups,
+    the shape tree's labels the facade's.  Returns the :class:`~facadeforge.repair.Repair`
+    (``None`` when nothing was found) and what goes to ``report["repair"]``."""
+    from .repair.pipeline import repair_photo
+
+    if min(rect_img.shape[:2]) < MIN_SIDE:
+        return None, {"mask": {"source": None, "pixels": 0, "fraction": 0.0}, "filled": {},
+                      "completed": {}, "seconds": 0.0, "note": "facade too small to repair"}
+    groups: dict[str, list] = {}
+    for node in tree.walk():
+        if node.symbol == "Tile":
+            groups.setdefault(node.tags["cluster"], []).append(tuple(node.tags["box_px"]))
+    rep = repair_photo(rect_img, rectified=True, labels=labels,
+                       groups=[g for g in groups.values() if len(g) >= 2])
+    if covered is not None:
+        rep.mask &= covered
+    r = rep.report
+    summary = {"mask": r["mask"], "filled": r["filled"], "completed": r["completed"],
+               "seconds": r["timings"]["total"]}
+    return (rep if rep.mask.any() else None), summary
+
+
 def _analyse(loaded: _Loaded, rect_img: np.ndarray, homography: np.ndarray, rect, *,
              applied: bool, width_m=None, height_m=None, model: bool = True,
-             refine: bool = True, timings: dict | None = None) -> Reconstruction:
+             refine: bool = True, repair: bool = True, timings: dict | None = None
+             ) -> Reconstruction:
     """Stages ``classify`` to ``model`` on one rectified facade: ``rect_img`` and the
     ``homography`` from photo pixels to it; ``rect`` is ``(ok, reason, confidence)`` of its
     rectification (``applied``: it was rectified here)."""
@@ -675,8 +710,14 @@ def _analyse(loaded: _Loaded, rect_img: np.ndarray, homography: np.ndarray, rect
     rules = extract_rules(tree, texture="texture.jpg", depths=depth_map)
     timings["rules"] = time.perf_counter() - t
 
-    texture = cluster_averaged_texture(rect_img, tree, _covered(rgb.shape, homography,
-                                                                rect_img.shape))
+    covered = _covered(rgb.shape, homography, rect_img.shape)
+    t = time.perf_counter()
+    repaired, repair_report = _repair(rect_img, tree, labels, covered) if repair else (
+        None, None)
+    if repair:
+        timings["repair"] = time.perf_counter() - t
+    texture = cluster_averaged_texture(rect_img if repaired is None else repaired.repaired, tree,
+                                       covered, None if repaired is None else repaired.mask)
     flags = review_flags(structure, tree, rect_ok, rect_reason, structure.confidences["floors"])
     notes = [] if mpp else ["scale from the floor-height prior: give --width-m for true metres"]
     if clf is not None and layout is None:
@@ -704,6 +745,7 @@ def _analyse(loaded: _Loaded, rect_img: np.ndarray, homography: np.ndarray, rect
         "needs_review": bool(flags),
         "flags": flags,
         "notes": notes,
+        "repair": repair_report,
         "timings": timings,
     }
     rec = Reconstruction(photo=rgb, rectified=rect_img, homography=homography,
@@ -841,8 +883,8 @@ def reconstruct_facades(photo, *, facades: str = "auto", rectified: bool = False
                         width_m: float | None = None, height_m: float | None = None,
                         depths: Mapping[str, float] | str | None = None,
                         out_dir: str | os.PathLike | None = None, model: bool = True,
-                        refine: bool = True, classifier=None, seed: int = 0
-                        ) -> PhotoReconstruction:
+                        refine: bool = True, classifier=None, repair: bool = True,
+                        seed: int = 0) -> PhotoReconstruction:
     """A street photo → one reconstruction per facade it shows (``facadeforge reconstruct``).
 
     ``facades="auto"`` (the default) cuts the photo into its facades first
@@ -872,7 +914,8 @@ def reconstruct_facades(photo, *, facades: str = "auto", rectified: bool = False
     """
     if facades not in FACADE_MODES:
         raise InputError(f"--facades {facades!r}: use {' or '.join(FACADE_MODES)}")
-    options = {"width_m": width_m, "height_m": height_m, "model": model, "refine": refine}
+    options = {"width_m": width_m, "height_m": height_m, "model": model, "refine": refine,
+               "repair": repair}
     if facades == "one" or rectified:
         rec = reconstruct(photo, rectified=rectified, depths=depths, out_dir=out_dir,
                           classifier=classifier, seed=seed, **options)
