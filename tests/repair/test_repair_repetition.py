@@ -74,6 +74,24 @@ def test_hidden_window_is_painted_from_the_others_and_beats_telea():
     assert ours > 25 and ours > theirs + 10
 
 
+def test_groups_from_the_completed_label_map_paint_the_hidden_window():
+    from facadeforge.repair.structure import complete_labels_structure, element_groups
+
+    truth, boxes = _facade()
+    hole = _tree()
+    labels = np.ones((H, W), np.uint8)                       # 1 wall, 2 window
+    for x0, y0, x1, y1 in boxes:
+        labels[y0:y1, x0:x1] = 2
+    seen = np.where(hole, 0, labels).astype(np.uint8)
+    done, decided = complete_labels_structure(seen, hole, element_classes=[2], wall=1)
+    assert np.array_equal(done[decided], labels[decided])
+    groups = element_groups(done, [2], hole=hole)
+    assert len(groups) == 1 and sorted(groups[0]) == sorted(boxes)
+    out, filled = repetition_fill(_occlude(truth, hole), hole, groups)
+    x0, y0, x1, y1 = boxes[7]
+    assert _psnr(out[y0:y1, x0:x1], truth[y0:y1, x0:x1], hole[y0:y1, x0:x1]) > 25
+
+
 def test_blending_takes_out_the_shading_between_instances():
     truth, boxes = _facade()
     hole = _tree()
