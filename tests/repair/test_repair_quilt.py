@@ -155,6 +155,26 @@ def test_constrained_fill_changes_only_the_region_and_joins_its_surroundings():
     assert ring(out) < 0.6 * ring(pasted)
 
 
+def test_pixels_declared_unknown_are_not_matched():
+    img = _bricks(200, 200, seed=3)
+    region = np.zeros((200, 200), bool)
+    region[60:140, 60:140] = True
+    occluder = np.zeros_like(region)
+    occluder[40:160, 40:60] = True                  # rest of an occluder, left of the region
+    source = ~region & ~occluder
+    outs = {}
+    for colour in ((0, 255, 0), (255, 0, 0)):
+        photo = img.copy()
+        photo[occluder] = colour
+        outs[colour, "plain"] = quilt(photo, region, source, block=24, seed=2)
+        outs[colour, "known"] = quilt(photo, region, source, block=24, seed=2, known=source)
+        assert np.array_equal(outs[colour, "known"][~region], photo[~region])
+    # told what is unknown, the fill no longer depends on what the occluder looks like
+    assert np.array_equal(outs[(0, 255, 0), "known"][region], outs[(255, 0, 0), "known"][region])
+    assert not np.array_equal(outs[(0, 255, 0), "plain"][region],
+                              outs[(255, 0, 0), "plain"][region])
+
+
 def test_fill_of_600_by_400_from_300_by_300_source_is_fast():
     img = np.zeros((700, 1000, 3), np.uint8)
     img[:, :] = _bricks(700, 1000, seed=7)

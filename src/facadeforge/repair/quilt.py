@@ -284,7 +284,8 @@ def quilt_texture(source: np.ndarray, out_hw: tuple[int, int], *, block: int = 3
 
 
 def quilt(rgb: np.ndarray, region: np.ndarray, source: np.ndarray, *, block: int | None = None,
-          overlap: int | None = None, tolerance: float = 0.1, seed: int = 0) -> np.ndarray:
+          overlap: int | None = None, tolerance: float = 0.1, seed: int = 0,
+          known: np.ndarray | None = None) -> np.ndarray:
     """Fill ``region`` of ``rgb`` by constrained quilting from blocks wholly inside ``source``.
 
     Blocks are laid over the region's bounding box in raster order, starting one overlap above
@@ -311,6 +312,10 @@ def quilt(rgb: np.ndarray, region: np.ndarray, source: np.ndarray, *, block: int
         ``block / 6`` for larger blocks, ``block / 3`` for small ones.
     tolerance, seed
         As in :func:`quilt_texture`.
+    known : (H, W) bool or None
+        Pixels the fill must agree with; None → every pixel outside ``region``.  Pass it when
+        other pixels of the photo are unknown too (the rest of an occluder, filled later), so
+        they are not matched.
 
     Returns
     -------
@@ -326,7 +331,8 @@ def quilt(rgb: np.ndarray, region: np.ndarray, source: np.ndarray, *, block: int
     hh, ww = img.shape[:2]
     reg = np.asarray(region)
     srcm = np.asarray(source)
-    for name, m in (("region", reg), ("source", srcm)):
+    kn = ~reg if known is None else np.asarray(known)
+    for name, m in (("region", reg), ("source", srcm), ("known", kn)):
         if m.shape != (hh, ww):
             raise InputError(f"quilt: {name} has shape {m.shape}, the photo {img.shape[:2]}; "
                              f"pass an (H, W) bool mask of the photo's size")
@@ -357,12 +363,15 @@ def quilt(rgb: np.ndarray, region: np.ndarray, source: np.ndarray, *, block: int
     canvas = np.zeros((hc, wc, 3))
     canvas[pad:pad + hh, pad:pad + ww] = img
     filled = np.zeros((hc, wc), bool)
-    filled[pad:pad + hh, pad:pad + ww] = ~reg
+    filled[pad:pad + hh, pad:pad + ww] = kn.astype(bool) & ~reg
     region_c = np.zeros((hc, wc), bool)
     region_c[pad:pad + hh, pad:pad + ww] = reg
     sy, sx = np.nonzero(valid)                      # the source cropped to its blocks
     sy0, sy1, sx0, sx1 = sy.min(), sy.max() + n, sx.min(), sx.max() + n
-    _run(canvas, filled, region_c, ys, xs, img[sy0:sy1, sx0:sx1].astype(np.float64),
+    src = img[sy0:sy1, sx0:sx1].astype(np.float64)
+    outside = ~srcm[sy0:sy1, sx0:sx1]              # never in a block: neutral for the FFTs
+    src[outside] = src[~outside].mean(0)
+    _run(canvas, filled, region_c, ys, xs, src,
          valid[sy0:sy1 - n + 1, sx0:sx1 - n + 1], n, v, float(tolerance),
          np.random.default_rng(seed))
     res = np.clip(np.rint(canvas[pad:pad + hh, pad:pad + ww]), 0, 255).astype(np.uint8)
