@@ -165,7 +165,8 @@ def _fill(rgb: np.ndarray, hole: np.ndarray, labels: np.ndarray, groups, wall: s
     if wall == "quilt" and wall_todo.any() and source.sum() >= _QUILT_SOURCE:
         from .quilt import quilt
 
-        out = quilt(out, wall_todo, source, seed=seed)
+        # blocks agree with what is known or filled already, never with occluder pixels
+        out = quilt(out, wall_todo, source, seed=seed, known=~todo)
         methods[wall_todo] = 1 + FILL_METHODS.index("quilting")
         todo &= ~wall_todo
     if todo.any():
