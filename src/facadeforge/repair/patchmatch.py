@@ -485,6 +485,45 @@ def _vote_into(lv: _Level, wk, ty, tx, hy, hx, nnf, cost, n_lab: int) -> None:
     _vote(lv.col, lv.lab, lv.hole, wk, hy, hx, nnf, omega, n_lab)
 
 
+def _boundary_distance2(hole: np.ndarray, hy: np.ndarray, hx: np.ndarray) -> np.ndarray:
+    """σ_d(p)² of eq. 5: squared distance from each hole pixel to the nearest known pixel (0
+    outside the hole), computed on the hole's bounding box grown by one pixel (the ring around it
+    is known wherever it lies inside the image, so nothing nearer lies outside the box)."""
+    from scipy import ndimage
+
+    h, w = hole.shape
+    y0, y1 = max(int(hy.min()) - 1, 0), min(int(hy.max()) + 2, h)
+    x0, x1 = max(int(hx.min()) - 1, 0), min(int(hx.max()) + 2, w)
+    out = np.zeros(hole.shape, np.float64)
+    d = ndimage.distance_transform_edt(hole[y0:y1, x0:x1])
+    out[y0:y1, x0:x1] = d * d
+    return out
+
+
+def _random_sources(valid: np.ndarray, n: int, rng: np.random.Generator
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` valid source centres drawn uniformly (by rejection, then from the list of valid
+    centres for the few left: listing them all is what large images with small holes can't
+    afford)."""
+    h, w = valid.shape
+    sy = np.zeros(n, np.int64)
+    sx = np.zeros(n, np.int64)
+    todo = np.arange(n)
+    for _ in range(8):
+        if not todo.size:
+            return sy, sx
+        y = rng.integers(0, h, todo.size)
+        x = rng.integers(0, w, todo.size)
+        ok = valid[y, x]
+        sy[todo[ok]], sx[todo[ok]] = y[ok], x[ok]
+        todo = todo[~ok]
+    if todo.size:
+        vy, vx = np.nonzero(valid)
+        pick = rng.integers(0, vy.size, todo.size)
+        sy[todo], sx[todo] = vy[pick], vx[pick]
+    return sy, sx
+
+
 def _targets(hole: np.ndarray, patch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     from scipy import ndimage
 
@@ -520,15 +559,23 @@ def patchmatch(colour: np.ndarray, labels: np.ndarray, guide: np.ndarray, hole: 
     -------
     PatchMatchResult
     """
-    _jit()
-    hole = np.ascontiguousarray(hole, bool)
-    if labels.size and (~hole).any() and labels[~hole].min() < 0:
-        raise InputError("labels: class indices must be ≥ 0 (renumber them, e.g. with "
-                         "np.unique(..., return_inverse=True))")
-    n_lab = int(labels.max()) + 1 if labels.size else 1
+    hole = np.asarray(hole)
+    if colour.ndim != 3 or not (colour.shape[:2] == labels.shape == guide.shape == hole.shape):
+        raise InputError(f"patchmatch: colour {colour.shape}, labels {labels.shape}, guide "
+                         f"{guide.shape} and hole {hole.shape} must share (H, W); pass arrays "
+                         f"of the same image")
+    _check_common(hole, labels.shape, patch, lambda_p, lambda_d, iterations, levels)
     fine = _Level(np.ascontiguousarray(colour, np.float32).copy(),
                   np.ascontiguousarray(labels, np.int32).copy(),
                   np.ascontiguousarray(guide, np.int32), hole)
+    if not hole.any():
+        zero = np.zeros(hole.shape, np.float32)
+        return PatchMatchResult(fine.col, fine.lab, np.zeros(hole.shape + (2,), np.int32), zero, 1)
+    if fine.lab[~hole].min() < 0:
+        raise InputError("labels: class indices must be ≥ 0 (renumber them, e.g. with "
+                         "np.unique(..., return_inverse=True))")
+    n_lab = int(fine.lab[~hole].max()) + 1
+    _jit()
     n_levels = _level_count(hole, patch, levels)
     pyramid = [fine]
     for _ in range(n_levels - 1):
@@ -549,19 +596,14 @@ def patchmatch(colour: np.ndarray, labels: np.ndarray, guide: np.ndarray, hole: 
             raise InputError(f"hole: it leaves no {patch} × {patch} patch of known pixels inside "
                              f"the image to copy from; use a smaller patch or a smaller hole")
         tmask, ty, tx = _targets(lv.hole, patch)
-        from scipy import ndimage
-
-        sigd = ndimage.distance_transform_edt(lv.hole)
-        sigd2 = (sigd * sigd).astype(np.float64)
         hy, hx = (a.astype(np.int32) for a in np.nonzero(lv.hole))
+        sigd2 = _boundary_distance2(lv.hole, hy, hx)
         # w, h of eq. 5 and §3.2.2: the image's width and height at this level (module docstring)
         sigc2 = (max(h, w) / 8.0) ** 2
         radius = max(h, w)
         # initial NNF: random valid sources, or the coarser level's offsets ×2 where still valid
-        sy_all, sx_all = np.nonzero(valid)
-        pick = rng.integers(0, sy_all.size, size=ty.size)
-        vy = sy_all[pick] - ty
-        vx = sx_all[pick] - tx
+        sy, sx = _random_sources(valid, ty.size, rng)
+        vy, vx = sy - ty, sx - tx
         conf = np.where(lv.hole, 0.0, 1.0).astype(np.float64)
         if prev is not None:
             pnnf, ptmask = prev
@@ -589,7 +631,7 @@ def patchmatch(colour: np.ndarray, labels: np.ndarray, guide: np.ndarray, hole: 
             conf[lv.hole] = ESTIMATE_CONFIDENCE
         for it in range(iterations):
             if prev is None and it == 0:
-                scan, order = 0, np.lexsort((tx, ty, sigd[ty, tx]))
+                scan, order = 0, np.lexsort((tx, ty, sigd2[ty, tx]))
             elif it % 2 == 0:
                 scan, order = 1, slice(None)
             else:
