@@ -108,6 +108,9 @@ def test_complete_labels_keeps_known_pixels_classes_and_dtype():
     assert 99 not in out
     np.testing.assert_array_equal(out, pm.complete_labels(damaged, hole, seed=5))
     assert damaged[hole].tolist() == [99] * int(hole.sum())  # input not modified
+    flat = pm.complete_labels(damaged, hole, levels=1, iterations=2, seed=5)  # no pyramid
+    np.testing.assert_array_equal(flat[~hole], damaged[~hole])
+    assert set(np.unique(flat[hole])) <= set(np.unique(damaged[~hole]))
 
 
 def test_complete_labels_negative_and_large_class_values():
