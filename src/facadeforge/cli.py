@@ -171,6 +171,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     e.add_argument("--wall", choices=("quilt", "patchmatch"), default="quilt",
                    help="how wall is filled: image quilting from the visible wall (default, "
                         "§3.4) or label-guided PatchMatch")
+    e.add_argument("--fill", choices=("expected", "texture"), default="expected",
+                   help="expected (default): the hidden facade's expected colour (smooth "
+                        "interpolation and the facade's periods) with some texture detail; "
+                        "texture: the texture fill alone (repetition, quilting, PatchMatch), "
+                        "sharper but less faithful")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("-o", "--output", required=True, help="output folder")
 
@@ -476,7 +481,7 @@ def cmd_repair(args) -> int:
 
     labels = _read_labels(args.labels, args.label_set) if args.labels else None
     r = repair_photo(args.photo, mask=args.mask, labels=labels, rectified=args.rectified,
-                     wall=args.wall, seed=args.seed, out_dir=args.output)
+                     wall=args.wall, fill=args.fill, seed=args.seed, out_dir=args.output)
     rep = r.report
     filled = ", ".join(f"{k} {v} px" for k, v in rep["filled"].items() if v) or "nothing"
     print(f"repaired {args.photo}: mask from {rep['mask']['source']} "

@@ -52,12 +52,14 @@ def _psnr(a, b, m):
     return 10 * np.log10(255 ** 2 / max(err, 1e-9))
 
 
-def test_repair_with_mask_beats_telea_and_changes_only_the_mask():
+@pytest.mark.parametrize("fill", ["expected", "texture"])
+def test_repair_with_mask_beats_telea_and_changes_only_the_mask(fill):
     import cv2
 
     clean, lab = _facade()
     occ, lab_occ, mask = _occlude(clean, lab)
-    r = repair_photo(occ, mask=mask, labels=lab_occ, rectified=True)
+    r = repair_photo(occ, mask=mask, labels=lab_occ, rectified=True, fill=fill)
+    assert r.report["fill"] == fill
     assert r.repaired.shape == occ.shape and r.repaired.dtype == np.uint8
     assert np.array_equal(r.repaired[~r.mask], occ[~r.mask])
     assert r.mask[mask].all()
