@@ -187,6 +187,10 @@ def _repair(with_mask: bool, **options: Any) -> Callable[[OccludedSample], Outpu
 register(Method("repair-mask", _repair(True),
                 "facadeforge.repair.pipeline.repair_photo(mask=true mask, rectified=True, "
                 "seed=0)", True, _pipeline_missing))
+register(Method("repair-mask-texture", _repair(True, fill="texture"),
+                "facadeforge.repair.pipeline.repair_photo(mask=true mask, rectified=True, "
+                "fill='texture', seed=0): the texture fill alone (repetition, quilting, "
+                "label-guided PatchMatch), no expected colour", True, _pipeline_missing))
 register(Method("repair", _repair(False),
                 "facadeforge.repair.pipeline.repair_photo(mask=None, rectified=True, seed=0): "
                 "finds the occluders itself", False, _pipeline_missing))
