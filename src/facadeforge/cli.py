@@ -34,6 +34,10 @@ EXAMPLES = {
   facadeforge repair facade.png --rectified -o out/            # occluders found by the classifiers
   facadeforge repair facade.png --rectified --mask trees.png -o out/   # white = occluded
   facadeforge repair photo.jpg --labels labels.png --label-set cmp12 -o out/""",
+    "synthesize": """examples:
+  facadeforge synthesize drawn.png --label-set cmp12 --style photo.jpg -o texture.png
+  facadeforge synthesize out/labels.png --label-set canonical --style facade.jpg \\
+      --style-labels facade_labels.png -o texture.png""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -178,6 +182,22 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         "sharper but less faithful")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("-o", "--output", required=True, help="output folder")
+
+    y = sub.add_parser("synthesize", help="a facade texture from a label map in the style of a "
+                       "photo (Shang 2023 §3.3: the missing-texture case)",
+                       epilog=EXAMPLES["synthesize"],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    y.add_argument("labels", help="label PNG: what to paint where")
+    y.add_argument("--label-set", default="cmp12",
+                   help="label set of the label PNGs: cmp12 (default), cmp6, ecp7, lmf9 or "
+                        "canonical (the labels.png facadeforge writes)")
+    y.add_argument("--style", required=True, help="photo whose style (one per class) is used")
+    y.add_argument("--style-labels", help="label PNG of the style photo (default: labelled by "
+                                          "the shipped cmp12 classifier)")
+    y.add_argument("--no-color-match", action="store_true",
+                   help="keep the network's colours (default: each class's mean colour is "
+                        "matched to the style photo's)")
+    y.add_argument("-o", "--output", required=True, help="output PNG")
 
     if wanted("parse"):
         from .parsing import DEFAULT_BUDGET
@@ -491,6 +511,52 @@ def cmd_repair(args) -> int:
     return 0
 
 
+def _cmp12_labels(path: str, label_set: str):
+    """A label PNG as ``cmp12`` class indices (what the synthesis network paints)."""
+    from .datasets.labelsets import get_label_set
+
+    cmp12 = get_label_set("cmp12")
+    if label_set == "cmp12":
+        from .datasets.folder import read_label_image
+
+        raw = read_label_image(path)
+        return cmp12.from_color(raw, strict=True) if raw.ndim == 3 else cmp12.from_dataset(
+            raw, strict=True)
+    return cmp12.from_canonical(_read_labels(path, label_set))
+
+
+def cmd_synthesize(args) -> int:
+    from PIL import Image
+
+    from .datasets.folder import read_image
+    from .outdir import check_output_file
+    from .repair.synthesis import synthesize
+
+    if not args.output.lower().endswith(".png"):
+        from .errors import InputError
+
+        raise InputError(f"-o {args.output}: the texture is written as PNG; use e.g. -o out.png")
+    check_output_file(args.output, {"labels": args.labels, "--style": args.style})
+    t = time.perf_counter()
+    labels = _cmp12_labels(args.labels, args.label_set)
+    style = read_image(args.style)
+    style_labels = (_cmp12_labels(args.style_labels, args.label_set) if args.style_labels
+                    else None)
+    out = synthesize(labels, style, style_labels, label_set="cmp12",
+                     match_colors=not args.no_color_match)
+    import io
+
+    from .exchange._common import Staging
+
+    buf = io.BytesIO()
+    Image.fromarray(out).save(buf, format="PNG")
+    with Staging() as stage:        # written whole or not at all
+        stage.write_bytes(args.output, buf.getvalue())
+    print(f"synthesized {out.shape[1]}x{out.shape[0]} px texture in the style of {args.style} "
+          f"({time.perf_counter() - t:.2f} s) → {args.output}")
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -499,7 +565,8 @@ def cmd_train_classifier(args) -> int:
 
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
-            "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair}
+            "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
+            "synthesize": cmd_synthesize}
 
 
 def main(argv: list[str] | None = None) -> int:

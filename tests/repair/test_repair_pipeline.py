@@ -130,3 +130,29 @@ def test_cli_repair_writes_the_outputs(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "same size" in err
     assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_cli_synthesize(tmp_path, capsys):
+    from facadeforge.repair.synthesis import DEFAULT_WEIGHTS
+
+    if not DEFAULT_WEIGHTS.is_file():
+        pytest.skip(f"no shipped synthesis weights at {DEFAULT_WEIGHTS}")
+    clean, lab = _facade(4)
+    from facadeforge.exchange.raster import write_label_png
+
+    write_label_png(lab, tmp_path / "labels.png")
+    Image.fromarray(clean).save(tmp_path / "style.png")
+    out = tmp_path / "tex.png"
+    assert main(["synthesize", str(tmp_path / "labels.png"), "--label-set", "canonical",
+                 "--style", str(tmp_path / "style.png"), "--style-labels",
+                 str(tmp_path / "labels.png"), "-o", str(out)]) == 0
+    assert "synthesized" in capsys.readouterr().out
+    tex = np.asarray(Image.open(out))
+    assert tex.shape == clean.shape
+    # the wall is painted in the style's wall colour, the windows darker than it
+    wall, win = lab == WALL, lab == WINDOW
+    assert np.abs(tex[wall].mean(0) - clean[wall].mean(0)).max() < 12
+    assert tex[win].mean() < tex[wall].mean() - 40
+    assert main(["synthesize", str(tmp_path / "labels.png"), "--style",
+                 str(tmp_path / "style.png"), "-o", str(tmp_path / "tex.jpg")]) == 2
+    assert "PNG" in capsys.readouterr().err
