@@ -317,6 +317,30 @@ def _method_list(text: str) -> list[str]:
     return names
 
 
+def _keep_old(path: Path, methods: dict[str, Any], per_sample: list[dict[str, Any]],
+              args: argparse.Namespace) -> None:
+    """``--keep``: the earlier result's methods that were not run now, with when they were
+    measured (only when it scored the same facades with the same placement seed)."""
+    import json
+
+    old = json.loads(path.read_text())
+    same = (old.get("protocol", {}).get("seed") == args.seed
+            and [r["id"] for r in old.get("per_sample", [])] == [r["id"] for r in per_sample])
+    if not same:
+        print(f"--keep: {path} scored other facades or another seed; nothing kept",
+              file=sys.stderr)
+        return
+    by_id = {r["id"]: r for r in old["per_sample"]}
+    for name, entry in old.get("methods", {}).items():
+        if name in methods or "mean" not in entry:
+            continue
+        methods[name] = {**entry, "measured": entry.get("measured") or {
+            "commit": old.get("commit"), "date": old.get("date")}}
+        for rec in per_sample:
+            if name in by_id[rec["id"]]["methods"]:
+                rec["methods"][name] = by_id[rec["id"]]["methods"][name]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cmp", default=str(ROOT.parent / "shared" / "data" / "cmp"),
@@ -331,6 +355,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sheet-rows", type=int, default=4, help="facades on the picture sheet")
     ap.add_argument("-o", "--output", default=str(OUTPUT))
     ap.add_argument("--sheet", default=str(SHEET))
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the methods of the existing result that this run does not run "
+                         "(same -n and --seed), each with the commit and date it was measured "
+                         "at; the slow peers need not be rerun after a change of ours")
     args = ap.parse_args(argv)
 
     names = _method_list(args.methods)
@@ -396,6 +424,9 @@ def main(argv: list[str] | None = None) -> int:
             if name in errors:
                 entry["errors"] = errors[name]
         methods[name] = entry
+
+    if args.keep and Path(args.output).is_file():
+        _keep_old(Path(args.output), methods, per_sample, args)
 
     result = {
         "benchmark": "repair",

@@ -48,11 +48,18 @@ def engine_table() -> str:
     return table
 
 
-def methods_table() -> str:
-    """Every ``results/bench_*.json``: one row per method and dataset."""
+#: The methods of the README's summary table (docs/benchmarks.md has them all).
+SUMMARY_METHODS = ("classifier", "grammar", "structure")
+
+
+def methods_table(only: tuple[str, ...] | None = None) -> str:
+    """Every ``results/bench_*.json`` (of the ``only`` methods): one row per method and
+    dataset."""
     rows = []
     for path in sorted((ROOT / "benchmarks" / "results").glob("bench_*.json")):
         r = json.loads(path.read_text())
+        if only is not None and r["method"] not in only:
+            continue
 
         def f(key, r=r):
             v = r.get(key)
@@ -139,6 +146,29 @@ def parsing_table() -> str:
     return "\n\n".join(out) if out else "_no result yet_"
 
 
+def repair_table() -> str:
+    """``results/repair.json``: masked and whole-image PSNR / SSIM per method."""
+    path = ROOT / "benchmarks" / "results" / "repair.json"
+    if not path.exists():
+        return "_no result yet: run `benchmarks/repair.py`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    rows = []
+    for name, v in r["methods"].items():
+        mean = v.get("mean")
+        if not mean:
+            continue
+        mask = "true" if v.get("uses_true_mask") else "found"
+        rows.append(f"| {name} | {mask} | {mean['masked_psnr']:.2f} | {mean['masked_ssim']:.3f} "
+                    f"| {mean['psnr']:.2f} | {mean['ssim']:.3f} | {mean['seconds']:.1f} |")
+    n = next(iter(r["methods"].values())).get("n", "?")
+    head = (f"{n} CMP val facades with LabelMeFacade test cars and trees pasted in front; "
+            f"measured {r['date'][:10]} at `{r['commit']}` on {m['cores']} cores ({m['cpu']}).\n\n"
+            "| method | mask | masked PSNR | masked SSIM | PSNR | SSIM | s / image |\n"
+            "|---|---|---|---|---|---|---|\n")
+    return head + "\n".join(rows)
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -155,12 +185,16 @@ def main() -> None:
     methods = methods_table()
     rec = reconstruct_table()
     parsing = parsing_table()
+    summary = methods_table(SUMMARY_METHODS)
+    repair = repair_table()
     for p in (ROOT / "README.md", ROOT / "docs" / "benchmarks.md",
               ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
         replace(p, "methods", methods)
+        replace(p, "summary", summary)
         replace(p, "reconstruct", rec)
         replace(p, "parsing", parsing)
+        replace(p, "repair", repair)
     print(table)
     print(methods)
 
