@@ -1,4 +1,6 @@
-"""Command line: ``facadeforge derive | render | reconstruct | synth | bench | demo``.  Thin: each command calls the public API.
+"""facadeforge: facade photos and CGA rules → semantic, procedural, textured 3D buildings.
+
+Thin: each command calls the public API.
 
 Errors print one line (``facadeforge: error: …``) and exit with status 2; no tracebacks.
 """
