@@ -158,7 +158,9 @@ def repair_table() -> str:
         mean = v.get("mean")
         if not mean:
             continue
-        mask = "true" if v.get("uses_true_mask") else "found"
+        mask = "true" if v.get("uses_true_mask") else ("–" if name == "none" else "found")
+        if v.get("measured"):          # kept from an earlier run (benchmarks/repair.py --keep)
+            name = f"{name} (at `{v['measured']['commit']}`)"
         rows.append(f"| {name} | {mask} | {mean['masked_psnr']:.2f} | {mean['masked_ssim']:.3f} "
                     f"| {mean['psnr']:.2f} | {mean['ssim']:.3f} | {mean['seconds']:.1f} |")
     n = next(iter(r["methods"].values())).get("n", "?")
