@@ -40,6 +40,10 @@ EXAMPLES = {
   facadeforge synthesize drawn.png --label-set cmp12 --style photo.jpg -o texture.png
   facadeforge synthesize out/labels.png --label-set canonical --style facade.jpg \\
       --style-labels facade_labels.png -o texture.png""",
+    "repair-model": """examples:
+  facadeforge repair-model out/model.obj -o repaired/model.obj   # + model.mtl, textures/
+  facadeforge repair-model city.glb -o city_repaired.glb --report repair.json
+  facadeforge repair-model tiles.obj --up z -o fixed.glb          # a z-up OBJ""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -184,6 +188,19 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         "sharper but less faithful")
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("-o", "--output", required=True, help="output folder")
+
+    rm = sub.add_parser("repair-model", help="repair every facade texture of a textured 3D model "
+                        "(Shang 2023 §4.2.2); the geometry is unchanged",
+                        epilog=EXAMPLES["repair-model"],
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    rm.add_argument("model", help="textured model: .obj (with its .mtl and textures) or .glb")
+    rm.add_argument("--up", choices=("y", "z"), default="y",
+                    help="the model's up axis: y (default; facadeforge's models, glTF) or z")
+    rm.add_argument("--report", help="also write the report (per texture and facade "
+                                     "rectangle) as JSON to this file")
+    rm.add_argument("--seed", type=int, default=0)
+    rm.add_argument("-o", "--output", required=True,
+                    help="output model, .obj (+ .mtl, textures/) or .glb")
 
     y = sub.add_parser("synthesize", help="a facade texture from a label map in the style of a "
                        "photo (Shang 2023 §3.3: the missing-texture case)",
@@ -559,6 +576,21 @@ def cmd_synthesize(args) -> int:
     return 0
 
 
+def cmd_repair_model(args) -> int:
+    from .repair.model_textures import repair_model
+
+    rep = repair_model(args.model, args.output, seed=args.seed, up=args.up,
+                       report_path=args.report)
+    s = rep["summary"]
+    share = 100 * s["pixels"] / max(s["rectangle_pixels"], 1)
+    extra = f" and {args.report}" if args.report else ""
+    print(f"repaired {args.model}: {s['textures_repaired']} of {s['textures']} textures, "
+          f"{s['rectangles_repaired']} of {s['facade_rectangles']} facade rectangles, "
+          f"{s['pixels']} px ({share:.1f} % of the facades); {s['seconds']['total']:.2f} s "
+          f"→ {args.output}{extra}")
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -568,7 +600,7 @@ def cmd_train_classifier(args) -> int:
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
-            "synthesize": cmd_synthesize}
+            "synthesize": cmd_synthesize, "repair-model": cmd_repair_model}
 
 
 def main(argv: list[str] | None = None) -> int:
