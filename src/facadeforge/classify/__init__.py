@@ -44,10 +44,9 @@ SHIPPED_KINDS: tuple[str, ...] = ("ensemble", "convnet", "autocontext")
 #: (:meth:`~facadeforge.datasets.LabelSet.project_proba`), when no model of their own is
 #: shipped.  The street network ``street12`` (RueMonge, CMP and LabelMeFacade at once,
 #: :mod:`.street`) knows LabelMeFacade's classes (lmf9); the auto-context forest trained on
-#: LabelMeFacade and synthetic facades (``autocontext-lmf9``) is shipped and served first:
-#: LabelMeFacade test mIoU 0.37 against the network's 0.28 (``benchmarks/results``).  Nor
-#: does the network serve ecp7: on the RueMonge val photos (by building) it scores
-#: class-average 0.684 against the auto-context forest's 0.802.
+#: LabelMeFacade and synthetic facades (``autocontext-lmf9``) is shipped and served first,
+#: and the network serves no other set either: on LabelMeFacade test and on the RueMonge val
+#: photos the forests score higher (``benchmarks/results/bench_classifier_*.json``).
 PROJECTED: dict[str, str] = {"lmf9": "convnet-street12"}
 
 _LOADED: dict[tuple[str, str | None], PixelClassifier] = {}
