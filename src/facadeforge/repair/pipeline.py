@@ -65,6 +65,8 @@ _QUILT_SOURCE = 48 * 48
 #: a little detail costs little and keeps the repaired wall from looking smeared).
 DETAIL: float = 0.3
 FILLS: tuple[str, ...] = ("expected", "texture")
+#: Longest side the fill runs at (:func:`_fill_scaled`).
+FILL_SIDE: int = 800
 
 
 @dataclass
@@ -187,6 +189,48 @@ def _fill(rgb: np.ndarray, hole: np.ndarray, labels: np.ndarray, groups, wall: s
         out = fill_guided(out, todo, labels, seed=seed)
         methods[todo] = 1 + FILL_METHODS.index("patchmatch")
     return out, methods
+
+
+def _fill_scaled(rgb: np.ndarray, hole: np.ndarray, labels: np.ndarray, groups, wall: str,
+                 fill: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Stage ``fill`` at most :data:`FILL_SIDE` pixels on the long side: a larger facade is
+    filled on a downscaled copy and the fill upsampled into its hole (the expected colour is
+    smooth, and a texture fill's detail is mostly what costs accuracy), so a 1600 px facade
+    costs what an 800 px one does; pixels outside the hole keep their full resolution."""
+    import cv2
+
+    h, w = hole.shape
+    f = min(1.0, FILL_SIDE / max(h, w))
+    if f < 1.0:
+        sw, sh = max(1, round(w * f)), max(1, round(h * f))
+        small = cv2.resize(rgb, (sw, sh), interpolation=cv2.INTER_AREA)
+        shole = cv2.resize(hole.astype(np.uint8), (sw, sh), interpolation=cv2.INTER_AREA) > 0
+        slab = cv2.resize(labels.astype(np.uint8), (sw, sh), interpolation=cv2.INTER_NEAREST)
+        sgroups = [[(int(x0 * f), int(y0 * f), max(int(x0 * f) + 1, int(round(x1 * f))),
+                     max(int(y0 * f) + 1, int(round(y1 * f)))) for x0, y0, x1, y1 in g]
+                   for g in (groups or [])]
+    else:
+        small, shole, slab, sgroups = rgb, hole, labels.astype(np.int64), groups
+    if not shole.any() or shole.all():
+        return rgb.copy(), np.zeros(hole.shape, np.uint8)
+    fixed, methods = _fill(small, shole, slab.astype(np.int64), sgroups, wall, seed)
+    if fill == "expected":
+        fixed = _expected(small, shole, fixed)
+    if f < 1.0:
+        up = cv2.resize(fixed, (w, h), interpolation=cv2.INTER_LINEAR)
+        fixed = rgb.copy()
+        fixed[hole] = up[hole]
+        methods = cv2.resize(methods, (w, h), interpolation=cv2.INTER_NEAREST)
+        methods[~hole] = 0
+        # a hole pixel the small copy did not see (a sliver under the area filter) gets the
+        # expected colour at full size
+        missed = hole & (methods == 0)
+        if missed.any():
+            from .smooth import normalized_fill
+
+            fixed[missed] = np.clip(normalized_fill(fixed, missed)[missed], 0, 255)
+            methods[missed] = 1 + FILL_METHODS.index("patchmatch")
+    return fixed, methods
 
 
 def _expected(rgb: np.ndarray, hole: np.ndarray, texture: np.ndarray) -> np.ndarray:
@@ -327,9 +371,7 @@ def repair_photo(photo, *, mask=None, labels=None, rectified: bool = True, class
     t = time.perf_counter()
     if hole.any() and (~hole).any():
         grp = groups if groups is not None else _groups_from_labels(completed, hole)
-        fixed, methods_f = _fill(work, hole, completed, grp, wall, seed)
-        if fill == "expected":
-            fixed = _expected(work, hole, fixed)
+        fixed, methods_f = _fill_scaled(work, hole, completed, grp, wall, fill, seed)
     else:
         fixed, methods_f = work.copy(), np.zeros(fshape, np.uint8)
     timings["fill"] = time.perf_counter() - t
