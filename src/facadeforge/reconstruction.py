@@ -469,9 +469,12 @@ def _detect(prob, clf, gray, px_per_m, edges):
     from .imaging.element_layout import element_layout
 
     known = LABEL_SETS.get(clf.label_set)     # a scribble GMM's classes follow no dataset
-    elements = detect_elements(prob, clf.classes,
-                               behind=known.windows_behind if known is not None else ())
-    fronts = detect_protruding(prob, clf.classes)
+    if hasattr(clf, "detected_elements"):      # elements found otherwise (a scan's depth map)
+        elements, fronts = clf.detected_elements()
+    else:
+        elements = detect_elements(prob, clf.classes,
+                                   behind=known.windows_behind if known is not None else ())
+        fronts = detect_protruding(prob, clf.classes)
     info = {"classifier": {"kind": clf.kind, "label_set": clf.label_set},
             "found": len(elements), "protruding": len(fronts),
             "by_label": dict(Counter(e.label for e in elements + fronts))}

@@ -1,0 +1,424 @@
+"""Laser scan → procedural facades: ``facadeforge points`` and :func:`points`.
+
+Stages (each timed in ``report["timings"]``):
+
+1. **load** — :func:`~.io.read_cloud` (PLY, LAS/LAZ, XYZ/TXT) or a :class:`~.cloud.PointCloud`;
+   with photos and cameras, each point coloured from a photo that sees it (:mod:`.colour`,
+   ``hohmann2009`` §3);
+2. **planes** — sequential RANSAC, largest first, kinds ground / facade / protrusion / recess /
+   roof / other (:mod:`.planes`, §3 Fig. 4);
+3. **maps** — per facade plane, its orthographic frame and rasters: depth, density, intensity
+   or colour (:mod:`.maps`, §3; ``simon2011`` §5.3.2's "virtual orthographic cameras");
+4. **elements** — windows and doors as recesses, balconies as protrusions (:mod:`.elements`);
+5. **structure** — the elements go through the photo pipeline's own stages (``mueller2007``
+   §2–5: floors and tiles laid around the elements, clusters, element matching, the shape
+   tree, size-independent CGA rules) on the facade's orthophoto, then every element leaf takes
+   its **measured** depth from the depth map (a cluster's rule takes the mean of its
+   elements') instead of a per-class default;
+6. **model** — the rules derived on the facade rectangle and placed back into the cloud's
+   coordinates (the facade frame → the cloud → the CGA y-up axes, relative to
+   ``report["origin"]``, which CityJSON's ``transform`` adds back; CityJSON carries the cloud's
+   CRS when it has one).
+
+OUTDIR: ``planes.json``; ``facade_NN/`` per facade with ``depth.png``, ``ortho.png``,
+``structure.png``, ``shape_tree.json``, ``rules.cga``; at the top ``elements.json`` (one record
+per window, door, balcony: ``label``, ``facade``, ``corners`` — the four 3D corners of its
+rectangle on the facade plane at its depth, cloud coordinates), ``model.glb``, ``model.obj``,
+``model.city.json`` (every facade) and ``report.json`` (planes, facades, timings, and the
+per-class point-to-model distances of ``simon2011`` eq. 5.10–5.11 when the cloud is labelled).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .cloud import PointCloud, PointCloudError
+from .elements import Element, detect_elements
+from .maps import RESOLUTION, FacadeFrame, FacadeMaps, facade_frame, facade_points, rasterize
+from .planes import Plane, detect_planes
+
+__all__ = ["FacadeResult", "PointsResult", "points", "MAX_FACADES"]
+
+#: Facades modelled per cloud, largest first.
+MAX_FACADES = 12
+#: Classes of the ortho classifier handed to the photo pipeline (order = channel).
+_CLASSES = ("wall", "window", "door", "balcony")
+
+
+@dataclass
+class FacadeResult:
+    """One facade of the cloud: its plane, frame, rasters, elements and procedural model."""
+
+    index: int
+    plane: int                    # index into PointsResult.planes
+    frame: FacadeFrame
+    maps: FacadeMaps
+    elements: list[Element]
+    ortho: np.ndarray             # (H, W, 3) uint8, rows down
+    rec: object = None            # the photo pipeline's Reconstruction of the orthophoto
+    model: object = None          # the derived facade, placed in the cloud (CGA axes)
+    report: dict = field(default_factory=dict)
+
+
+@dataclass
+class PointsResult:
+    cloud: PointCloud
+    planes: list[Plane]
+    facades: list[FacadeResult]
+    origin: np.ndarray
+    report: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)
+
+    def elements(self) -> list[dict]:
+        """``elements.json``: every element of every facade with its 3D corners."""
+        out = []
+        for f in self.facades:
+            for k, e in enumerate(_final_elements(f)):
+                out.append({"facade": f.index, "index": k, **e.to_dict(f.frame)})
+        return out
+
+    def models(self) -> list:
+        return [f.model for f in self.facades if f.model is not None]
+
+    def save(self, out_dir: str | os.PathLike) -> list[Path]:
+        from ..outdir import write_outdir
+
+        return write_outdir(Path(out_dir), lambda stage: _write(self, stage), self.inputs)
+
+
+# ------------------------------------------------------------------------------ helpers
+
+def ortho_image(maps: FacadeMaps) -> np.ndarray:
+    """The facade's orthophoto (rows down): colour when the cloud has it, else intensity
+    stretched to its 1st–99th percentile; empty cells take their nearest filled cell."""
+    from scipy import ndimage
+
+    filled = maps.count > 0
+    if maps.rgb is not None:
+        img = maps.rgb.astype(np.float32)
+    elif maps.intensity is not None and np.isfinite(maps.intensity).any():
+        v = maps.intensity
+        lo, hi = np.nanpercentile(v, [1, 99])
+        g = np.clip((np.nan_to_num(v, nan=lo) - lo) / max(hi - lo, 1e-9), 0, 1) * 255
+        img = np.repeat(g[:, :, None], 3, axis=2)
+    else:                                     # geometry only: depth shading
+        d = np.nan_to_num(maps.depth, nan=0.0)
+        g = np.clip(160 + d * 300, 0, 255)
+        img = np.repeat(g[:, :, None], 3, axis=2)
+    if filled.any() and not filled.all():
+        _, (ii, jj) = ndimage.distance_transform_edt(~filled, return_indices=True)
+        img = img[ii, jj]
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def depth_image(maps: FacadeMaps, span: float = 0.5) -> np.ndarray:
+    """``depth.png``: signed depth as colour — grey on the wall, blue behind it (recesses),
+    red in front (protrusions), saturated at ``span`` m; black where no point fell."""
+    d = np.clip(maps.depth / span, -1, 1)
+    ok = np.isfinite(d)
+    img = np.zeros(maps.shape + (3,), np.uint8)
+    x = d[ok]
+    img[..., 0][ok] = (140 + 115 * np.clip(x, 0, 1) - 100 * np.clip(-x, 0, 1)).astype(np.uint8)
+    img[..., 1][ok] = (140 - 100 * np.abs(x)).astype(np.uint8)
+    img[..., 2][ok] = (140 + 115 * np.clip(-x, 0, 1) - 100 * np.clip(x, 0, 1)).astype(np.uint8)
+    return img
+
+
+def _map_classifier(elements: list[Element]):
+    """The facade's elements for the photo pipeline: as class probabilities, and as the boxes
+    themselves (``detected_elements``: the photo pipeline's detector, tuned on CMP photos,
+    would drop a small window beside big ones as a fragment)."""
+    from ..classify.model import PixelClassifier
+
+    class MapClassifier(PixelClassifier):
+        kind = "depth-map"
+
+        def predict_proba_coarse(self, image: np.ndarray) -> np.ndarray:
+            h, w = image.shape[:2]
+            p = np.zeros((h, w, len(_CLASSES)), np.float32)
+            p[:, :, 0] = 1.0
+            for e in elements:
+                x0, y0, x1, y1 = e.box_px
+                p[y0:y1, x0:x1] = 0.0
+                p[y0:y1, x0:x1, _CLASSES.index(e.label)] = 1.0
+            return p * 0.96 + 0.01
+
+        def detected_elements(self):
+            from ..imaging.detect import Element as Box
+
+            inside = [Box(e.label, e.box_px, e.score) for e in elements if e.label != "balcony"]
+            fronts = [Box(e.label, e.box_px, e.score) for e in elements if e.label == "balcony"]
+            return inside, fronts
+
+        def to_arrays(self):                       # never saved: built per facade
+            return {}
+
+        @classmethod
+        def from_arrays(cls, arrays, classes, label_set, meta):
+            return cls(classes, label_set, meta)
+
+    return MapClassifier(_CLASSES, "depth-map", {"source": "points.elements"})
+
+
+def _final_elements(f: FacadeResult) -> list[Element]:
+    """The elements of the facade's shape tree (what the model has), with measured depths;
+    the detected elements when there is no tree."""
+    if f.rec is None:
+        return [e for e in f.elements if e.label in ("window", "door", "balcony")]
+    out = []
+    for leaf in f.rec.tree.leaves():
+        if leaf.label in ("window", "door", "balcony") and "box_px" in leaf.tags:
+            box = tuple(int(v) for v in leaf.tags["box_px"])
+            out.append(Element(leaf.label, f.maps.box_m(box), box,
+                               float(leaf.tags.get("depth", 0.0)), 1.0))
+    out.sort(key=lambda e: (-e.box_m[3], e.box_m[0]))
+    return out
+
+
+def _measured_depth(maps: FacadeMaps, box, label: str) -> float | None:
+    x0, y0, x1, y1 = box
+    if label == "balcony":
+        v = maps.front[y0:y1, x0:x1]
+        v = v[np.isfinite(v) & (v > 0.1)]
+    else:
+        v = maps.depth[y0:y1, x0:x1]
+        v = v[np.isfinite(v) & (v < -0.03)]
+    return float(np.median(v)) if len(v) else None
+
+
+# cloud (x, y, z up) → CGA (x, y up, z): the inverse of CityJSON's (x, −z, y)
+_TO_CGA = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+
+
+def _place(model, frame: FacadeFrame, origin: np.ndarray, up: int):
+    """The facade model (facade frame: x right, y up, z out, metres) into the cloud's frame,
+    then into CGA axes relative to ``origin``."""
+    perm = np.eye(3)
+    if up != 2:                                 # a y-up or x-up cloud: rotate up onto z first
+        perm = np.roll(np.eye(3), 2 - up, axis=0)
+    basis = np.c_[frame.u, frame.v, frame.n]     # facade → cloud
+    m = _TO_CGA @ perm @ basis
+    off = _TO_CGA @ perm @ (frame.origin - origin)
+    for p in model.parts:
+        p.mesh = p.mesh.transformed(m, off)
+    return model
+
+
+# ------------------------------------------------------------------------------ pipeline
+
+def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
+           model: bool = True, max_facades: int = MAX_FACADES, seed: int = 0,
+           out_dir: str | os.PathLike | None = None) -> PointsResult:
+    """Reconstruct the facades of a laser scan (see the module docstring).
+
+    Parameters
+    ----------
+    cloud : path or PointCloud
+        The scan (``.ply``, ``.las``, ``.laz``, ``.xyz``, ``.txt``, ``.csv``, ``.pts``).
+    resolution : float
+        Raster cell (m) of the depth maps and orthophotos.
+    photos, cameras : optional
+        A folder (or mapping name → path) of photos and their cameras file (VisualSFM
+        ``cameras_v2.txt``): points take their colour from a photo that sees them.
+    model : bool
+        Derive the 3D model (elements, planes and maps are found either way).
+    out_dir : path, optional
+        Write the OUTDIR (module docstring) atomically.
+    """
+    timings: dict[str, float] = {}
+    t = time.perf_counter()
+    inputs = {"cloud": cloud, "--photos": photos, "--cameras": cameras}
+    if out_dir is not None:
+        from ..outdir import check_outdir
+
+        check_outdir(out_dir, inputs)
+    if not resolution or not (0.005 <= resolution <= 1.0):
+        raise InputError(f"--resolution {resolution}: give a cell size between 0.005 and 1 m")
+    if not isinstance(cloud, PointCloud):
+        from .io import read_cloud
+
+        cloud = read_cloud(cloud)
+    if len(cloud) < 100:
+        raise PointCloudError(f"{cloud.source}: {len(cloud)} points are too few to find a "
+                              "facade; give a scan of a building")
+    if photos is not None or cameras is not None:
+        cloud = _colour(cloud, photos, cameras)
+    origin = np.floor(cloud.xyz.min(0))
+    timings["load"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    planes = detect_planes(cloud, seed=seed)
+    timings["planes"] = time.perf_counter() - t
+    ground = [p for p in planes if p.kind == "ground"]
+    ground_level = float(np.median(cloud.xyz[ground[0].inliers, cloud.up])) if ground else None
+    facade_ids = [i for i, p in enumerate(planes) if p.kind == "facade"][:max_facades]
+
+    facades: list[FacadeResult] = []
+    t_maps = t_el = t_rec = 0.0
+    for k, pi in enumerate(facade_ids):
+        t = time.perf_counter()
+        frame = facade_frame(cloud, planes[pi], ground_level=_ground_at(cloud, planes[pi],
+                                                                        ground, ground_level))
+        idx, uvd = facade_points(cloud, frame)
+        maps = rasterize(cloud, frame, resolution=resolution, index=idx, uvd=uvd)
+        ortho = ortho_image(maps)
+        t_maps += time.perf_counter() - t
+        t = time.perf_counter()
+        elements = detect_elements(maps)
+        t_el += time.perf_counter() - t
+        f = FacadeResult(index=k, plane=pi, frame=frame, maps=maps, elements=elements,
+                         ortho=ortho)
+        t = time.perf_counter()
+        _structure(f, model=model, origin=origin, up=cloud.up, seed=seed)
+        t_rec += time.perf_counter() - t
+        facades.append(f)
+    timings.update(maps=t_maps, elements=t_el, structure=t_rec)
+
+    result = PointsResult(cloud=cloud, planes=planes, facades=facades, origin=origin,
+                          inputs=inputs)
+    result.report = _report(result, timings)
+    if out_dir is not None:
+        t = time.perf_counter()
+        result.save(out_dir)
+        timings["write"] = time.perf_counter() - t
+    timings["total"] = sum(v for k, v in timings.items() if k != "total")
+    return result
+
+
+def _ground_at(cloud: PointCloud, plane: Plane, ground: list[Plane], level: float | None):
+    """The ground's height in front of a facade: the ground piece nearest to its foot."""
+    if not ground:
+        return level
+    foot = cloud.xyz[plane.inliers]
+    c = foot[np.argmin(foot[:, cloud.up])]
+    best, dist = level, np.inf
+    for g in ground:
+        pts = cloud.xyz[g.inliers]
+        horiz = np.delete(pts - c, cloud.up, axis=1)
+        d = float(np.min(np.einsum("ij,ij->i", horiz, horiz)))
+        if d < dist:
+            best, dist = float(np.median(pts[:, cloud.up])), d
+    return best
+
+
+def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:
+    if photos is None or cameras is None:
+        raise InputError("--photos and --cameras go together: give the photo folder and its "
+                         "cameras file (VisualSFM cameras_v2.txt)")
+    from ..datasets.cameras import read_visualsfm
+    from .colour import colour_from_photos
+
+    cams = read_visualsfm(cameras)
+    if isinstance(photos, (str, os.PathLike)):
+        folder = Path(photos)
+        if not folder.is_dir():
+            raise InputError(f"--photos {folder}: not a folder of photos")
+        photos = {name: folder / name for name in cams if (folder / name).is_file()}
+        if not photos:
+            raise InputError(f"--photos {folder}: none of the {len(cams)} photos the cameras "
+                             "file names is in it")
+    return colour_from_photos(cloud, photos, {k: cams[k] for k in photos if k in cams})
+
+
+def _structure(f: FacadeResult, *, model: bool, origin: np.ndarray, up: int, seed: int) -> None:
+    """Stage 5–6 for one facade (module docstring)."""
+    from ..grammar.extract import extract_rules
+    from ..imaging.shape_tree import PixelFrame
+    from ..reconstruction import _derive_model, reconstruct
+
+    maps = f.maps
+    elements = [e for e in f.elements if e.label in _CLASSES]
+    clf = _map_classifier(elements)
+    try:
+        rec = reconstruct(f.ortho, rectified=True, width_m=maps.shape[1] * maps.resolution,
+                          height_m=maps.shape[0] * maps.resolution, classifier=clf,
+                          repair=False, model=False, seed=seed)
+    except InputError as e:               # a facade too small or too odd for the analysis
+        f.report["structure"] = f"not modelled: {e}"
+        return
+    measured = 0
+    for leaf in rec.tree.leaves():
+        if leaf.label in ("window", "door", "balcony") and "box_px" in leaf.tags:
+            d = _measured_depth(maps, leaf.tags["box_px"], leaf.label)
+            if d is not None:
+                leaf.tags["depth"] = round(d, 4)
+                measured += 1
+    rec.rules = extract_rules(rec.tree, texture="texture.jpg", depths={})
+    f.rec = rec
+    f.report["measured_depths"] = measured
+    if model:
+        frame = PixelFrame(maps.shape[1], maps.shape[0], (1 / maps.resolution,) * 2)
+        m, rec.workdir = _derive_model(rec, frame)
+        m.name = f"facade_{f.index:02d}"
+        f.model = _place(m, f.frame, origin, up)
+        rec.model = f.model
+
+
+def _report(r: PointsResult, timings: dict) -> dict:
+    from collections import Counter
+
+    c = r.cloud
+    lo, hi = c.bounds
+    facades = []
+    for f in r.facades:
+        els = _final_elements(f)
+        facades.append({
+            "index": f.index, "plane": f.plane, "frame": f.frame.to_dict(),
+            "raster": {"width": int(f.maps.shape[1]), "height": int(f.maps.shape[0]),
+                       "resolution_m": f.maps.resolution},
+            "points": int(f.maps.count.sum()),
+            "detected": dict(Counter(e.label for e in f.elements)),
+            "elements": dict(Counter(e.label for e in els)),
+            **f.report})
+    return {
+        "input": {"cloud": c.source, "points": len(c), "crs": c.crs,
+                  "bounds": [[round(float(v), 4) for v in lo], [round(float(v), 4) for v in hi]],
+                  "attributes": [n for n in ("intensity", "rgb", "normals", "labels")
+                                 if getattr(c, n) is not None]},
+        "origin": [float(v) for v in r.origin],
+        "axes": "model.glb/.obj: CGA axes (x, y up, z = -cloud y) relative to origin; "
+                "model.city.json: cloud axes, origin added back",
+        "planes": [p.to_dict() for p in r.planes],
+        "facades": facades,
+        "timings": timings,
+    }
+
+
+def _write(r: PointsResult, stage: Path) -> None:
+    from PIL import Image
+
+    from ..exchange import export
+    from ..outdir import write_json
+    from ..reconstruction import structure_image
+
+    write_json(stage / "planes.json", {"planes": r.report["planes"]})
+    for f in r.facades:
+        d = stage / f"facade_{f.index:02d}"
+        d.mkdir()
+        Image.fromarray(depth_image(f.maps)).save(d / "depth.png")
+        Image.fromarray(f.ortho).save(d / "ortho.png")
+        if f.rec is not None:
+            Image.fromarray(structure_image(f.rec)).save(d / "structure.png")
+            write_json(d / "shape_tree.json", f.rec.tree.to_dict())
+            (d / "rules.cga").write_text(f.rec.rules, encoding="utf-8")
+        np.savez_compressed(d / "maps.npz", depth=f.maps.depth.astype(np.float32),
+                            front=f.maps.front.astype(np.float32), count=f.maps.count,
+                            resolution=f.maps.resolution)
+    write_json(stage / "elements.json", {"elements": r.elements(),
+                                         "frame": "cloud coordinates, metres"})
+    models = r.models()
+    if models:
+        for m in models:
+            m.attributes["_origin_offset"] = [float(v) for v in r.origin]
+            if r.cloud.crs:
+                m.attributes["_crs"] = r.cloud.crs
+        export(models, stage / "model.glb")
+        export(models, stage / "model.obj")
+        export(models, stage / "model.city.json")
+    write_json(stage / "report.json", r.report)
