@@ -13,6 +13,7 @@ import math
 import sys
 import time
 import warnings
+from collections import Counter
 from pathlib import Path
 
 from .errors import FacadeForgeError
@@ -44,6 +45,11 @@ EXAMPLES = {
   facadeforge repair-model out/model.obj -o repaired/model.obj   # + model.mtl, textures/
   facadeforge repair-model city.glb -o city_repaired.glb --report repair.json
   facadeforge repair-model tiles.obj --up z -o fixed.glb          # a z-up OBJ""",
+    "points": """examples:
+  facadeforge points scan.ply -o out/                  # planes, depth maps, elements, model
+  facadeforge points street.laz --resolution 0.1 -o out/
+  facadeforge points scan.ply --photos photos/ --cameras cameras_v2.txt -o out/   # coloured
+  facadeforge points facade.xyz --no-model -o out/     # planes, maps and elements only""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -201,6 +207,21 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     rm.add_argument("--seed", type=int, default=0)
     rm.add_argument("-o", "--output", required=True,
                     help="output model, .obj (+ .mtl, textures/) or .glb")
+
+    pt = sub.add_parser("points", help="laser scan → facade planes, depth maps, windows and "
+                        "doors, CGA rules and a 3D model in the scan's coordinates (CityFit)",
+                        epilog=EXAMPLES["points"],
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    pt.add_argument("cloud", help="point cloud: .ply, .las, .laz, .xyz, .txt, .csv or .pts "
+                                  "(z up, metres)")
+    pt.add_argument("--resolution", type=_positive, default=0.05,
+                    help="cell size of the depth maps and orthophotos, metres (default 0.05)")
+    pt.add_argument("--photos", help="folder of photos to colour the points from (with --cameras)")
+    pt.add_argument("--cameras", help="cameras of the photos: VisualSFM cameras_v2.txt")
+    pt.add_argument("--no-model", action="store_true",
+                    help="find planes, maps and elements only; no rules or 3D model")
+    pt.add_argument("--seed", type=int, default=0)
+    pt.add_argument("-o", "--output", required=True, help="output folder")
 
     y = sub.add_parser("synthesize", help="a facade texture from a label map in the style of a "
                        "photo (Shang 2023 §3.3: the missing-texture case)",
@@ -591,6 +612,21 @@ def cmd_repair_model(args) -> int:
     return 0
 
 
+def cmd_points(args) -> int:
+    from .points.pipeline import points
+
+    r = points(args.cloud, resolution=args.resolution, photos=args.photos, cameras=args.cameras,
+               model=not args.no_model, seed=args.seed, out_dir=args.output)
+    kinds = Counter(p.kind for p in r.planes)
+    els = Counter(e["label"] for e in r.elements())
+    found = ", ".join(f"{n} {_plural(k, n)}" for k, n in sorted(els.items())) or "no elements"
+    print(f"{args.cloud}: {len(r.cloud):,} points, {len(r.planes)} planes "
+          f"({kinds.get('facade', 0)} {_plural('facade', kinds.get('facade', 0))}, "
+          f"{kinds.get('ground', 0)} ground), {found}; "
+          f"{r.report['timings']['total']:.1f} s → {args.output}")
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -600,7 +636,8 @@ def cmd_train_classifier(args) -> int:
 COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
-            "synthesize": cmd_synthesize, "repair-model": cmd_repair_model}
+            "synthesize": cmd_synthesize, "repair-model": cmd_repair_model,
+            "points": cmd_points}
 
 
 def main(argv: list[str] | None = None) -> int:

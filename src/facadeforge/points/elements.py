@@ -8,7 +8,9 @@ opening is a part of the facade where most points lie *behind* the wall plane �
 and glass set back in the wall, the shop interior seen through a shop front — and a balcony or
 sign is where the front-most points stand well *in front* of it:
 
-1. per cell, ``recessed`` (median depth below −:data:`RECESS` m) and ``occupied`` (any point);
+1. per cell, ``recessed`` (median depth below −:data:`RECESS` m from the wall around it,
+   :func:`wall_depth`: houses of a street front stand at different depths) and ``occupied``
+   (any point);
 2. the recessed share of the occupied cells in a :data:`WINDOW_M` box (a box filter on each),
    above :data:`MIN_SHARE` where at least :data:`MIN_OCCUPIED` of the box holds points — the
    scan's line pattern leaves empty stripes on a wall, and an opening with no return at all is
@@ -20,6 +22,10 @@ sign is where the front-most points stand well *in front* of it:
 5. its **label**: ``door`` when its foot is within :data:`DOOR_FOOT_M` of the facade's foot
    and it is at least :data:`DOOR_MIN_HEIGHT` tall (doors and shop fronts), else ``window``;
    its **depth** is the measured one, the median depth of its recessed cells.
+
+A piece larger than :data:`MAX_OPENING_SHARE` of the facade or wider than
+:data:`MAX_OPENING_M` is no opening but a house standing back from the plane: its own wall
+depth is measured and its openings found as recesses of it.
 
 Protrusions (``front`` above +:data:`PROTRUDE` m) go through the same steps; those whose foot
 is above the ground floor (:data:`BALCONY_MIN_HEIGHT`) are ``balcony`` elements with their
@@ -36,7 +42,7 @@ from scipy import ndimage
 
 from .maps import FacadeMaps
 
-__all__ = ["Element", "detect_elements"]
+__all__ = ["Element", "detect_elements", "wall_depth"]
 
 #: Depth (m) behind the wall from which a cell counts as recessed.
 RECESS = 0.06
@@ -54,6 +60,13 @@ CLOSE_M = 0.25
 MIN_SIDE_M, MIN_FILL = 0.4, 0.45
 #: A door's foot lies within this of the facade's foot (m) and it is at least this tall (m).
 DOOR_FOOT_M, DOOR_MIN_HEIGHT = 0.5, 1.6
+#: Share of a column's cells a depth must hold (±2 cm) to be its wall.
+WALL_SUPPORT = 0.12
+#: Width (m) over which the wall's depth is smoothed along the facade.
+WALL_SPAN_M = 6.0
+#: An opening larger than this share of the facade, or wider than this (m), is a wall set
+#: back from the plane, searched again for openings relative to its own depth.
+MAX_OPENING_SHARE, MAX_OPENING_M = 0.12, 8.0
 #: A protrusion whose foot is at least this high (m) is a balcony.
 BALCONY_MIN_HEIGHT = 2.5
 
@@ -118,20 +131,80 @@ def _boxes(mask: np.ndarray, share: np.ndarray, res: float):
         yield (x0, y0, x1, y1), piece, float(share[sl][piece].mean())
 
 
+def wall_depth(maps: FacadeMaps) -> np.ndarray:
+    """The wall's depth (m) in each column of the rasters: of the depths (2 cm bins, ±2 cm
+    windows) holding at least :data:`WALL_SUPPORT` of the column's cells, the one nearest the
+    plane (the most common when none does), median-filtered over :data:`WALL_SPAN_M`.  One plane rarely holds a whole street front: a house set back or
+    standing forward from its neighbour is wall at its own depth, and its windows are recesses
+    *of that wall*."""
+    d = maps.depth
+    h, w = d.shape
+    bins = np.round(np.clip(np.nan_to_num(d, nan=-9.0), -1.0, 1.0) / 0.02).astype(np.int64) + 50
+    ok = np.isfinite(d)
+    hist = np.zeros((w, 101), np.int64)
+    cols = np.broadcast_to(np.arange(w), (h, w))
+    np.add.at(hist, (cols[ok], bins[ok]), 1)
+    # a 3-bin window (±2 cm) per depth, then the support nearest the plane that holds at
+    # least WALL_SUPPORT of the column: the wall, unless the whole column stands elsewhere
+    tot = hist.sum(1)
+    has = tot > 0
+    sm = hist + np.roll(hist, 1, axis=1) + np.roll(hist, -1, axis=1)
+    strong = sm >= WALL_SUPPORT * np.maximum(tot, 1)[:, None]
+    dist = np.abs(np.arange(101) - 50)[None, :] + np.where(strong, 0, 1000)
+    mode = (np.argmin(dist, axis=1) - 50) * 0.02
+    weak = ~strong.any(1)
+    mode[weak] = (np.argmax(sm[weak], axis=1) - 50) * 0.02
+    if not has.any():
+        return np.zeros(w)
+    mode = np.interp(np.arange(w), np.flatnonzero(has), mode[has])
+    k = max(1, int(round(WALL_SPAN_M / maps.resolution))) | 1
+    return ndimage.median_filter(mode, size=k, mode="nearest")
+
+
+class _Sub:
+    """A window of a facade's rasters, for :func:`wall_depth` on part of a facade."""
+
+    def __init__(self, maps: FacadeMaps, box):
+        x0, y0, x1, y1 = box
+        self.depth = maps.depth[y0:y1, x0:x1]
+        self.resolution = maps.resolution
+
+
 def detect_elements(maps: FacadeMaps) -> list[Element]:
     """Windows, doors, balconies (and other protrusions) of one facade, left to right then
-    top to bottom; see the module docstring."""
+    top to bottom; see the module docstring.  Depths are measured from the wall around the
+    element (:func:`wall_depth`)."""
     res = maps.resolution
     occupied = maps.count > 0
-    depth = np.nan_to_num(maps.depth, nan=0.0)
-    front = np.nan_to_num(maps.front, nan=0.0)
+    wall = wall_depth(maps)[None, :]
+    depth = np.nan_to_num(maps.depth - wall, nan=0.0)
+    front = np.nan_to_num(maps.front - wall, nan=0.0)
     out: list[Element] = []
     # the facade's foot: the lowest row with wall points across a tenth of the width
     rows = np.flatnonzero((occupied & (np.abs(depth) < 2 * RECESS)).sum(1) > 0.1 * maps.shape[1])
     foot = (maps.shape[0] - 1 - rows.max()) * res if len(rows) else 0.0
     recessed = depth < -RECESS
     mask, share = _pieces(recessed, occupied, res)
-    for box, piece, score in _boxes(mask, share, res):
+    found = list(_boxes(mask, share, res))
+    limit = MAX_OPENING_SHARE * maps.shape[0] * maps.shape[1]
+    for box, piece, score in list(found):
+        x0, y0, x1, y1 = box
+        if (x1 - x0) * (y1 - y0) <= limit and (x1 - x0) * res <= MAX_OPENING_M:
+            continue
+        # too big to be an opening: a wall standing back from the plane (a house set back
+        # from its neighbours); its openings are recesses of *its* depth
+        found.remove((box, piece, score))
+        sub = _Sub(maps, box)
+        inner = np.nan_to_num(maps.depth[y0:y1, x0:x1] - wall_depth(sub)[None, :], nan=0.0)
+        rec_in = inner < -RECESS
+        m_in, s_in = _pieces(rec_in, occupied[y0:y1, x0:x1], res)
+        for b, p, sc in _boxes(m_in, s_in, res):
+            bx = (b[0] + x0, b[1] + y0, b[2] + x0, b[3] + y0)
+            if (b[2] - b[0]) * (b[3] - b[1]) <= limit and (b[2] - b[0]) * res <= MAX_OPENING_M:
+                depth[bx[1]:bx[3], bx[0]:bx[2]] = inner[b[1]:b[3], b[0]:b[2]]
+                recessed[bx[1]:bx[3], bx[0]:bx[2]] = rec_in[b[1]:b[3], b[0]:b[2]]
+                found.append((bx, p, sc))
+    for box, piece, score in found:
         x0, y0, x1, y1 = box
         u0, v0, u1, v1 = maps.box_m(box)
         sub = recessed[y0:y1, x0:x1] & piece & occupied[y0:y1, x0:x1]

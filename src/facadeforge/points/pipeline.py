@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import InputError
 from .cloud import PointCloud, PointCloudError
-from .elements import Element, detect_elements
+from .elements import Element, detect_elements, wall_depth
 from .maps import RESOLUTION, FacadeFrame, FacadeMaps, facade_frame, facade_points, rasterize
 from .planes import Plane, detect_planes
 
@@ -181,13 +181,15 @@ def _final_elements(f: FacadeResult) -> list[Element]:
     return out
 
 
-def _measured_depth(maps: FacadeMaps, box, label: str) -> float | None:
+def _measured_depth(maps: FacadeMaps, wall: np.ndarray, box, label: str) -> float | None:
+    """An element's depth from the wall around it (m): the median of its recessed cells (the
+    front-most depths of a balcony's protruding cells)."""
     x0, y0, x1, y1 = box
     if label == "balcony":
-        v = maps.front[y0:y1, x0:x1]
+        v = maps.front[y0:y1, x0:x1] - wall[None, x0:x1]
         v = v[np.isfinite(v) & (v > 0.1)]
     else:
-        v = maps.depth[y0:y1, x0:x1]
+        v = maps.depth[y0:y1, x0:x1] - wall[None, x0:x1]
         v = v[np.isfinite(v) & (v < -0.03)]
     return float(np.median(v)) if len(v) else None
 
@@ -343,9 +345,10 @@ def _structure(f: FacadeResult, *, model: bool, origin: np.ndarray, up: int, see
         f.report["structure"] = f"not modelled: {e}"
         return
     measured = 0
+    wall = wall_depth(maps)
     for leaf in rec.tree.leaves():
         if leaf.label in ("window", "door", "balcony") and "box_px" in leaf.tags:
-            d = _measured_depth(maps, leaf.tags["box_px"], leaf.label)
+            d = _measured_depth(maps, wall, leaf.tags["box_px"], leaf.label)
             if d is not None:
                 leaf.tags["depth"] = round(d, 4)
                 measured += 1
