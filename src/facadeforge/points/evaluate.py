@@ -22,7 +22,8 @@ from scipy.spatial import cKDTree
 from .cloud import PointCloud
 from .maps import FacadeFrame
 
-__all__ = ["box_iou", "class_distances", "match", "sample_model", "truth_boxes"]
+__all__ = ["box_iou", "class_distances", "match", "model_triangles", "sample_model",
+           "truth_boxes"]
 
 #: Thesis Table 5.1 (cm): geometric accuracy of its multi-view reconstructions, eq. 5.11.
 THESIS_TABLE_5_1_CM = {"window": 11, "wall": 4, "balcony": 13, "door": 1, "roof": 31, "shop": 27}
@@ -101,6 +102,22 @@ def match(pred: Sequence[dict], truth: Sequence[dict], *, iou: float = 0.5,
     out["per_class"] = {c: run([p for p in p_all if p["label"] == c],
                                [t for t in t_all if t["label"] == c], True) for c in classes}
     return out
+
+
+def model_triangles(models, origin) -> tuple[np.ndarray, list[str]]:
+    """Triangles ``(T, 3, 3)`` of placed models (CGA axes relative to ``origin``, as
+    :func:`~.pipeline.points` writes them) back in the cloud's coordinates (z up), and the
+    label of each."""
+    tris, labels = [], []
+    for m in models:
+        for p in m.parts:
+            pos = p.mesh.triangulate()[0].reshape(-1, 3, 3)
+            # CGA (x, y up, z) → cloud (x, −z, y)
+            tris.append(np.stack([pos[..., 0], -pos[..., 2], pos[..., 1]], -1) + origin)
+            labels += [p.label] * len(pos)
+    if not tris:
+        return np.zeros((0, 3, 3)), []
+    return np.concatenate(tris), labels
 
 
 def sample_model(triangles: np.ndarray, labels: Sequence[str], spacing: float = 0.05,

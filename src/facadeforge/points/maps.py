@@ -152,12 +152,16 @@ def facade_frame(cloud: PointCloud, plane: Plane, ground_level: float | None = N
 
 
 def facade_points(cloud: PointCloud, frame: FacadeFrame, behind: float = DEPTH_BEHIND,
-                  front: float = DEPTH_FRONT) -> tuple[np.ndarray, np.ndarray]:
+                  front: float = DEPTH_FRONT, exclude: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the cloud's points in the facade's box (its rectangle, ``behind`` m behind
-    to ``front`` m in front) and their facade coordinates."""
+    to ``front`` m in front) and their facade coordinates; ``exclude`` (a boolean mask over
+    the cloud: the ground's points, which run under the facade's foot) leaves points out."""
     f = frame.to_facade(cloud.xyz)
     keep = ((f[:, 0] >= 0) & (f[:, 0] < frame.width) & (f[:, 1] >= 0) & (f[:, 1] < frame.height)
             & (f[:, 2] >= -behind) & (f[:, 2] <= front))
+    if exclude is not None:
+        keep &= ~exclude
     idx = np.flatnonzero(keep)
     return idx, f[idx]
 

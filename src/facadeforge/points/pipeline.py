@@ -260,6 +260,9 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
     ground = [p for p in planes if p.kind == "ground"]
     ground_level = float(np.median(cloud.xyz[ground[0].inliers, cloud.up])) if ground else None
     facade_ids = [i for i, p in enumerate(planes) if p.kind == "facade"][:max_facades]
+    on_ground = np.zeros(len(cloud), bool)
+    for g in ground:
+        on_ground[g.inliers] = True
 
     facades: list[FacadeResult] = []
     t_maps = t_el = t_rec = 0.0
@@ -267,7 +270,7 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         t = time.perf_counter()
         frame = facade_frame(cloud, planes[pi], ground_level=_ground_at(cloud, planes[pi],
                                                                         ground, ground_level))
-        idx, uvd = facade_points(cloud, frame)
+        idx, uvd = facade_points(cloud, frame, exclude=on_ground)
         maps = rasterize(cloud, frame, resolution=resolution, index=idx, uvd=uvd)
         ortho = ortho_image(maps)
         t_maps += time.perf_counter() - t
@@ -418,7 +421,8 @@ def _write(r: PointsResult, stage: Path) -> None:
     models = r.models()
     if models:
         for m in models:
-            m.attributes["_origin_offset"] = [float(v) for v in r.origin]
+            # CGA axes, as footprints record it (CityJSON maps it back to x, y, z up)
+            m.attributes["_origin_offset"] = [float(v) for v in _TO_CGA @ r.origin]
             if r.cloud.crs:
                 m.attributes["_crs"] = r.cloud.crs
         export(models, stage / "model.glb")
