@@ -48,6 +48,8 @@ __all__ = ["Plane", "classify_planes", "detect_planes", "estimate_normals", "out
 
 #: Voxel edge (m) of the grid RANSAC runs on.
 VOXEL = 0.06
+#: Most voxels RANSAC runs on: beyond, the voxel grows (its area by the excess).
+MAX_VOXELS = 150_000
 #: Inlier distance (m) to a plane.
 THRESHOLD = 0.05
 #: Largest angle (degrees) between a point's normal and the plane's for the point to be an inlier.
@@ -174,6 +176,9 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
         raise PointCloudError(f"{cloud.source}: {len(xyz)} points are too few to find planes")
     rng = np.random.default_rng(seed)
     rep = voxel_representatives(xyz, voxel)
+    if len(rep) > MAX_VOXELS:            # a huge or noisy cloud: coarser voxels, bounded cost
+        voxel *= math.sqrt(len(rep) / MAX_VOXELS)
+        rep = voxel_representatives(xyz, voxel)
     centre = xyz[rep].mean(0)
     sub = xyz[rep] - centre                            # centred: offsets stay small
     normals, planarity = estimate_normals(sub)
@@ -191,8 +196,9 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
         cand = live[seeds_ok[live]]
         if len(cand) < 3:
             break
-        h = rng.choice(cand, size=min(HYPOTHESES, len(cand)), replace=False)
-        s = live if len(live) <= SCORE_SAMPLE else rng.choice(live, SCORE_SAMPLE, replace=False)
+        # drawn with replacement: choice(replace=False) permutes the whole array every round
+        h = np.unique(cand[rng.integers(0, len(cand), min(HYPOTHESES, len(cand)))])
+        s = live if len(live) <= SCORE_SAMPLE else live[rng.integers(0, len(live), SCORE_SAMPLE)]
         hn = normals[h]                                           # (H, 3)
         hd = -np.einsum("ij,ij->i", hn, sub[h])                    # (H,)
         dist = np.abs(sub[s] @ hn.T + hd)                          # (S, H)
@@ -218,18 +224,17 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
             if len(piece) < min_points:
                 break
             found.append((nrm.copy(), off, inl[piece], area))
-    planes = _full_resolution(cloud, centre, found, threshold, cos_tol)
+    planes = _full_resolution(cloud, centre, found, threshold, rep)
     classify_planes(cloud, planes)
     return planes
 
 
 def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: float,
-                     cos_tol: float) -> list[Plane]:
+                     rep: np.ndarray) -> list[Plane]:
     """Every point of the cloud given to the first plane (detection order) it lies on, within
     the piece's extent (its occupied in-plane cells, dilated by one)."""
     xyz = cloud.xyz - centre
     free = np.ones(len(xyz), bool)
-    rep = voxel_representatives(cloud.xyz, VOXEL)
     planes: list[Plane] = []
     for nrm, off, vox_idx, area in found:
         a, b = _plane_axes(nrm, cloud.up)
