@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env demo test lint bench fuzz clean
+.PHONY: env train-env bench-env demo test lint bench fuzz clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -22,6 +22,11 @@ env: $(VENV)/.synced
 # PyTorch for training the convnet classifier, in its own environment so `make test` stays light.
 train-env: $(UV) pyproject.toml uv.lock
 	UV_PROJECT_ENVIRONMENT=.venv-train $(UV) sync --frozen --extra train --python $(PYTHON)
+
+# Open3D (large) for benchmarks/planes.py, in its own environment: `make env` never installs it.
+# Its wheel also needs the system's libusb-1.0 (Debian: apt-get install libusb-1.0-0).
+bench-env: $(UV) pyproject.toml uv.lock
+	UV_PROJECT_ENVIRONMENT=.venv-bench $(UV) sync --frozen --group bench --python $(PYTHON)
 
 demo: env
 	$(VENV)/bin/facadeforge demo -o demo-out
