@@ -381,7 +381,11 @@ def main(argv=None) -> int:
               "threshold_m": THRESHOLD, "runs": args.runs, "long_s": args.long, "clouds": {}}
     for name, cloud in load_clouds(names).items():
         print(f"{name}: {len(cloud):,} points", flush=True)
+        load = os.getloadavg()[0]
         result["clouds"][name] = bench_cloud(o3d, name, cloud, args.runs, args.long)
+        # other work on the machine slows every method: the 1-minute load before and after
+        result["clouds"][name]["load_average_1min"] = [round(load, 2),
+                                                       round(os.getloadavg()[0], 2)]
     out = Path(args.output)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.{os.getpid()}.part")
