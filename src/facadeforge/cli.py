@@ -49,7 +49,8 @@ EXAMPLES = {
   facadeforge points scan.ply -o out/                  # planes, depth maps, elements, model
   facadeforge points street.laz --resolution 0.1 -o out/
   facadeforge points scan.ply --photos photos/ --cameras cameras_v2.txt -o out/   # coloured
-  facadeforge points facade.xyz --no-model -o out/     # planes, maps and elements only""",
+  facadeforge points facade.xyz --no-model -o out/     # planes, maps and elements only
+  facadeforge points scan.ply --fit grammar -o out/    # + grid grammar fitted with depth energy""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
 }
@@ -218,6 +219,13 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                     help="cell size of the depth maps and orthophotos, metres (default 0.05)")
     pt.add_argument("--photos", help="folder of photos to colour the points from (with --cameras)")
     pt.add_argument("--cameras", help="cameras of the photos: VisualSFM cameras_v2.txt")
+    pt.add_argument("--fit", choices=("elements", "grammar"), default="elements",
+                    help="elements (default): the facade's structure laid around the detected "
+                         "windows and doors; grammar: also fit the grid parse grammar with "
+                         "appearance and depth energies (Simon 2011 §5.3, SPEA-II) and keep it "
+                         "where the automatic weight prefers it")
+    pt.add_argument("--budget", type=int, default=600,
+                    help="derivations of the grammar fit (--fit grammar; default 600)")
     pt.add_argument("--no-model", action="store_true",
                     help="find planes, maps and elements only; no rules or 3D model")
     pt.add_argument("--seed", type=int, default=0)
@@ -616,7 +624,8 @@ def cmd_points(args) -> int:
     from .points.pipeline import points
 
     r = points(args.cloud, resolution=args.resolution, photos=args.photos, cameras=args.cameras,
-               model=not args.no_model, seed=args.seed, out_dir=args.output)
+               model=not args.no_model, fit=args.fit, budget=args.budget, seed=args.seed,
+               out_dir=args.output)
     kinds = Counter(p.kind for p in r.planes)
     els = Counter(e["label"] for e in r.elements())
     found = ", ".join(f"{n} {_plural(k, n)}" for k, n in sorted(els.items())) or "no elements"

@@ -66,8 +66,11 @@ SPEA-II (Algorithm 5.3, [Zitzler 2001])
     the individual at the densest location (lexicographically smallest nearest-neighbour
     distances); genitors are chosen by tournament on ``A`` by ``F``.  The answer (§5.2.3) is the
     evaluated layout of lowest weighted sum (``weights``, default all 1 — eq. 5.3 generalised);
-    with non-negative weights it lies on the Pareto front of everything evaluated.  The thesis's
-    automatic choice of α from the front's bounding box is not implemented: pass ``weights``.
+    with non-negative weights it lies on the Pareto front of everything evaluated.
+    ``weights="auto"`` is the thesis's automatic choice (:func:`auto_alpha`, Fig. 5.6): the
+    weights that make the iso-lines of eq. 5.3 parallel to the diagonal of the Pareto set's
+    bounding box, so the answer is the Pareto layout farthest below that diagonal, and its
+    *strength* the range of α that keeps it optimal (``SearchResult.alpha_range``).
 
 Island model (Algorithm 5.2, §5.2.2 "Concurrent populations")
     ``islands`` sub-populations evolve independently with different policies, as in the thesis:
@@ -100,7 +103,7 @@ import numpy as np
 from ..errors import InputError
 from .search import Objective, Parameter, SearchResult, latin_hypercube
 
-__all__ = ["evolve", "pareto_mask", "spea2_fitness", "spea2_select"]
+__all__ = ["auto_alpha", "evolve", "pareto_mask", "spea2_fitness", "spea2_select"]
 
 
 @dataclass
@@ -171,6 +174,50 @@ def _distances(F: np.ndarray) -> np.ndarray:
     d = np.sqrt(((N[:, None, :] - N[None, :, :]) ** 2).sum(axis=2))
     np.fill_diagonal(d, np.inf)
     return d
+
+
+def auto_alpha(F: np.ndarray) -> tuple[int, float, tuple[float, float]]:
+    """§5.2.3's automatic weight on two objectives ``F`` (n × 2, minimised): ``(row, α,
+    (α_lo, α_hi))``.
+
+    α makes the iso-lines of ``E = α E_a + (1 − α) E_d`` (eq. 5.3) parallel to the diagonal of
+    the Pareto set's bounding box (Fig. 5.6): ``α = Δ_d / (Δ_a + Δ_d)`` with ``Δ`` the box's
+    extents, so the chosen row — the Pareto row of least ``E`` — is the one farthest below that
+    diagonal.  ``(α_lo, α_hi)`` is the range of α for which the same row stays optimal among the
+    Pareto rows ("the strength of the solution"): narrow means a challenger is close and a person
+    should look.
+    """
+    F = np.asarray(F, float)
+    if F.ndim != 2 or F.shape[1] != 2 or not len(F):
+        raise InputError(f"auto_alpha needs an (n, 2) array of two energies, got {F.shape}")
+    ok = np.isfinite(F).all(axis=1)
+    if not ok.any():
+        return 0, 0.5, (0.0, 1.0)
+    idx = np.flatnonzero(ok)
+    front = idx[pareto_mask(F[idx])]
+    P = F[front]
+    span = P.max(0) - P.min(0)
+    if span[0] <= 0 and span[1] <= 0:
+        return int(front[0]), 0.5, (0.0, 1.0)
+    alpha = float(span[1] / (span[0] + span[1]))
+    e = alpha * P[:, 0] + (1 - alpha) * P[:, 1]
+    k = int(np.argmin(e))
+    # i stays optimal against j while α (a_i − a_j) + (1 − α)(d_i − d_j) ≤ 0, a linear condition
+    lo, hi = 0.0, 1.0
+    for j in range(len(P)):
+        if j == k:
+            continue
+        da, dd = P[k, 0] - P[j, 0], P[k, 1] - P[j, 1]
+        # α (da − dd) ≤ −dd
+        c = da - dd
+        if abs(c) < 1e-300:
+            continue
+        bound = -dd / c
+        if c > 0:
+            hi = min(hi, bound)
+        else:
+            lo = max(lo, bound)
+    return int(front[k]), alpha, (max(0.0, lo), min(1.0, hi))
 
 
 def spea2_fitness(F: np.ndarray) -> np.ndarray:
@@ -399,7 +446,7 @@ def _allocate(perf: np.ndarray, total: int) -> list[int]:
 def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parameter], *,
            budget: int = 1500, seed: int = 0, population: int = 16, islands: int = 3,
            tournament: int = 3, crossover: float = 0.7, migration_every: int = 5,
-           weights: Sequence[float] | None = None, seeded: float = 0.5) -> SearchResult:
+           weights: Sequence[float] | str | None = None, seeded: float = 0.5) -> SearchResult:
     """Minimise ``objective_fn`` over ``params`` by the island-model EA of §5.2 (module doc).
 
     ``objective_fn(attrs)`` returns an energy or a 1-D array of energies (multi-objective:
@@ -427,6 +474,11 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
         raise InputError(f"migration_every {migration_every}: give at least 1 generation")
     if not params:
         raise InputError("no parameters to evolve: the procedural space is empty")
+    auto = isinstance(weights, str)
+    if auto and weights != "auto":
+        raise InputError(f"weights {weights!r}: give numbers or 'auto'")
+    if auto:
+        weights = None
     if weights is not None:
         w = np.asarray(weights, float).ravel()
         if w.size == 0 or not np.isfinite(w).all() or (w < 0).any() or w.sum() <= 0:
@@ -506,7 +558,17 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
                     dst[worst] = migrant
             sizes = _allocate(perf, total)                # allocate resource (P_i)
 
-    if ev.multi:
+    alpha = alpha_range = None
+    front: list[list[float]] = []
+    if ev.multi and ev.history:
+        F = np.array([ind.vec for ind in ev.history])
+        ok = np.isfinite(F).all(axis=1)
+        keep = np.flatnonzero(ok)[pareto_mask(F[ok])] if ok.any() else np.zeros(0, int)
+        front = [F[i].tolist() for i in keep]
+    if ev.multi and auto and ev.m == 2:
+        row, alpha, alpha_range = auto_alpha(F)
+        best_attrs = dict(ev.history[row].attrs)
+    elif ev.multi:
         cands = [ind for ind in ev.history if ind.e == obj.best]
         if cands:
             keep = pareto_mask(np.array([c.vec for c in cands]))
@@ -516,4 +578,5 @@ def evolve(objective_fn: Callable[[Mapping[str, Any]], Any], params: list[Parame
     else:
         best_attrs = dict(obj.best_attrs) if obj.best_attrs else dict(ev.history[0].attrs)
     return SearchResult(best_attrs, obj.best, obj.used, time.perf_counter() - t0,
-                        list(obj.curve), "evolution")
+                        list(obj.curve), "evolution", front=front, alpha=alpha,
+                        alpha_range=alpha_range)

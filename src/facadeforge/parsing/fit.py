@@ -72,6 +72,16 @@ class FitResult:
     height_m: float
 
 
+def _resize_depth(depth: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A depth map area-averaged to ``shape``, NaN (unmeasured) cells left out of the mean."""
+    ok = np.isfinite(depth).astype(np.float32)
+    v = np.where(ok > 0, depth, 0).astype(np.float32)
+    size = (shape[1], shape[0])
+    num = cv2.resize(v, size, interpolation=cv2.INTER_AREA)
+    den = cv2.resize(ok, size, interpolation=cv2.INTER_AREA)
+    return np.where(den > 0.05, num / np.maximum(den, 1e-6), np.nan)
+
+
 def energy_shape(h: int, w: int, side: int = ENERGY_SIDE) -> tuple[int, int]:
     """``(h, w)`` of an image of ``h × w`` pixels shrunk to a long side of at most ``side``:
     the frame the energy is computed in."""
@@ -98,15 +108,33 @@ SEARCH_METHODS: dict[str, Any] = {"hill": hill_climb, "evolution": evolve}
 
 def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "hill",
                 budget: int = 1500, seed: int = 0, fixed: Mapping[str, Any] | None = None,
-                initialiser=None, differentiate: bool = True, **options: Any) -> FitResult:
+                initialiser=None, differentiate: bool = True, depth: np.ndarray | None = None,
+                depths: Mapping[str, float] | None = None, **options: Any) -> FitResult:
     """Fit the parse grammar ``rules`` (loaded) to ``(H, W, K)`` probabilities of a rectified
     facade; ``fixed`` pins attributes (e.g. ``facadeWidth`` when the width is known);
     ``initialiser(prob, label_set) -> attrs or None`` measures a starting point that replaces
     the attribute defaults (:mod:`.init`); with ``differentiate`` (and a grammar that declares
-    it) each element instance is then fitted on its own (:mod:`.differentiate`)."""
-    search = search_method(method)
+    it) each element instance is then fitted on its own (:mod:`.differentiate`).
+
+    ``depth`` (an ``(H', W')`` depth map of the same facade, metres, NaN where unmeasured) and
+    ``depths`` (metres per leaf label) add the depth energy of ``simon2011`` §5.3.2
+    (:class:`~.energy.DepthEnergy`, eq. 5.9) as a second objective: the search is then the
+    evolutionary one with SPEA-II selection and the answer the automatic α's (§5.2.3,
+    :func:`~.evolution.auto_alpha`); ``FitResult.search`` holds the Pareto set, α and its
+    range."""
     small = shrink_proba(np.asarray(prob), ENERGY_SIDE)
     energy = SegmentationEnergy(small, label_set)
+    depth_energy = None
+    if depth is not None:
+        from .energy import DepthEnergy
+
+        d = np.asarray(depth, np.float32)
+        if d.shape != small.shape[:2]:
+            d = _resize_depth(d, small.shape[:2])
+        depth_energy = DepthEnergy(d, dict(depths or {}))
+        method = "evolution"
+        options.setdefault("weights", "auto")
+    search = search_method(method)
     layout = SplitLayout(rules)
     fixed = dict(fixed or {})
     params = [p for p in parameters_of(rules) if p.name not in fixed]
@@ -127,15 +155,18 @@ def fit_grammar(prob: np.ndarray, label_set: LabelSet, rules, *, method: str = "
         w = float(attrs["facadeWidth"])
         return w, w * aspect
 
-    def objective(attrs: Mapping[str, Any]) -> float:
+    def objective(attrs: Mapping[str, Any]):
         full = {**fixed, **attrs}
         w, h = size_of(full)
-        return energy(layout.derive(w, h, full))
+        lay = layout.derive(w, h, full)
+        if depth_energy is None:
+            return energy(lay)
+        return np.array([energy(lay), depth_energy(lay, energy.pixel_boxes(lay))])
 
     result = search(objective, params, budget=budget, seed=seed, **options)
     best = {**fixed, **result.attrs}
     w, h = size_of(best)
-    if differentiate:
+    if differentiate and depth_energy is None:   # per-instance fitting is appearance-only
         refined = differentiate_instances(energy, layout, best, w, h, params)
         if refined is not None:
             best = refined

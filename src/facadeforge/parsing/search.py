@@ -42,6 +42,11 @@ class SearchResult:
     #: best energy after each derivation (a monotone curve, Fig. 5.8 style)
     curve: list[float] = field(default_factory=list)
     method: str = "hill"
+    #: several objectives: the Pareto set of everything evaluated (one row of energies each)
+    front: list[list[float]] = field(default_factory=list)
+    #: ``weights="auto"``: the chosen α of eq. 5.3 and the range of α keeping the answer (§5.2.3)
+    alpha: float | None = None
+    alpha_range: tuple[float, float] | None = None
 
 
 class Objective:

@@ -19,6 +19,8 @@ Maps (:class:`FacadeMaps`), NaN or 0 where a cell holds no point:
 - ``depth`` — median signed depth of the cell's points (m): the median, not the front-most,
   so that a stray point in front does not make a wall a balcony;
 - ``front`` — the front-most depth (m), for protrusions;
+- ``back`` — the back-most depth (m): what lies behind a railing, a tree or a car in front of a
+  window — a solid wall has nothing behind it, an opening does;
 - ``count`` / ``density`` — points per cell and per m²;
 - ``intensity`` — mean laser intensity, ``rgb`` — mean colour (when the cloud has them);
 - ``wall`` — the share of the cell's points within ``threshold`` of the plane.
@@ -90,6 +92,7 @@ class FacadeMaps:
     front: np.ndarray
     count: np.ndarray
     wall: np.ndarray
+    back: np.ndarray | None = None
     intensity: np.ndarray | None = None
     rgb: np.ndarray | None = None
 
@@ -187,6 +190,7 @@ def rasterize(cloud: PointCloud, frame: FacadeFrame, *, resolution: float = RESO
     count = np.bincount(cell, minlength=w * h)
     depth = np.full(w * h, np.nan)
     frontm = np.full(w * h, np.nan)
+    backm = np.full(w * h, np.nan)
     if len(cell):
         order = np.lexsort((d, cell))
         cs, ds = cell[order], d[order]
@@ -196,6 +200,7 @@ def rasterize(cloud: PointCloud, frame: FacadeFrame, *, resolution: float = RESO
         lo_mid, hi_mid = starts + (ends - starts - 1) // 2, starts + (ends - starts) // 2
         depth[cells] = 0.5 * (ds[lo_mid] + ds[hi_mid])
         frontm[cells] = ds[ends - 1]
+        backm[cells] = ds[starts]
     on = np.bincount(cell, weights=(np.abs(d) < threshold).astype(float), minlength=w * h)
     wall = np.divide(on, count, out=np.zeros(w * h), where=count > 0)
     inten = None
@@ -210,4 +215,5 @@ def rasterize(cloud: PointCloud, frame: FacadeFrame, *, resolution: float = RESO
         rgb = rgb.reshape(h, w, 3)
     return FacadeMaps(frame=frame, resolution=resolution, depth=depth.reshape(h, w),
                       front=frontm.reshape(h, w), count=count.reshape(h, w),
-                      wall=wall.reshape(h, w), intensity=inten, rgb=rgb)
+                      wall=wall.reshape(h, w), intensity=inten, rgb=rgb,
+                      back=backm.reshape(h, w))

@@ -47,6 +47,8 @@ __all__ = ["FacadeResult", "PointsResult", "points", "MAX_FACADES"]
 
 #: Facades modelled per cloud, largest first.
 MAX_FACADES = 12
+#: ``--fit`` choices (see :func:`points`).
+FITS = ("elements", "grammar")
 #: Classes of the ortho classifier handed to the photo pipeline (order = channel).
 _CLASSES = ("wall", "window", "door", "balcony")
 
@@ -62,6 +64,9 @@ class FacadeResult:
     elements: list[Element]
     ortho: np.ndarray             # (H, W, 3) uint8, rows down
     rec: object = None            # the photo pipeline's Reconstruction of the orthophoto
+    tree: object = None           # the facade's shape tree (facade metres, y up)
+    rules: str | None = None      # its CGA rules
+    source: str = "elements"      # what the tree is: "elements" (layout) or "grammar" (fit)
     model: object = None          # the derived facade, placed in the cloud (CGA axes)
     report: dict = field(default_factory=dict)
 
@@ -167,16 +172,26 @@ def _map_classifier(elements: list[Element]):
 
 
 def _final_elements(f: FacadeResult) -> list[Element]:
-    """The elements of the facade's shape tree (what the model has), with measured depths;
-    the detected elements when there is no tree."""
-    if f.rec is None:
+    """The elements of the facade's shape tree (what the model has), with their depths; the
+    detected elements when there is no tree."""
+    if f.tree is None:
         return [e for e in f.elements if e.label in ("window", "door", "balcony")]
     out = []
-    for leaf in f.rec.tree.leaves():
-        if leaf.label in ("window", "door", "balcony") and "box_px" in leaf.tags:
-            box = tuple(int(v) for v in leaf.tags["box_px"])
-            out.append(Element(leaf.label, f.maps.box_m(box), box,
-                               float(leaf.tags.get("depth", 0.0)), 1.0))
+    h, r = f.maps.shape[0], f.maps.resolution
+    for leaf in f.tree.leaves():
+        label = "door" if leaf.label == "shop" else leaf.label
+        if label not in ("window", "door", "balcony"):
+            continue
+        o, sz = leaf.scope.origin, leaf.scope.size
+        u0, v0, u1, v1 = float(o[0]), float(o[1]), float(o[0] + sz[0]), float(o[1] + sz[1])
+        if u1 - u0 <= 1e-6 or v1 - v0 <= 1e-6:
+            continue
+        box = (int(round(u0 / r)), int(round(h - v1 / r)), int(round(u1 / r)),
+               int(round(h - v0 / r)))
+        depth = leaf.tags.get("depth")
+        if depth is None:
+            depth = f.report.get("class_depths", {}).get(leaf.label, 0.0)
+        out.append(Element(label, (u0, v0, u1, v1), box, float(depth), 1.0))
     out.sort(key=lambda e: (-e.box_m[3], e.box_m[0]))
     return out
 
@@ -215,7 +230,8 @@ def _place(model, frame: FacadeFrame, origin: np.ndarray, up: int):
 # ------------------------------------------------------------------------------ pipeline
 
 def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
-           model: bool = True, max_facades: int = MAX_FACADES, seed: int = 0,
+           model: bool = True, fit: str = "elements", budget: int = 600,
+           max_facades: int = MAX_FACADES, seed: int = 0,
            out_dir: str | os.PathLike | None = None) -> PointsResult:
     """Reconstruct the facades of a laser scan (see the module docstring).
 
@@ -230,6 +246,11 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         ``cameras_v2.txt``): points take their colour from a photo that sees them.
     model : bool
         Derive the 3D model (elements, planes and maps are found either way).
+    fit : {"elements", "grammar"}
+        ``elements``: the facade's structure is the layout around the detected elements;
+        ``grammar``: the ``grid`` parse grammar is also fitted with appearance and depth energies
+        (SPEA-II, ``budget`` derivations, :mod:`.fit`) and its derivation replaces the layout
+        where the automatic α of ``simon2011`` §5.2.3 prefers it.
     out_dir : path, optional
         Write the OUTDIR (module docstring) atomically.
     """
@@ -240,6 +261,10 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         from ..outdir import check_outdir
 
         check_outdir(out_dir, inputs)
+    if fit not in FITS:
+        raise InputError(f"--fit {fit!r}: use one of {', '.join(FITS)}")
+    if not isinstance(budget, int) or budget < 1:
+        raise InputError(f"--budget {budget}: give a positive number of derivations")
     if not resolution or not (0.005 <= resolution <= 1.0):
         raise InputError(f"--resolution {resolution}: give a cell size between 0.005 and 1 m")
     if not isinstance(cloud, PointCloud):
@@ -280,7 +305,8 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         f = FacadeResult(index=k, plane=pi, frame=frame, maps=maps, elements=elements,
                          ortho=ortho)
         t = time.perf_counter()
-        _structure(f, model=model, origin=origin, up=cloud.up, seed=seed)
+        _structure(f, model=model, origin=origin, up=cloud.up, seed=seed, fit=fit,
+                   budget=budget)
         t_rec += time.perf_counter() - t
         facades.append(f)
     timings.update(maps=t_maps, elements=t_el, structure=t_rec)
@@ -331,7 +357,8 @@ def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:
     return colour_from_photos(cloud, photos, {k: cams[k] for k in photos if k in cams})
 
 
-def _structure(f: FacadeResult, *, model: bool, origin: np.ndarray, up: int, seed: int) -> None:
+def _structure(f: FacadeResult, *, model: bool, origin: np.ndarray, up: int, seed: int,
+               fit: str = "elements", budget: int = 600) -> None:
     """Stage 5–6 for one facade (module docstring)."""
     from ..grammar.extract import extract_rules
     from ..imaging.shape_tree import PixelFrame
@@ -356,14 +383,49 @@ def _structure(f: FacadeResult, *, model: bool, origin: np.ndarray, up: int, see
                 leaf.tags["depth"] = round(d, 4)
                 measured += 1
     rec.rules = extract_rules(rec.tree, texture="texture.jpg", depths={})
-    f.rec = rec
+    f.rec, f.tree, f.rules, f.source = rec, rec.tree, rec.rules, "elements"
     f.report["measured_depths"] = measured
-    if model:
+    if fit == "grammar":
+        _fit_grammar(f, budget=budget, seed=seed)
+    if not model:
+        return
+    if f.source == "elements":
         frame = PixelFrame(maps.shape[1], maps.shape[0], (1 / maps.resolution,) * 2)
         m, rec.workdir = _derive_model(rec, frame)
-        m.name = f"facade_{f.index:02d}"
-        f.model = _place(m, f.frame, origin, up)
-        rec.model = f.model
+    else:
+        from ..engine import derive_facade, load_rules
+
+        m = derive_facade(load_rules(f.rules), maps.shape[1] * maps.resolution,
+                          maps.shape[0] * maps.resolution, name="facade")
+        f.tree = m.root
+    m.name = f"facade_{f.index:02d}"
+    f.model = _place(m, f.frame, origin, up)
+
+
+def _fit_grammar(f: FacadeResult, *, budget: int, seed: int) -> None:
+    """``--fit grammar``: the grid grammar fitted with E_a and E_d (:mod:`.fit`); its derivation
+    replaces the element layout when the automatic α prefers it."""
+    from ..parsing.fit import grammar_path
+    from ..parsing.parse import write_fitted_rules
+    from .fit import fit_facade
+
+    df = fit_facade(f.maps, f.elements, f.tree, budget=budget, seed=seed)
+    f.report["fit"] = {"chosen": df.chosen, "energies": df.energies,
+                       "alpha": round(df.alpha, 6),
+                       "alpha_range": [round(float(v), 6) for v in df.alpha_range],
+                       "pareto_size": len(df.front), "derivations": df.fit.search.derivations,
+                       "seconds": round(df.fit.search.seconds, 3)}
+    f.report["class_depths"] = {k: round(v, 4) for k, v in df.depths.items()}
+    if df.chosen != "grammar":
+        return
+    depth_attrs = {f"{k}Depth": v for k, v in df.depths.items()}
+    text = Path(grammar_path("grid")).read_text(encoding="utf-8")
+    f.rules = write_fitted_rules(text, {**df.fit.attrs, **depth_attrs})
+    f.source = "grammar"
+    from ..engine import derive_facade, load_rules
+
+    f.tree = derive_facade(load_rules(f.rules), df.fit.width_m,
+                           f.maps.shape[0] * f.maps.resolution, name="facade").root
 
 
 def _report(r: PointsResult, timings: dict) -> dict:
@@ -380,6 +442,7 @@ def _report(r: PointsResult, timings: dict) -> dict:
                        "resolution_m": f.maps.resolution},
             "points": int(f.maps.count.sum()),
             "detected": dict(Counter(e.label for e in f.elements)),
+            "structure": f.source,
             "elements": dict(Counter(e.label for e in els)),
             **f.report})
     return {
@@ -396,6 +459,15 @@ def _report(r: PointsResult, timings: dict) -> dict:
     }
 
 
+def _leaves_image(f: FacadeResult) -> np.ndarray:
+    """``structure.png`` of a fitted grammar: the orthophoto with its leaves' labels tinted."""
+    from ..exchange.raster import PALETTE, label_map
+
+    lab = label_map(f.tree, size=f.maps.shape)
+    colours = PALETTE[lab].astype(np.float32)
+    return np.clip(0.6 * f.ortho + 0.4 * colours, 0, 255).astype(np.uint8)
+
+
 def _write(r: PointsResult, stage: Path) -> None:
     from PIL import Image
 
@@ -409,10 +481,13 @@ def _write(r: PointsResult, stage: Path) -> None:
         d.mkdir()
         Image.fromarray(depth_image(f.maps)).save(d / "depth.png")
         Image.fromarray(f.ortho).save(d / "ortho.png")
-        if f.rec is not None:
+        if f.rec is not None and f.source == "elements":
             Image.fromarray(structure_image(f.rec)).save(d / "structure.png")
-            write_json(d / "shape_tree.json", f.rec.tree.to_dict())
-            (d / "rules.cga").write_text(f.rec.rules, encoding="utf-8")
+        elif f.tree is not None:
+            Image.fromarray(_leaves_image(f)).save(d / "structure.png")
+        if f.tree is not None:
+            write_json(d / "shape_tree.json", f.tree.to_dict())
+            (d / "rules.cga").write_text(f.rules, encoding="utf-8")
         np.savez_compressed(d / "maps.npz", depth=f.maps.depth.astype(np.float32),
                             front=f.maps.front.astype(np.float32), count=f.maps.count,
                             resolution=f.maps.resolution)
