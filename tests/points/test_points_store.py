@@ -530,3 +530,24 @@ def test_random_clouds_equal_brute_force(seed, n, spread, cell):
             got, want = s.ray(c, d, h[2] / 4 + 0.01), bf_ray(s, c, d, h[2] / 4 + 0.01)
             assert (got is None) == (want is None) and (got is None or got.index == want[0])
     assert len(s.unique().keep) == len(np.unique(s.fixed(), axis=0))
+
+
+@pytest.mark.parametrize("radius", [MERGE_RADIUS, 0.001, 0.03, 0.7, 3.0])
+def test_merge_across_column_borders_and_radii(radius):
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(13)
+    # points crowded around the corners and edges of 4 m columns (x, y near multiples of 4)
+    near = rng.integers(-2, 3, (500, 2)) * 4.0 + rng.normal(0, 1.5 * radius, (500, 2))
+    xyz = np.c_[near, rng.normal(0, 2 * radius, 500)]
+    xyz = np.vstack([xyz, xyz[:50] + rng.normal(0, radius / 3, (50, 3))]) + UTM
+    s = PointStore.from_cloud(PointCloud(xyz))
+    p = s.fixed().astype(np.float64)
+    d2 = ((p[:, None] - p[None]) ** 2).sum(-1)
+    n, comp = connected_components(d2 < (radius * SCALE) ** 2, directed=False)
+    for engine in ENGINES:
+        s.engine = engine
+        g = s.merge(radius)
+        assert len(g.keep) == n
+        assert np.array_equal(g.group[:, None] == g.group[None], comp[:, None] == comp[None])
+    assert 1 < n < len(xyz)

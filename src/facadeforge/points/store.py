@@ -79,10 +79,12 @@ Queries (results are original indices, int64, sorted unless ``sort=False``)
       hit before ``v − radius``: a later centre's foot on the ray lies beyond ``v``, and its
       sphere is entered no earlier than ``foot − radius``.
     - :meth:`~PointStore.unique`, :meth:`~PointStore.merge` — exact duplicates by the 96-bit
-      integer triple; near duplicates (distance < ``radius``, default 2⁻¹³ m) by a grid hash with
-      cells of twice the radius (each point looks in the 8 cells its ball can reach: its own and
-      the neighbours on the sides of the cell halves it lies in), joined transitively (single
-      linkage: a chain of points each closer than ``radius`` to the next is one group).
+      integer triple; near duplicates (distance < ``radius``, default 2⁻¹³ m) by a grid hash
+      (each point looks in its own hash cell and in the neighbours its ball reaches), joined
+      transitively (single linkage: a chain of points each closer than ``radius`` to the next is
+      one group).  The compiled path packs the hash cell (8 radii wide) into a 64-bit key local
+      to the 4 m column and sorts each column's keys, so that lookups stay inside one or two
+      columns' memory (a global hash table of a million points is one cache miss per probe).
 
 Engines
     Each query is written twice.  ``engine="numba"`` (default) runs one compiled kernel per query
@@ -1060,8 +1062,9 @@ class PointStore:
         if not n:
             return Groups(np.empty(0, np.int64), np.empty(0, np.int64))
         if self._engine == "numba":
-            self._kernel_args()
-            return _groups_of_roots(_k_merge(self.fixed().astype(np.int64), 2, 0.0))
+            groups = self._merge_kernel(0.0)
+            if groups is not None:
+                return groups
         p = self._p
         orig = self.order.astype(np.int64)
         srt = np.lexsort((orig, p[2], p[1], p[0]))
@@ -1091,10 +1094,9 @@ class PointStore:
         """
         rf = _as_length(radius, "merge radius") * SCALE
         if self._engine == "numba" and len(self):
-            self._kernel_args()
-            g = 2 * max(int(math.ceil(rf)), 1)
-            return _groups_of_roots(_k_merge(self.fixed().astype(np.int64), g,
-                                             rf * rf if rf > 1.0 else 0.0))
+            groups = self._merge_kernel(rf if rf > 1.0 else 0.0)
+            if groups is not None:
+                return groups
         exact = self.unique()
         if rf <= 1.0 or len(exact.keep) < 2:                       # distinct ints are >= 1 apart
             return exact
@@ -1130,6 +1132,24 @@ class PointStore:
         graph = coo_matrix((np.ones(len(i), np.int8), (i, j)), shape=(m, m)).tocsr()
         n_comp, comp = connected_components(graph, directed=False)
         return _relabel(comp[exact.group].astype(np.int64), n_comp)
+
+    def _merge_kernel(self, rf: float) -> Groups | None:
+        """:func:`_k_merge` with hash cells of 8 radii (at least 64 units, at most a column); None
+        when the radius exceeds half a column or the packed cell key would not fit 63 bits
+        (columns of kilometres): the numpy path does those."""
+        a = self._kernel_args()
+        reach = int(math.ceil(rf))
+        g = min(8 * max(reach, 8), self._cu)
+        if 2 * reach > g:                                          # a ball wider than a column
+            return None
+        bx = (self._cu // g - 1).bit_length()
+        zbits = int((self._hi[self.up] - self._lo[self.up]) // g).bit_length()
+        if 2 * bx + zbits > 62:
+            return None
+        root = _k_merge(self._p, self.offsets, self._codes, self._cell_ij, self._cmin,
+                        np.int64(self._cu), a[14], self.order, np.int64(g),
+                        np.int64(self._lo[self.up]), np.int64(bx), rf * rf)
+        return _groups_of_roots(root)
 
     # ------------------------------------------------------------------------------ files
     def save(self, path) -> Path:
@@ -1523,83 +1543,114 @@ def _k_ray(p, z, offsets, codes, cmin, extent, cu, axes, order, o, d, rho, pad, 
 
 
 @_kernel
-def _k_merge(u, g, r2):
-    """Groups of points (n, 3) int64: exact duplicates, and (``r2 > 0``) points closer than
-    ``sqrt(r2)`` joined transitively.  Grid hash with cells of ``g`` (>= 2 sqrt(r2)) units in an
-    open-addressing table; each point looks in the 8 cells its ball can reach; union-find keeps
-    the smallest index as the root.  Returns the root of every point."""
-    n = len(u)
-    size = 1
-    while size < 2 * n:
-        size <<= 1
-    mask = np.uint64(size - 1)
-    slot_cell = np.empty((size, 3), np.int64)
-    head = np.full(size, -1, np.int64)
-    nxt = np.full(n, -1, np.int64)
+def _k_merge(p, offsets, codes, cell_ij, cmin, cu, axes, order, g, zmin, bx, r2):
+    """Groups of equal points (``r2 == 0``) or of points closer than ``sqrt(r2)`` joined
+    transitively; returns the root (smallest original index) of every original point.
+
+    Grid hash, column by column: inside each 4 m column a point's hash cell (side ``g`` units,
+    ``g`` >= 2 ``sqrt(r2)``, the last cell of a column up to ``2 g`` wide) is the packed key ``gz << 2 bx | gx << bx | gy`` (``gx``, ``gy``
+    local to the column, ``gz`` from the lowest point); each column's keys are sorted once, and a
+    point looks up its own cell and the neighbour cells across the faces its ball reaches (on
+    average 2 of 8) by binary search in the sorted keys of the column holding them, so every
+    lookup stays in one column's few kilobytes.  Union-find with the smaller index as root."""
+    a0, a1, up = axes[0], axes[1], axes[2]
+    n = p.shape[1]
+    nx = cu // g                     # hash cells per column side; the last one takes the rest
+    skey = np.empty(n, np.int64)
+    spos = np.empty(n, np.int64)
+    for c in range(len(offsets) - 1):
+        s, e = offsets[c], offsets[c + 1]
+        x0 = (cell_ij[c, 0] + cmin[0]) * cu
+        y0 = (cell_ij[c, 1] + cmin[1]) * cu
+        keys = np.empty(e - s, np.int64)
+        for q in range(s, e):
+            gx = min((np.int64(p[a0, q]) - x0) // g, nx - 1)
+            gy = min((np.int64(p[a1, q]) - y0) // g, nx - 1)
+            gz = (np.int64(p[up, q]) - zmin) // g
+            keys[q - s] = (gz << (2 * bx)) | (gx << bx) | gy
+        perm = np.argsort(keys)
+        for m in range(e - s):
+            skey[s + m] = keys[perm[m]]
+            spos[s + m] = s + perm[m]
     parent = np.arange(n)
-    duplicate = np.zeros(n, np.bool_)
-    cell = np.empty((n, 3), np.int64)
-    for i in range(n):
-        for a in range(3):
-            cell[i, a] = u[i, a] // g
-        h = (np.uint64(cell[i, 0]) * np.uint64(0x9E3779B97F4A7C15)) ^ \
-            (np.uint64(cell[i, 1]) * np.uint64(0xC2B2AE3D27D4EB4F)) ^ \
-            (np.uint64(cell[i, 2]) * np.uint64(0x165667B19E3779F9))
-        k = (h ^ (h >> np.uint64(29))) & mask
-        while head[k] != -1 and not (slot_cell[k, 0] == cell[i, 0] and slot_cell[k, 1] == cell[i, 1]
-                                     and slot_cell[k, 2] == cell[i, 2]):
-            k = (k + np.uint64(1)) & mask
-        if head[k] == -1:
-            slot_cell[k, 0], slot_cell[k, 1], slot_cell[k, 2] = cell[i, 0], cell[i, 1], cell[i, 2]
-        j = head[k]
-        dup = -1
-        while j != -1:                                             # an equal point already in?
-            if u[j, 0] == u[i, 0] and u[j, 1] == u[i, 1] and u[j, 2] == u[i, 2]:
-                dup = j
-                break
-            j = nxt[j]
-        if dup >= 0:
-            parent[i] = dup                                        # dup < i is its own root
-            duplicate[i] = True
-        else:
-            nxt[i] = head[k]
-            head[k] = i
-    if r2 > 0:
-        half = g // 2
-        nb = np.empty(3, np.int64)
-        for i in range(n):
-            if duplicate[i]:                                       # its original stands for it
-                continue
+    reach = np.int64(np.ceil(np.sqrt(r2)))
+    lo_face = np.empty(3, np.int64)
+    hi_face = np.empty(3, np.int64)
+    side = np.empty(3, np.int64)
+    cellq = np.empty(3, np.int64)
+    t = np.empty(3, np.int64)
+    for c in range(len(offsets) - 1):
+        ci, cj = cell_ij[c, 0], cell_ij[c, 1]
+        x0 = (ci + cmin[0]) * cu
+        y0 = (cj + cmin[1]) * cu
+        for q in range(offsets[c], offsets[c + 1]):
+            local = (np.int64(p[a0, q]) - x0, np.int64(p[a1, q]) - y0, np.int64(p[up, q]) - zmin)
+            near = 0
+            for k in range(3):
+                cellq[k] = local[k] // g
+                if k < 2 and cellq[k] > nx - 1:
+                    cellq[k] = nx - 1
+                side[k] = 0
+                lo_face[k] = cellq[k] * g
+                hi_face[k] = (cellq[k] + 1) * g
+                if k < 2 and cellq[k] == nx - 1:
+                    hi_face[k] = cu                                # the last cell: to the border
+                if r2 > 0:
+                    if local[k] - lo_face[k] < reach:
+                        side[k] = -1
+                    elif hi_face[k] - local[k] <= reach:
+                        side[k] = 1
+                    if side[k] != 0:
+                        near |= 1 << k
+            oq = order[q]
             for corner in range(8):
-                for a in range(3):
-                    side = -1 if u[i, a] - cell[i, a] * g < half else 1
-                    nb[a] = cell[i, a] + (side if (corner >> a) & 1 else 0)
-                h = (np.uint64(nb[0]) * np.uint64(0x9E3779B97F4A7C15)) ^ \
-                    (np.uint64(nb[1]) * np.uint64(0xC2B2AE3D27D4EB4F)) ^ \
-                    (np.uint64(nb[2]) * np.uint64(0x165667B19E3779F9))
-                k = (h ^ (h >> np.uint64(29))) & mask
-                while head[k] != -1 and not (slot_cell[k, 0] == nb[0] and slot_cell[k, 1] == nb[1]
-                                             and slot_cell[k, 2] == nb[2]):
-                    k = (k + np.uint64(1)) & mask
-                j = head[k]
-                while j != -1:
-                    if j > i:
-                        d0 = float(u[i, 0] - u[j, 0])
-                        d1 = float(u[i, 1] - u[j, 1])
-                        d2 = float(u[i, 2] - u[j, 2])
-                        if d0 * d0 + d1 * d1 + d2 * d2 < r2:
-                            ra, rb = i, j                          # union, smaller root wins
-                            while parent[ra] != ra:
-                                parent[ra] = parent[parent[ra]]
-                                ra = parent[ra]
-                            while parent[rb] != rb:
-                                parent[rb] = parent[parent[rb]]
-                                rb = parent[rb]
-                            if ra < rb:
-                                parent[rb] = ra
-                            elif rb < ra:
-                                parent[ra] = rb
-                    j = nxt[j]
+                if corner & ~near:
+                    continue
+                dc_i, dc_j = 0, 0
+                for k in range(3):
+                    t[k] = cellq[k] + (side[k] if (corner >> k) & 1 else 0)
+                if t[2] < 0:
+                    continue
+                if t[0] < 0:
+                    dc_i, t[0] = -1, nx - 1
+                elif t[0] >= nx:
+                    dc_i, t[0] = 1, 0
+                if t[1] < 0:
+                    dc_j, t[1] = -1, nx - 1
+                elif t[1] >= nx:
+                    dc_j, t[1] = 1, 0
+                leaf = c
+                if dc_i != 0 or dc_j != 0:
+                    if ci + dc_i < 0 or cj + dc_j < 0:
+                        continue
+                    leaf = _k_find(codes, ci + dc_i, cj + dc_j)
+                    if leaf < 0:
+                        continue
+                key = (t[2] << (2 * bx)) | (t[0] << bx) | t[1]
+                s, e = offsets[leaf], offsets[leaf + 1]
+                m = s + np.searchsorted(skey[s:e], key)
+                while m < e and skey[m] == key:
+                    q2 = spos[m]
+                    m += 1
+                    o2 = order[q2]
+                    if o2 <= oq:
+                        continue
+                    d0 = float(np.int64(p[0, q]) - np.int64(p[0, q2]))
+                    d1 = float(np.int64(p[1, q]) - np.int64(p[1, q2]))
+                    d2 = float(np.int64(p[2, q]) - np.int64(p[2, q2]))
+                    dd = d0 * d0 + d1 * d1 + d2 * d2
+                    if (r2 > 0 and dd < r2) or (r2 == 0 and dd == 0):
+                        ra, rb = np.int64(oq), np.int64(o2)         # union, smaller root wins
+                        while parent[ra] != ra:
+                            parent[ra] = parent[parent[ra]]
+                            ra = parent[ra]
+                        while parent[rb] != rb:
+                            parent[rb] = parent[parent[rb]]
+                            rb = parent[rb]
+                        if ra < rb:
+                            parent[rb] = ra
+                        elif rb < ra:
+                            parent[ra] = rb
     for i in range(n):                                             # roots, ascending: O(n)
         parent[i] = parent[parent[i]]
     return parent
