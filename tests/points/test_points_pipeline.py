@@ -214,3 +214,24 @@ def test_lille_street_two_facades(tmp_path):
     r = points(LILLE, model=False)
     assert sum(p.kind == "facade" for p in r.planes) >= 2
     assert sum(p.kind == "ground" for p in r.planes) >= 1
+
+
+def test_fit_grammar_with_depth_energy(cloud, tmp_path):
+    """--fit grammar: the grid grammar fitted with appearance and depth energies; the report
+    says which structure the automatic α kept and why."""
+    r = points(cloud, fit="grammar", budget=150, out_dir=tmp_path / "out")
+    f = r.facades[0]
+    fit = f.report["fit"]
+    assert fit["chosen"] in ("elements", "grammar") and f.source == fit["chosen"]
+    assert fit["derivations"] == 150 and fit["pareto_size"] >= 1
+    lo, hi = fit["alpha_range"]
+    assert 0.0 <= lo <= fit["alpha"] <= hi <= 1.0
+    assert set(fit["energies"]) == {"grammar", "elements"}
+    # the class depths are the measured ones, not the grammar's defaults
+    assert f.report["class_depths"]["window"] == pytest.approx(-RECESS, abs=0.03)
+    rules = (tmp_path / "out" / "facade_00" / "rules.cga").read_text()
+    if f.source == "grammar":
+        assert "attr windowDepth = -0.2" in rules or "attr windowDepth = -0.19" in rules
+    assert (tmp_path / "out" / "model.glb").is_file()
+    with pytest.raises(Exception, match="--fit"):
+        points(cloud, fit="both")
