@@ -7,9 +7,12 @@ classifiers have not seen them):
 - ``docs/images/parse.jpg``: ``facadeforge parse`` (default grammar, search and budget) — the
   photo, the classifier's labels, the derivation's labels (input frame) and the derived model;
 - ``docs/images/facades.jpg``: a RueMonge val photo of a corner cut into its facades
-  (``reconstruct``'s ``facades.png``) and each usable facade rectified on its own.
+  (``reconstruct``'s ``facades.png``) and each usable facade rectified on its own;
+- ``docs/images/points.jpg``: ``facadeforge points`` on the NUIST facade scan (depth map with
+  the elements found in yellow and the labelled ones in magenta, ``structure.png``, the model)
+  and on the Lille street scan (the planes from above, coloured by kind; a facade's depth map).
 
-    .venv/bin/python docs/pictures.py
+    .venv/bin/python docs/pictures.py [points]     # only the points picture with "points"
 """
 
 from __future__ import annotations
@@ -99,8 +102,74 @@ def _join(parts: list[np.ndarray], axis: int) -> np.ndarray:
     return np.concatenate([np.pad(t, pad, constant_values=255) for t in parts], axis=axis)
 
 
+def _boxes(img: np.ndarray, maps, boxes, colour, scale: int) -> None:
+    import cv2
+
+    h, r = maps.shape[0], maps.resolution
+    for u0, v0, u1, v1 in boxes:
+        cv2.rectangle(img, (round(u0 / r * scale), round((h - v1 / r) * scale)),
+                      (round(u1 / r * scale), round((h - v0 / r) * scale)), colour, 2)
+
+
+def points_rows() -> np.ndarray:
+    import cv2
+
+    from facadeforge import render
+    from facadeforge.datasets.nuist import load_facade
+    from facadeforge.points.evaluate import truth_boxes
+    from facadeforge.points.io import read_cloud
+    from facadeforge.points.pipeline import depth_image, points
+
+    rows = []
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cloud = load_facade(DATA / "pointclouds" / "nuist" / "building_1" / "facade_1")
+        r = points(cloud, out_dir=Path(tmp) / "nuist")
+        f = r.facades[0]
+        d = cv2.resize(depth_image(f.maps), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+        _boxes(d, f.maps, [t["box_m"] for t in truth_boxes(cloud, f.frame)], (255, 0, 255), 2)
+        _boxes(d, f.maps, [e.box_m for e in f.elements if e.label in ("window", "door")],
+               (255, 230, 0), 2)
+        from PIL import Image
+
+        structure = np.asarray(Image.open(Path(tmp) / "nuist" / "facade_00" / "structure.png"))
+        render(str(Path(tmp) / "nuist" / "model.glb"), str(Path(tmp) / "n.png"),
+               size=(900, 600), elevation=15, azimuth=245)
+        model = np.asarray(Image.open(Path(tmp) / "n.png").convert("RGB"))
+        rows.append(_join([_fit(d), _fit(structure), _fit(model)], axis=1))
+
+        lille = read_cloud(DATA / "pointclouds" / "lille_street_small.ply")
+        r = points(lille, model=False)
+        xy = lille.xyz[:, :2]
+        lo = xy.min(0)
+        s = 12
+        size = ((xy.max(0) - lo) * s).astype(int) + 1
+        top = np.full((size[1], size[0], 3), 255, np.uint8)
+        q = ((xy - lo) * s).astype(int)
+        top[size[1] - 1 - q[:, 1], q[:, 0]] = 200
+        colours = {"ground": (150, 150, 150), "facade": (220, 60, 40), "recess": (60, 90, 220),
+                   "protrusion": (40, 170, 60), "roof": (170, 60, 170), "other": (230, 170, 0)}
+        for p in r.planes:
+            qq = q[p.inliers]
+            top[size[1] - 1 - qq[:, 1], qq[:, 0]] = colours.get(p.kind, (0, 0, 0))
+        f = r.facades[0]
+        d = cv2.resize(depth_image(f.maps), None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
+        _boxes(d, f.maps, [e.box_m for e in f.elements if e.label in ("window", "door")],
+               (255, 230, 0), 2)
+        rows.append(_join([_fit(top), _fit(d)], axis=1))
+    return _join(rows, axis=0)
+
+
 def main() -> int:
     from PIL import Image
+
+    if sys.argv[1:] == ["points"] or "points" in sys.argv[1:]:
+        if (DATA / "pointclouds").is_dir():
+            out = ROOT / "docs" / "images" / "points.jpg"
+            Image.fromarray(points_rows()).save(out, quality=85)
+            print(f"wrote {out}")
+        return 0
 
     for name, make, order in (("reconstruct.jpg", row, PHOTOS),
                               ("parse.jpg", parse_row, PHOTOS[::-1])):
@@ -118,6 +187,10 @@ def main() -> int:
     if (DATA / "ruemonge").is_dir():
         out = ROOT / "docs" / "images" / "facades.jpg"
         Image.fromarray(facades_row()).save(out, quality=85)
+        print(f"wrote {out}")
+    if (DATA / "pointclouds").is_dir():
+        out = ROOT / "docs" / "images" / "points.jpg"
+        Image.fromarray(points_rows()).save(out, quality=85)
         print(f"wrote {out}")
     return 0
 

@@ -101,7 +101,8 @@ class PointsResult:
 
 def ortho_image(maps: FacadeMaps) -> np.ndarray:
     """The facade's orthophoto (rows down): colour when the cloud has it, else intensity
-    stretched to its 1st–99th percentile; empty cells take their nearest filled cell."""
+    stretched to its 1st–99th percentile; empty cells take a Gaussian average of the filled
+    cells around them, or their nearest filled cell farther out."""
     from scipy import ndimage
 
     filled = maps.count > 0
@@ -117,6 +118,14 @@ def ortho_image(maps: FacadeMaps) -> np.ndarray:
         g = np.clip(160 + d * 300, 0, 255)
         img = np.repeat(g[:, :, None], 3, axis=2)
     if filled.any() and not filled.all():
+        # the scan's stripe gaps: a normalised Gaussian average of the cells around; what is
+        # farther from any point than a few cells takes its nearest filled cell
+        w = ndimage.gaussian_filter(filled.astype(np.float32), 2.0)
+        avg = np.stack([ndimage.gaussian_filter(np.where(filled, img[..., k], 0), 2.0)
+                        for k in range(3)], -1) / np.maximum(w, 1e-6)[..., None]
+        near = ~filled & (w > 0.05)
+        img = np.where(near[..., None], avg, img)
+        filled = filled | near
         _, (ii, jj) = ndimage.distance_transform_edt(~filled, return_indices=True)
         img = img[ii, jj]
     return np.clip(img, 0, 255).astype(np.uint8)
