@@ -48,14 +48,16 @@ Run::
 
     nice -n 19 .venv/bin/python benchmarks/points_store.py [--queries 1000] [--repeat 3]
 
-Writes ``benchmarks/results/points_store.json`` (machine, date, commit, every number) and prints a
-table.
+Writes ``benchmarks/results/points_store.json`` (machine, date, commit, the last commit of
+``store.py``, the load average after each cloud, every number) and prints a table.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
+import subprocess
 import sys
 import tempfile
 import time
@@ -298,6 +300,7 @@ def run_cloud(name: str, cloud: PointCloud, n_queries: int, repeat: int, notes: 
         size = path.stat().st_size
         t_load, _ = best_once(lambda: PointStore.load(path), 1)
     return {
+        "load_average_1m": round(os.getloadavg()[0], 2),
         "points": len(store), "cells": store.cells, "quadtree_depth": store.depth,
         "quadtree_nodes": store.nodes, "origin": store.origin.tolist(),
         "points_per_cell_max": int(np.diff(store.offsets).max()),
@@ -351,7 +354,11 @@ def main(argv: list[str] | None = None) -> int:
                                     args.repeat, notes)
     import scipy
 
-    result = {"benchmark": "points_store", **provenance(), "numpy": np.__version__,
+    store_commit = subprocess.run(
+        ["git", "log", "-1", "--format=%h", "--", "src/facadeforge/points/store.py"], cwd=ROOT,
+        capture_output=True, text=True).stdout.strip() or None
+    result = {"benchmark": "points_store", **provenance(), "store_commit": store_commit,
+              "numpy": np.__version__,
               "scipy": scipy.__version__, "queries": args.queries, "repeat": args.repeat,
               "sphere_radius_m": SPHERE, "notes": notes, "clouds": clouds}
     save_result(result, args.output)
