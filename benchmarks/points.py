@@ -93,25 +93,25 @@ def _score(cloud, result, truth_of=None) -> dict:
     from facadeforge.points.evaluate import (
         class_distances,
         match,
+        model_distance,
         model_triangles,
         sample_model,
         truth_boxes,
     )
-    from facadeforge.points.pipeline import _final_elements
 
     det_pred, det_truth, tree_pred = [], [], []
-    for f in result.facades:
-        truth = truth_of(f.frame) if truth_of is not None else truth_boxes(cloud, f.frame)
-        det_truth += [{**t, "facade": f.index} for t in truth]
-        det_pred += [{**e.to_dict(), "facade": f.index} for e in f.elements]
-        tree_pred += [{**e.to_dict(), "facade": f.index} for e in _final_elements(f)]
+    for i, w in enumerate(result.whole):       # per facade plane, in the plane's own frame
+        truth = truth_of(w.frame) if truth_of is not None else truth_boxes(cloud, w.frame)
+        det_truth += [{**t, "facade": i} for t in truth]
+        det_pred += [{**e.to_dict(), "facade": i} for e in w.elements]
+        tree_pred += [{**e.to_dict(), "facade": i} for e in result.plane_elements(i)]
 
     def per_facade(pred):
-        # boxes of different facades are in different frames: match facade by facade, sum
+        # boxes of different planes are in different frames: match plane by plane, sum
         out = {"tp": 0, "predicted": 0, "truth": 0}
-        for f in result.facades:
-            r = match([p for p in pred if p["facade"] == f.index],
-                      [t for t in det_truth if t["facade"] == f.index])
+        for i in range(len(result.whole)):
+            r = match([p for p in pred if p["facade"] == i],
+                      [t for t in det_truth if t["facade"] == i])
             for k in out:
                 out[k] += r[k]
         p = out["tp"] / out["predicted"] if out["predicted"] else 0.0
@@ -121,15 +121,15 @@ def _score(cloud, result, truth_of=None) -> dict:
         return out
 
     res = {"model": per_facade(tree_pred), "detected": per_facade(det_pred)}
-    if len(result.facades) == 1:
-        f = result.facades[0]
-        res["model_detail"] = match([e.to_dict() for e in _final_elements(f)],
-                                    truth_boxes(cloud, f.frame))
+    if len(result.whole) == 1:
+        res["model_detail"] = match([e.to_dict() for e in result.plane_elements(0)],
+                                    truth_boxes(cloud, result.whole[0].frame))
     tris, labels = model_triangles(result.models(), result.origin)
     if len(tris):
         pts, lab = sample_model(tris, labels)
         res["eq_5_11_cm"] = class_distances(pts, lab, cloud,
                                             classes=("wall", "window", "door", "balcony"))
+        res["eq_5_10_cm"] = model_distance(pts, cloud.xyz)
     return res
 
 

@@ -626,7 +626,7 @@ def cmd_points(args) -> int:
     r = points(args.cloud, resolution=args.resolution, photos=args.photos, cameras=args.cameras,
                model=not args.no_model, fit=args.fit, budget=args.budget, seed=args.seed,
                out_dir=args.output)
-    kinds = Counter(p.kind for p in r.planes)
+    kinds = Counter(p["kind"] for p in r.report["planes"])
     els = Counter(e["label"] for e in r.elements())
     found = ", ".join(f"{n} {_plural(k, n)}" for k, n in sorted(els.items())) or "no elements"
     print(f"{args.cloud}: {len(r.cloud):,} points, {len(r.planes)} planes "

@@ -50,7 +50,7 @@ from scipy import ndimage
 
 from .maps import FacadeMaps
 
-__all__ = ["Element", "detect_elements", "glass_holes", "wall_depth"]
+__all__ = ["Element", "detect_elements", "glass_holes", "sparse_glass", "wall_depth"]
 
 #: Which depth of a cell decides whether it is recessed: its back-most point or its median.
 BEHIND = "back"
@@ -72,6 +72,9 @@ MIN_SIDE_M, MIN_FILL = 0.4, 0.45
 HOLE_RECESS_SHARE = 0.25
 #: Largest side (m) of a hole taken for glass (a bigger void is sky or a missing wall).
 MAX_HOLE_M = 4.0
+#: A piece is flush glass where the share of cells with a point is below this share of the
+#: wall's around it.
+SPARSE_SHARE = 0.3
 #: A door's foot lies within this of the facade's foot (m) and it is at least this tall (m).
 DOOR_FOOT_M, DOOR_MIN_HEIGHT = 0.5, 1.6
 #: Share of a column's cells a depth must hold (±2 cm) to be its wall.
@@ -226,6 +229,35 @@ def glass_holes(occupied: np.ndarray, recessed: np.ndarray, res: float) -> np.nd
     return out
 
 
+def sparse_glass(occupied: np.ndarray, res: float) -> np.ndarray:
+    """Flush glazing that returned few points: pieces of the facade, inside its silhouette and
+    clear of its outline, where the share of cells holding a point (over :data:`WINDOW_M`)
+    falls below :data:`SPARSE_SHARE` of the wall's around it (the 90th percentile of that share
+    within :data:`WALL_SPAN_M`, which follows a scanner's fall of density with range), at least
+    :data:`MIN_SIDE_M` and at most :data:`MAX_HOLE_M` across and filling :data:`MIN_FILL` of
+    their rectangle (a pane, not a void of the outline)."""
+    k = _cells(WINDOW_M, res) | 1
+    share = ndimage.uniform_filter(occupied.astype(np.float32), k)
+    span = max(3, _cells(WALL_SPAN_M / 2, res) // 4)
+    ref = ndimage.percentile_filter(share[::4, ::4], 90, size=span)
+    ref = np.kron(ref, np.ones((4, 4), np.float32))[:share.shape[0], :share.shape[1]]
+    s = np.ones((9, 9), bool)
+    inside = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, s, border_value=0))
+    core = ndimage.binary_erosion(inside, np.ones((2 * k + 1,) * 2, bool))
+    sparse = core & (ref > 0.3) & (share < SPARSE_SHARE * ref)
+    lab, _ = ndimage.label(sparse)
+    out = np.zeros_like(occupied)
+    lo, hi = _cells(MIN_SIDE_M, res), _cells(MAX_HOLE_M, res)
+    for i, sl in enumerate(ndimage.find_objects(lab), start=1):
+        if sl is None:
+            continue
+        hh, ww = sl[0].stop - sl[0].start, sl[1].stop - sl[1].start
+        piece = lab[sl] == i
+        if min(hh, ww) >= lo and max(hh, ww) <= hi and piece.mean() >= MIN_FILL:
+            out[sl] |= piece
+    return out
+
+
 class _Sub:
     """A window of a facade's rasters, for :func:`wall_depth` on part of a facade."""
 
@@ -252,6 +284,8 @@ def detect_elements(maps: FacadeMaps) -> list[Element]:
     back = np.nan_to_num(behind - wall, nan=0.0)
     recessed = back < -RECESS
     holes = glass_holes(occupied, recessed, res)
+    if SPARSE_SHARE > 0:
+        holes |= sparse_glass(occupied, res)
     recessed |= holes
     occupied = occupied | holes
     mask, share = _pieces(recessed, occupied, res)

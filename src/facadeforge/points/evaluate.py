@@ -22,8 +22,8 @@ from scipy.spatial import cKDTree
 from .cloud import PointCloud
 from .maps import FacadeFrame
 
-__all__ = ["box_iou", "class_distances", "match", "model_triangles", "sample_model",
-           "truth_boxes"]
+__all__ = ["box_iou", "class_distances", "match", "model_distance", "model_triangles",
+           "sample_model", "truth_boxes"]
 
 #: Thesis Table 5.1 (cm): geometric accuracy of its multi-view reconstructions, eq. 5.11.
 THESIS_TABLE_5_1_CM = {"window": 11, "wall": 4, "balcony": 13, "door": 1, "roof": 31, "shop": 27}
@@ -143,7 +143,8 @@ def class_distances(model_pts: np.ndarray, model_labels: np.ndarray, cloud: Poin
     """Eq. 5.11 per class (cm): mean distance of the model's points of class ``c`` to the
     nearest reference point of class ``c``; distances are capped at ``cap`` m (a model element
     where the scan has none would otherwise dominate the mean) and the share of capped points is
-    reported.  Also eq. 5.10 (``all``) over every class the two share."""
+    reported.  ``all``: the same over every class the two share, each model point against the
+    scan points of its own class (eq. 5.10, class-agnostic, is :func:`model_distance`)."""
     if cloud.labels is None:
         return {}
     names = list(cloud.label_names)
@@ -163,3 +164,14 @@ def class_distances(model_pts: np.ndarray, model_labels: np.ndarray, cloud: Poin
     if all_d:
         out["all"] = {"cm": round(float(np.concatenate(all_d).mean()) * 100, 2)}
     return out
+
+
+def model_distance(model_pts: np.ndarray, reference: np.ndarray, cap: float = 1.0) -> dict:
+    """Eq. 5.10 (cm): the mean distance from the model's points to the nearest reference point
+    of any class (capped at ``cap`` m, the capped share reported)."""
+    if not len(model_pts) or not len(reference):
+        return {}
+    d, _ = cKDTree(reference).query(model_pts, workers=-1)
+    return {"cm": round(float(np.minimum(d, cap).mean()) * 100, 2),
+            "median_cm": round(float(np.median(d)) * 100, 2),
+            "capped_share": round(float((d > cap).mean()), 4), "points": int(len(model_pts))}

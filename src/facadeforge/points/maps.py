@@ -112,6 +112,20 @@ class FacadeMaps:
         row = h - 1 - np.floor(uv[:, 1] / self.resolution).astype(np.int64)
         return np.c_[row, col]
 
+    def crop(self, x0: int, x1: int, top: int) -> FacadeMaps:
+        """Columns ``x0:x1`` and rows ``top:`` (down to the foot) as a facade of their own: the
+        frame moves along ``u`` by ``x0`` cells, its foot stays."""
+        h = self.shape[0]
+        f = self.frame
+        r = self.resolution
+        frame = FacadeFrame(origin=f.origin + x0 * r * f.u, u=f.u, v=f.v, n=f.n,
+                            width=(x1 - x0) * r, height=(h - top) * r)
+        sl = (slice(top, h), slice(x0, x1))
+        pick = lambda a: None if a is None else a[sl]  # noqa: E731
+        return FacadeMaps(frame=frame, resolution=r, depth=self.depth[sl], front=self.front[sl],
+                          count=self.count[sl], wall=self.wall[sl], intensity=pick(self.intensity),
+                          rgb=pick(self.rgb), back=pick(self.back))
+
     def box_m(self, box_px) -> tuple[float, float, float, float]:
         """A raster box ``(x0, y0, x1, y1)`` (columns, rows down, end exclusive) in facade
         metres ``(u0, v0, u1, v1)``."""

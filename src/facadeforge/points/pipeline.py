@@ -24,8 +24,9 @@ OUTDIR: ``planes.json``; ``facade_NN/`` per facade with ``depth.png``, ``ortho.p
 ``structure.png``, ``shape_tree.json``, ``rules.cga``; at the top ``elements.json`` (one record
 per window, door, balcony: ``label``, ``facade``, ``corners`` — the four 3D corners of its
 rectangle on the facade plane at its depth, cloud coordinates), ``model.glb``, ``model.obj``,
-``model.city.json`` (every facade) and ``report.json`` (planes, facades, timings, and the
-per-class point-to-model distances of ``simon2011`` eq. 5.10–5.11 when the cloud is labelled).
+``model.city.json`` (every facade) and ``report.json`` (planes, facades, timings, and
+``accuracy``: the model-to-scan distance of ``simon2011`` eq. 5.10 and, when the cloud is
+labelled, eq. 5.11 per class, in cm, on points sampled every 10 cm on the model).
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from ..errors import InputError
 from .cloud import PointCloud, PointCloudError
 from .elements import Element, detect_elements, wall_depth
 from .maps import RESOLUTION, FacadeFrame, FacadeMaps, facade_frame, facade_points, rasterize
+from .outline import segments
 from .planes import Plane, detect_planes
 
 __all__ = ["FacadeResult", "PointsResult", "points", "MAX_FACADES"]
@@ -69,6 +71,20 @@ class FacadeResult:
     source: str = "elements"      # what the tree is: "elements" (layout) or "grammar" (fit)
     model: object = None          # the derived facade, placed in the cloud (CGA axes)
     report: dict = field(default_factory=dict)
+    offset_u: float = 0.0         # where the facade starts along its plane's facade (m)
+    whole: int = 0                # index into PointsResult.whole: the plane's whole facade
+
+
+@dataclass
+class PlaneFacade:
+    """A facade plane's whole rasters and the elements found on them, before it is cut into
+    the segments (:mod:`.outline`) that are modelled each as a facade."""
+
+    plane: int
+    frame: FacadeFrame
+    maps: FacadeMaps
+    elements: list[Element]
+    ortho: np.ndarray
 
 
 @dataclass
@@ -79,6 +95,7 @@ class PointsResult:
     origin: np.ndarray
     report: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
+    whole: list = field(default_factory=list)      # PlaneFacade per facade plane
 
     def elements(self) -> list[dict]:
         """``elements.json``: every element of every facade with its 3D corners."""
@@ -86,6 +103,18 @@ class PointsResult:
         for f in self.facades:
             for k, e in enumerate(_final_elements(f)):
                 out.append({"facade": f.index, "index": k, **e.to_dict(f.frame)})
+        return out
+
+    def plane_elements(self, whole: int) -> list[Element]:
+        """The model's elements of one facade plane (all its segments), in the plane's frame."""
+        out = []
+        for f in self.facades:
+            if f.whole != whole:
+                continue
+            for e in _final_elements(f):
+                u0, v0, u1, v1 = e.box_m
+                out.append(Element(e.label, (u0 + f.offset_u, v0, u1 + f.offset_u, v1),
+                                   e.box_px, e.depth, e.score))
         return out
 
     def models(self) -> list:
@@ -205,6 +234,25 @@ def _final_elements(f: FacadeResult) -> list[Element]:
     return out
 
 
+def _shift(elements: list[Element], seg, sub: FacadeMaps) -> list[Element]:
+    """The elements whose centre lies in a segment, in the segment's own frame and cells."""
+    off = seg.x0 * sub.resolution
+    h = sub.shape[0]
+    out = []
+    for e in elements:
+        x0, y0, x1, y1 = e.box_px
+        if not seg.x0 <= (x0 + x1) / 2 < seg.x1:
+            continue
+        box = (max(x0 - seg.x0, 0), max(y0 - seg.top, 0), min(x1 - seg.x0, seg.x1 - seg.x0),
+               min(y1 - seg.top, h))
+        if box[2] <= box[0] or box[3] <= box[1]:
+            continue
+        u0, v0, u1, v1 = e.box_m
+        out.append(Element(e.label, (max(u0 - off, 0.0), v0, min(u1 - off, sub.frame.width),
+                                     min(v1, sub.frame.height)), box, e.depth, e.score))
+    return out
+
+
 def _measured_depth(maps: FacadeMaps, wall: np.ndarray, box, label: str) -> float | None:
     """An element's depth from the wall around it (m): the median of its recessed cells (the
     front-most depths of a balcony's protruding cells)."""
@@ -299,8 +347,9 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         on_ground[g.inliers] = True
 
     facades: list[FacadeResult] = []
+    whole: list[PlaneFacade] = []
     t_maps = t_el = t_rec = 0.0
-    for k, pi in enumerate(facade_ids):
+    for pi in facade_ids:
         t = time.perf_counter()
         frame = facade_frame(cloud, planes[pi], ground_level=_ground_at(cloud, planes[pi],
                                                                         ground, ground_level))
@@ -311,24 +360,57 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         t = time.perf_counter()
         elements = detect_elements(maps)
         t_el += time.perf_counter() - t
-        f = FacadeResult(index=k, plane=pi, frame=frame, maps=maps, elements=elements,
-                         ortho=ortho)
-        t = time.perf_counter()
-        _structure(f, model=model, origin=origin, up=cloud.up, seed=seed, fit=fit,
-                   budget=budget)
-        t_rec += time.perf_counter() - t
-        facades.append(f)
+        whole.append(PlaneFacade(pi, frame, maps, elements, ortho))
+        for seg in segments(maps, elements):
+            sub = maps.crop(seg.x0, seg.x1, seg.top)
+            f = FacadeResult(index=len(facades), plane=pi, frame=sub.frame, maps=sub,
+                             elements=_shift(elements, seg, sub),
+                             ortho=np.ascontiguousarray(ortho[seg.top:, seg.x0:seg.x1]),
+                             offset_u=seg.x0 * resolution, whole=len(whole) - 1)
+            t = time.perf_counter()
+            _structure(f, model=model, origin=origin, up=cloud.up, seed=seed, fit=fit,
+                       budget=budget)
+            t_rec += time.perf_counter() - t
+            facades.append(f)
     timings.update(maps=t_maps, elements=t_el, structure=t_rec)
 
     result = PointsResult(cloud=cloud, planes=planes, facades=facades, origin=origin,
-                          inputs=inputs)
+                          inputs=inputs, whole=whole)
+    t = time.perf_counter()
+    accuracy = _accuracy(result)
+    timings["accuracy"] = time.perf_counter() - t
     result.report = _report(result, timings)
+    result.report["accuracy"] = accuracy
     if out_dir is not None:
         t = time.perf_counter()
         result.save(out_dir)
         timings["write"] = time.perf_counter() - t
     timings["total"] = sum(v for k, v in timings.items() if k != "total")
     return result
+
+
+#: Spacing (m) of the points sampled on the model for eq. 5.10–5.11.
+ACCURACY_SPACING = 0.1
+
+
+def _accuracy(r: PointsResult) -> dict:
+    """``simon2011`` eq. 5.10 (model → scan, any class) and, for a labelled scan, eq. 5.11 per
+    class, on the facades' own points (cm)."""
+    from .evaluate import class_distances, model_distance, model_triangles, sample_model
+
+    models = r.models()
+    if not models:
+        return {}
+    tris, labels = model_triangles(models, r.origin)
+    pts, lab = sample_model(tris, labels, spacing=ACCURACY_SPACING)
+    keep = np.zeros(len(r.cloud), bool)
+    for f in r.facades:
+        keep[facade_points(r.cloud, f.frame)[0]] = True
+    out = {"spacing_m": ACCURACY_SPACING, "eq_5_10": model_distance(pts, r.cloud.xyz[keep])}
+    if r.cloud.labels is not None:
+        out["eq_5_11"] = class_distances(pts, lab, r.cloud.subset(keep),
+                                         classes=("wall", "window", "door", "balcony", "roof"))
+    return out
 
 
 def _ground_at(cloud: PointCloud, plane: Plane, ground: list[Plane], level: float | None):
@@ -437,6 +519,28 @@ def _fit_grammar(f: FacadeResult, *, budget: int, seed: int) -> None:
                            f.maps.shape[0] * f.maps.resolution, name="facade").root
 
 
+def _planes_report(r: PointsResult) -> list[dict]:
+    """``planes.json``: every RANSAC plane; a facade plane holding houses of different heights
+    (several segments, :mod:`.outline`) is listed once per house — the facades of a street
+    front on one line are coplanar, not one facade."""
+    out = []
+    for i, p in enumerate(r.planes):
+        d = {"index": i, **p.to_dict()}
+        segs = [f for f in r.facades if f.plane == i]
+        if p.kind != "facade" or len(segs) < 2:
+            out.append(d)
+            continue
+        pts = r.cloud.xyz[p.inliers]
+        for f in segs:
+            fu = (pts - f.frame.origin) @ f.frame.u
+            sel = pts[(fu >= 0) & (fu < f.frame.width)]
+            out.append({**d, "facade": f.index, "points": int(len(sel)),
+                        "centroid": [round(float(v), 4) for v in
+                                     (sel.mean(0) if len(sel) else p.centroid)],
+                        "width_m": round(f.frame.width, 3), "height_m": round(f.frame.height, 3)})
+    return out
+
+
 def _report(r: PointsResult, timings: dict) -> dict:
     from collections import Counter
 
@@ -447,6 +551,7 @@ def _report(r: PointsResult, timings: dict) -> dict:
         els = _final_elements(f)
         facades.append({
             "index": f.index, "plane": f.plane, "frame": f.frame.to_dict(),
+            "offset_along_plane_m": round(f.offset_u, 3),
             "raster": {"width": int(f.maps.shape[1]), "height": int(f.maps.shape[0]),
                        "resolution_m": f.maps.resolution},
             "points": int(f.maps.count.sum()),
@@ -462,7 +567,7 @@ def _report(r: PointsResult, timings: dict) -> dict:
         "origin": [float(v) for v in r.origin],
         "axes": "model.glb/.obj: CGA axes (x, y up, z = -cloud y) relative to origin; "
                 "model.city.json: cloud axes, origin added back",
-        "planes": [p.to_dict() for p in r.planes],
+        "planes": _planes_report(r),
         "facades": facades,
         "timings": timings,
     }

@@ -17,7 +17,8 @@ what it adds is what makes the loop hold on real street scans:
   same line, a kerb and the road); they are cut into connected pieces on a grid of
   :data:`CONNECT_CELL` in the plane, and each piece of at least ``min_points`` is a plane.
 - **A voxel grid first** (:data:`VOXEL`): RANSAC runs on one point per voxel, every point of the
-  full cloud is then given to the first plane (in detection order) it lies on.  The voxel grid
+  full cloud then goes to the plane of its voxel's point when it lies within the threshold of
+  it (one pass), the rest to the first plane whose piece holds them.  The voxel grid
   evens out the density of a scanner (ten times more points near it than at 30 m), so "largest"
   means largest *area*, as the paper's Fig. 4 intends.
 
@@ -102,12 +103,18 @@ class Plane:
 
 # ------------------------------------------------------------------------------- helpers
 
-def voxel_representatives(xyz: np.ndarray, voxel: float) -> np.ndarray:
-    """Index of one point per occupied voxel (the first in file order), sorted."""
+def voxel_representatives(xyz: np.ndarray, voxel: float, inverse: bool = False):
+    """Index of one point per occupied voxel (the first in file order), sorted; with
+    ``inverse``, also the voxel (index into that array) of every point."""
     q = np.floor((xyz - xyz.min(0)) / voxel).astype(np.int64)
     key = (q[:, 0] * 2_097_152 + q[:, 1]) * 2_097_152 + q[:, 2]
-    _, first = np.unique(key, return_index=True)
-    return np.sort(first)
+    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    if not inverse:
+        return first[order]
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    return first[order], rank[inv.ravel()]
 
 
 def estimate_normals(xyz: np.ndarray, k: int = NORMAL_K) -> tuple[np.ndarray, np.ndarray]:
@@ -175,10 +182,12 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
     if len(xyz) < 3:
         raise PointCloudError(f"{cloud.source}: {len(xyz)} points are too few to find planes")
     rng = np.random.default_rng(seed)
-    rep = voxel_representatives(xyz, voxel)
-    if len(rep) > MAX_VOXELS:            # a huge or noisy cloud: coarser voxels, bounded cost
+    rep, vox_of = voxel_representatives(xyz, voxel, inverse=True)
+    for _ in range(4):                   # a huge or noisy cloud: coarser voxels, bounded cost
+        if len(rep) <= MAX_VOXELS:
+            break
         voxel *= math.sqrt(len(rep) / MAX_VOXELS)
-        rep = voxel_representatives(xyz, voxel)
+        rep, vox_of = voxel_representatives(xyz, voxel, inverse=True)
     centre = xyz[rep].mean(0)
     sub = xyz[rep] - centre                            # centred: offsets stay small
     normals, planarity = estimate_normals(sub)
@@ -221,24 +230,49 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
         misses = 0
         remaining[inl] = False
         for piece, area in _pieces(sub[inl], nrm, cloud.up, CONNECT_CELL):
-            if len(piece) < min_points:
+            if len(piece) < min_points or len(found) >= max_planes:
                 break
             found.append((nrm.copy(), off, inl[piece], area))
-    planes = _full_resolution(cloud, centre, found, threshold, rep)
+    planes = _full_resolution(cloud, centre, found, threshold, vox_of, rep)
     classify_planes(cloud, planes)
     return planes
 
 
 def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: float,
-                     rep: np.ndarray) -> list[Plane]:
-    """Every point of the cloud given to the first plane (detection order) it lies on, within
-    the piece's extent (its occupied in-plane cells, dilated by one)."""
+                     vox_of: np.ndarray, rep: np.ndarray) -> list[Plane]:
+    """Every point of the cloud given to a plane it lies on (within ``threshold``): first the
+    plane of its voxel's point (one pass over the cloud), then, for the points left, the first
+    plane in detection order whose piece's extent (its occupied in-plane cells, dilated by one)
+    holds them — points of a voxel shared by two planes, a wall's foot and the pavement."""
+    if not found:
+        return []
     xyz = cloud.xyz - centre
-    free = np.ones(len(xyz), bool)
-    planes: list[Plane] = []
-    for nrm, off, vox_idx, area in found:
-        a, b = _plane_axes(nrm, cloud.up)
+    n_vox = int(vox_of.max()) + 1
+    plane_of_vox = np.full(n_vox, -1, np.int64)
+    for k, (_, _, vox_idx, _) in enumerate(found):
+        plane_of_vox[vox_idx] = k
+    pid = plane_of_vox[vox_of]
+    normals = np.array([f[0] for f in found])
+    offsets = np.array([f[1] for f in found])
+    on = np.flatnonzero(pid >= 0)
+    d_on = np.einsum("ij,ij->i", xyz[on], normals[pid[on]]) + offsets[pid[on]]
+    pid[on[np.abs(d_on) >= threshold]] = -1
+    free = np.flatnonzero(pid < 0)
+    for k, (nrm, off, vox_idx, _) in enumerate(found):
+        if not len(free):
+            break
         piece = xyz[rep[vox_idx]]
+        lo3, hi3 = piece.min(0) - CONNECT_CELL, piece.max(0) + CONNECT_CELL
+        fx = xyz[free]
+        box = ((fx >= lo3) & (fx <= hi3)).all(1)
+        cand = free[box]
+        if not len(cand):
+            continue
+        d = xyz[cand] @ nrm + off
+        cand = cand[np.abs(d) < threshold]
+        if not len(cand):
+            continue
+        a, b = _plane_axes(nrm, cloud.up)
         uv0 = np.c_[piece @ a, piece @ b]
         lo = uv0.min(0)
         q0 = np.floor((uv0 - lo) / CONNECT_CELL).astype(np.int64)
@@ -246,19 +280,25 @@ def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: fl
         occ = np.zeros(shape, bool)
         occ[q0[:, 0] + 1, q0[:, 1] + 1] = True
         occ = ndimage.binary_dilation(occ, np.ones((3, 3), bool))
-        d = xyz @ nrm + off
-        cand = np.flatnonzero(free & (np.abs(d) < threshold))
-        uv = np.c_[xyz[cand] @ a, xyz[cand] @ b]
-        q = np.floor((uv - lo) / CONNECT_CELL).astype(np.int64) + 1
+        q = np.floor((np.c_[xyz[cand] @ a, xyz[cand] @ b] - lo) / CONNECT_CELL).astype(np.int64) + 1
         ok = (q >= 0).all(1) & (q[:, 0] < shape[0]) & (q[:, 1] < shape[1])
         ok[ok] = occ[q[ok, 0], q[ok, 1]]
-        inl = cand[ok]
-        if len(inl) < 3:
+        pid[cand[ok]] = k
+        free = free[pid[free] < 0]
+    on = np.flatnonzero(pid >= 0)
+    p = pid[on]
+    order = np.argsort(p, kind="stable")
+    on, p = on[order], p[order]
+    bounds = np.searchsorted(p, np.arange(len(found) + 1))
+    planes: list[Plane] = []
+    for k, (nrm, off, _, area) in enumerate(found):
+        a, b = bounds[k], bounds[k + 1]
+        if b - a < 3:
             continue
-        free[inl] = False
-        offset_world = off - float(nrm @ centre)
-        rms = float(np.sqrt(np.mean(d[inl] ** 2)))
-        planes.append(Plane(normal=nrm, offset=offset_world, inliers=inl, rms=rms, area=area,
+        inl = np.sort(on[a:b])
+        d = xyz[inl] @ nrm + off
+        planes.append(Plane(normal=nrm, offset=off - float(nrm @ centre), inliers=inl,
+                            rms=float(np.sqrt(np.mean(d ** 2))), area=area,
                             extra={"centroid": cloud.xyz[inl].mean(0)}))
     return planes
 
