@@ -92,6 +92,18 @@ def _scan_truth(scan, frame) -> list[dict]:
     return out
 
 
+def _shops_as_doors(cloud):
+    """The scan with its ``shop`` points labelled ``door``, as its truth rectangles are (the
+    detector calls a shop front a door), so that eq. 5.11 compares like with like."""
+    if cloud.labels is None or "shop" not in cloud.label_names or "door" not in cloud.label_names:
+        return cloud
+    from dataclasses import replace
+
+    labels = cloud.labels.copy()
+    labels[labels == cloud.label_names.index("shop")] = cloud.label_names.index("door")
+    return replace(cloud, labels=labels)
+
+
 def _score(cloud, result, truth_of=None) -> dict:
     from facadeforge.points.evaluate import (
         class_distances,
@@ -159,7 +171,7 @@ def run_synthetic(n: int, seed: int, fit: str = "elements") -> dict:
 
     rows = []
     for k, scan in enumerate(synthetic_scans(n, seed)):
-        cloud = scan.cloud
+        cloud = _shops_as_doors(scan.cloud)
         t = time.perf_counter()
         r = points(cloud, seed=seed, fit=fit)
         rows.append({"scan": k, "kind": getattr(scan, "kind", None), "points": len(cloud),
@@ -193,8 +205,8 @@ def run_lille() -> dict:
     r = points(cloud)
     secs = time.perf_counter() - t
     kinds: dict[str, int] = {}
-    for p in r.planes:
-        kinds[p.kind] = kinds.get(p.kind, 0) + 1
+    for p in r.report["planes"]:        # a street front's houses listed one by one
+        kinds[p["kind"]] = kinds.get(p["kind"], 0) + 1
     return {"points": len(cloud), "planes": kinds, "facades": len(r.facades),
             "elements": len(r.elements()), "seconds": round(secs, 3),
             "timings": {k: round(v, 3) for k, v in r.report["timings"].items()},

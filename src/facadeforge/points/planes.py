@@ -50,7 +50,7 @@ __all__ = ["Plane", "classify_planes", "detect_planes", "estimate_normals", "out
 #: Voxel edge (m) of the grid RANSAC runs on.
 VOXEL = 0.06
 #: Most voxels RANSAC runs on: beyond, the voxel grows (its area by the excess).
-MAX_VOXELS = 150_000
+MAX_VOXELS = 100_000
 #: Inlier distance (m) to a plane.
 THRESHOLD = 0.05
 #: Largest angle (degrees) between a point's normal and the plane's for the point to be an inlier.
@@ -103,11 +103,15 @@ class Plane:
 
 # ------------------------------------------------------------------------------- helpers
 
+def _voxel_keys(xyz: np.ndarray, voxel: float) -> np.ndarray:
+    q = np.floor((xyz - xyz.min(0)) / voxel).astype(np.int64)
+    return (q[:, 0] * 2_097_152 + q[:, 1]) * 2_097_152 + q[:, 2]
+
+
 def voxel_representatives(xyz: np.ndarray, voxel: float, inverse: bool = False):
     """Index of one point per occupied voxel (the first in file order), sorted; with
     ``inverse``, also the voxel (index into that array) of every point."""
-    q = np.floor((xyz - xyz.min(0)) / voxel).astype(np.int64)
-    key = (q[:, 0] * 2_097_152 + q[:, 1]) * 2_097_152 + q[:, 2]
+    key = _voxel_keys(xyz, voxel)
     _, first, inv = np.unique(key, return_index=True, return_inverse=True)
     order = np.argsort(first)
     if not inverse:
@@ -182,12 +186,13 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
     if len(xyz) < 3:
         raise PointCloudError(f"{cloud.source}: {len(xyz)} points are too few to find planes")
     rng = np.random.default_rng(seed)
-    rep, vox_of = voxel_representatives(xyz, voxel, inverse=True)
-    for _ in range(4):                   # a huge or noisy cloud: coarser voxels, bounded cost
-        if len(rep) <= MAX_VOXELS:
+    for _ in range(6):                   # a huge or noisy cloud: coarser voxels, bounded cost
+        k = np.sort(_voxel_keys(xyz, voxel))
+        n_vox = 1 + int(np.count_nonzero(k[1:] != k[:-1]))
+        if n_vox <= MAX_VOXELS:
             break
-        voxel *= math.sqrt(len(rep) / MAX_VOXELS)
-        rep, vox_of = voxel_representatives(xyz, voxel, inverse=True)
+        voxel *= (n_vox / MAX_VOXELS) ** 0.4     # between a surface's ½ and a volume's ⅓
+    rep, vox_of = voxel_representatives(xyz, voxel, inverse=True)
     centre = xyz[rep].mean(0)
     sub = xyz[rep] - centre                            # centred: offsets stay small
     normals, planarity = estimate_normals(sub)
@@ -258,14 +263,17 @@ def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: fl
     d_on = np.einsum("ij,ij->i", xyz[on], normals[pid[on]]) + offsets[pid[on]]
     pid[on[np.abs(d_on) >= threshold]] = -1
     free = np.flatnonzero(pid < 0)
+    free = free[np.argsort(xyz[free, 0], kind="stable")]    # by x: a plane's x range is a slice
     for k, (nrm, off, vox_idx, _) in enumerate(found):
         if not len(free):
             break
         piece = xyz[rep[vox_idx]]
         lo3, hi3 = piece.min(0) - CONNECT_CELL, piece.max(0) + CONNECT_CELL
-        fx = xyz[free]
-        box = ((fx >= lo3) & (fx <= hi3)).all(1)
-        cand = free[box]
+        fxs = xyz[free, 0]
+        a0, a1 = np.searchsorted(fxs, [lo3[0], hi3[0]])
+        span = free[a0:a1]
+        fx = xyz[span]
+        cand = span[((fx[:, 1:] >= lo3[1:]) & (fx[:, 1:] <= hi3[1:])).all(1)]
         if not len(cand):
             continue
         d = xyz[cand] @ nrm + off
@@ -284,7 +292,8 @@ def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: fl
         ok = (q >= 0).all(1) & (q[:, 0] < shape[0]) & (q[:, 1] < shape[1])
         ok[ok] = occ[q[ok, 0], q[ok, 1]]
         pid[cand[ok]] = k
-        free = free[pid[free] < 0]
+        if ok.any():
+            free = free[pid[free] < 0]
     on = np.flatnonzero(pid >= 0)
     p = pid[on]
     order = np.argsort(p, kind="stable")
