@@ -243,3 +243,38 @@ def test_fit_grammar_with_depth_energy(cloud, tmp_path):
     assert (tmp_path / "out" / "model.glb").is_file()
     with pytest.raises(Exception, match="--fit"):
         points(cloud, fit="both")
+
+
+def _visualsfm(path: Path, name: str, C, R, f: float, size: tuple[int, int]) -> None:
+    R, C = np.asarray(R, float), np.asarray(C, float)
+    T = -R @ C
+    rows = ["# NVM-like cameras_v2.txt", "1", name, f"/photos/{name}", f"{f}",
+            f"{size[0] / 2} {size[1] / 2}", " ".join(map(str, T)), " ".join(map(str, C)),
+            "0 0 0", "1 0 0 0"] + [" ".join(map(str, r)) for r in R] + ["0 0"]
+    path.write_text("\n".join(rows) + "\n")
+
+
+def test_points_coloured_from_photos(tmp_path):
+    """--photos/--cameras: each point takes the colour of the photo that sees it."""
+    from PIL import Image
+
+    c = facade_cloud(spacing=0.08)
+    c.intensity = None
+    photo = np.zeros((600, 800, 3), np.uint8)
+    photo[:, :400] = (200, 30, 30)             # left half red, right half blue
+    photo[:, 400:] = (30, 30, 200)
+    (tmp_path / "photos").mkdir()
+    Image.fromarray(photo).save(tmp_path / "photos" / "IMG_0001.png")
+    # a camera 10 m in front of the facade's middle, looking at it (+y), image x = world +x
+    _visualsfm(tmp_path / "cameras.txt", "IMG_0001.png", (500_006.0, 5_399_990.0, 34.0),
+               [[1, 0, 0], [0, 0, -1], [0, 1, 0]], 500.0, (800, 600))
+    r = points(c, photos=tmp_path / "photos", cameras=tmp_path / "cameras.txt", model=False)
+    rgb, x = r.cloud.rgb, r.cloud.xyz[:, 0] - 500_000.0
+    assert rgb is not None
+    wall = (np.abs(r.cloud.xyz[:, 1] - 5_400_000.0) < 0.3) & (r.cloud.xyz[:, 2] > 31)
+    left, right = wall & (x < 5.5), wall & (x > 6.5)
+    assert (rgb[left, 0] > 150).mean() > 0.9 and (rgb[right, 2] > 150).mean() > 0.9
+    # the orthophoto is the photo's colour, not intensity
+    assert r.whole[0].maps.rgb is not None
+    with pytest.raises(Exception, match="--photos and --cameras"):
+        points(c, photos=tmp_path / "photos")

@@ -441,7 +441,13 @@ def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:
         folder = Path(photos)
         if not folder.is_dir():
             raise InputError(f"--photos {folder}: not a folder of photos")
-        photos = {name: folder / name for name in cams if (folder / name).is_file()}
+        photos = {}
+        for cid, cam in cams.items():          # the undistorted file, or a photo named by id
+            hits = [folder / cam.file] + sorted(p for p in folder.iterdir()
+                                                if p.stem.upper() == cid.upper())
+            hit = next((p for p in hits if p.is_file()), None)
+            if hit is not None:
+                photos[cid] = hit
         if not photos:
             raise InputError(f"--photos {folder}: none of the {len(cams)} photos the cameras "
                              "file names is in it")
