@@ -278,3 +278,22 @@ def test_points_coloured_from_photos(tmp_path):
     assert r.whole[0].maps.rgb is not None
     with pytest.raises(Exception, match="--photos and --cameras"):
         points(c, photos=tmp_path / "photos")
+
+
+def test_wall_depth_is_the_front_surface_not_the_glazing(cloud):
+    """Were the plane the glazing's, the wall 20 cm in front of it is still the wall."""
+    from dataclasses import replace
+
+    planes = detect_planes(cloud)
+    f = next(p for p in planes if p.kind == "facade")
+    frame = facade_frame(cloud, f, ground_level=30.0)
+    ground = np.zeros(len(cloud), bool)
+    for p in planes:
+        if p.kind == "ground":
+            ground[p.inliers] = True
+    idx, uvd = facade_points(cloud, frame, exclude=ground)
+    m = rasterize(cloud, frame, index=idx, uvd=uvd)
+    shifted = replace(m, depth=m.depth + RECESS, front=m.front + RECESS, back=m.back + RECESS)
+    assert np.allclose(wall_depth(shifted), RECESS, atol=0.021)
+    els = detect_elements(shifted)
+    assert match([e.to_dict() for e in els], truth_boxes(cloud, frame))["f1"] == 1.0
