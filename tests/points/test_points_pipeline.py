@@ -280,10 +280,14 @@ def test_points_coloured_from_photos(tmp_path):
         points(c, photos=tmp_path / "photos")
 
 
-def test_wall_depth_is_the_front_surface_not_the_glazing(cloud):
+@pytest.mark.parametrize("choice", ["nearest", "front"])
+def test_wall_depth_is_the_front_surface_not_the_glazing(cloud, choice, monkeypatch):
     """Were the plane the glazing's, the wall 20 cm in front of it is still the wall."""
     from dataclasses import replace
 
+    from facadeforge.points import elements
+
+    monkeypatch.setattr(elements, "WALL_CHOICE", choice)
     planes = detect_planes(cloud)
     f = next(p for p in planes if p.kind == "facade")
     frame = facade_frame(cloud, f, ground_level=30.0)
