@@ -215,8 +215,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         formatter_class=argparse.RawDescriptionHelpFormatter)
     pt.add_argument("cloud", help="point cloud: .ply, .las, .laz, .xyz, .txt, .csv or .pts "
                                   "(z up, metres)")
-    pt.add_argument("--resolution", type=_positive, default=0.05,
-                    help="cell size of the depth maps and orthophotos, metres (default 0.05)")
+    pt.add_argument("--resolution", type=_positive, default=None,
+                    help="cell size of the depth maps and orthophotos, metres (default: from "
+                         "each facade's point spacing, 0.05 m or coarser)")
     pt.add_argument("--photos", help="folder of photos to colour the points from (with --cameras)")
     pt.add_argument("--cameras", help="cameras of the photos: VisualSFM cameras_v2.txt")
     pt.add_argument("--fit", choices=("elements", "grammar"), default="elements",

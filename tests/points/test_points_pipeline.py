@@ -301,3 +301,15 @@ def test_wall_depth_is_the_front_surface_not_the_glazing(cloud, choice, monkeypa
     assert np.allclose(wall_depth(shifted), RECESS, atol=0.021)
     els = detect_elements(shifted)
     assert match([e.to_dict() for e in els], truth_boxes(cloud, frame))["f1"] == 1.0
+
+
+def test_sparse_scan_gets_coarser_cells():
+    """A facade scanned at 15 cm spacing is rastered at about 12 cm, and its openings are
+    still found."""
+    c = facade_cloud(spacing=0.15)
+    r = points(c, model=False)
+    w = r.whole[0]
+    assert 0.09 <= w.maps.resolution <= 0.15
+    res = match([e.to_dict() for e in w.elements], truth_boxes(c, w.frame))
+    assert res["f1"] >= 0.8, res
+    assert points(c, model=False, resolution=0.05).whole[0].maps.resolution == 0.05

@@ -286,7 +286,7 @@ def _place(model, frame: FacadeFrame, origin: np.ndarray, up: int):
 
 # ------------------------------------------------------------------------------ pipeline
 
-def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
+def points(cloud, *, resolution: float | None = None, photos=None, cameras=None,
            model: bool = True, fit: str = "elements", budget: int = 600,
            max_facades: int = MAX_FACADES, seed: int = 0,
            out_dir: str | os.PathLike | None = None) -> PointsResult:
@@ -296,8 +296,9 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
     ----------
     cloud : path or PointCloud
         The scan (``.ply``, ``.las``, ``.laz``, ``.xyz``, ``.txt``, ``.csv``, ``.pts``).
-    resolution : float
-        Raster cell (m) of the depth maps and orthophotos.
+    resolution : float, optional
+        Raster cell (m) of the depth maps and orthophotos; by default chosen per facade from
+        its point spacing (:func:`auto_resolution`).
     photos, cameras : optional
         A folder (or mapping name → path) of photos and their cameras file (VisualSFM
         ``cameras_v2.txt``): points take their colour from a photo that sees them.
@@ -322,7 +323,7 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         raise InputError(f"--fit {fit!r}: use one of {', '.join(FITS)}")
     if not isinstance(budget, int) or budget < 1:
         raise InputError(f"--budget {budget}: give a positive number of derivations")
-    if not resolution or not (0.005 <= resolution <= 1.0):
+    if resolution is not None and not (0.005 <= resolution <= 1.0):
         raise InputError(f"--resolution {resolution}: give a cell size between 0.005 and 1 m")
     if not isinstance(cloud, PointCloud):
         from .io import read_cloud
@@ -354,7 +355,8 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
         frame = facade_frame(cloud, planes[pi], ground_level=_ground_at(cloud, planes[pi],
                                                                         ground, ground_level))
         idx, uvd = facade_points(cloud, frame, exclude=on_ground)
-        maps = rasterize(cloud, frame, resolution=resolution, index=idx, uvd=uvd)
+        res = resolution if resolution is not None else auto_resolution(planes[pi])
+        maps = rasterize(cloud, frame, resolution=res, index=idx, uvd=uvd)
         ortho = ortho_image(maps)
         t_maps += time.perf_counter() - t
         t = time.perf_counter()
@@ -366,7 +368,7 @@ def points(cloud, *, resolution: float = RESOLUTION, photos=None, cameras=None,
             f = FacadeResult(index=len(facades), plane=pi, frame=sub.frame, maps=sub,
                              elements=_shift(elements, seg, sub),
                              ortho=np.ascontiguousarray(ortho[seg.top:, seg.x0:seg.x1]),
-                             offset_u=seg.x0 * resolution, whole=len(whole) - 1)
+                             offset_u=seg.x0 * res, whole=len(whole) - 1)
             t = time.perf_counter()
             _structure(f, model=model, origin=origin, up=cloud.up, seed=seed, fit=fit,
                        budget=budget)
@@ -411,6 +413,21 @@ def _accuracy(r: PointsResult) -> dict:
         out["eq_5_11"] = class_distances(pts, lab, r.cloud.subset(keep),
                                          classes=("wall", "window", "door", "balcony", "roof"))
     return out
+
+
+#: Cell of the rasters against the facade's point spacing (``auto_resolution``), and bounds (m).
+SPACING_SHARE, MIN_RESOLUTION, MAX_RESOLUTION = 0.8, RESOLUTION, 0.25
+
+
+def auto_resolution(plane: Plane) -> float:
+    """A raster cell for a facade plane from its point spacing: :data:`SPACING_SHARE` of the
+    mean spacing of its inliers (its area over its point count), within
+    [:data:`MIN_RESOLUTION`, :data:`MAX_RESOLUTION`] — a sparse scan gets cells that still hold
+    points, a dense one the detail of 5 cm cells."""
+    if plane.area <= 0 or not len(plane.inliers):
+        return RESOLUTION
+    spacing = float(np.sqrt(plane.area / len(plane.inliers)))
+    return float(np.clip(round(SPACING_SHARE * spacing, 3), MIN_RESOLUTION, MAX_RESOLUTION))
 
 
 def _ground_at(cloud: PointCloud, plane: Plane, ground: list[Plane], level: float | None):
