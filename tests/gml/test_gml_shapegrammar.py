@@ -76,9 +76,9 @@ def test_split_cuts_what_does_not_fit():
 
 
 def test_split_r_rescales():
-    m = run_parts("scope (1,9,1) scale [ 2.85 0.15 3.0 3.0 ] /Y split-r terminal-box pop pop pop")
+    m = run_parts("scope (1,18,1) scale [ 2.85 0.15 3.0 3.0 ] /Y split-r terminal-box pop pop pop")
     lo, hi = m.parts[0].mesh.bounds()
-    assert np.isclose(hi[1] - lo[1], 2.85 / 9.0)  # y is up; split-r fills the scope exactly
+    assert np.isclose(hi[1] - lo[1], 2.85 * 2)  # y is up; split-r fills the scope exactly
 
 
 def test_repeat_then_loop_repeat():
