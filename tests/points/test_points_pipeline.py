@@ -214,6 +214,15 @@ def test_nuist_facade_windows_and_doors():
     # two houses of different heights along one plane: two facades, no wall in the sky
     assert len(r.facades) == 2
     assert r.report["accuracy"]["eq_5_11"]["wall"]["cm"] < 35
+    # nothing depends on the scan's axes or on how far its coordinates are from zero
+    from dataclasses import replace
+
+    a = np.radians(-110.0)
+    rot = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]])
+    moved = replace(c, xyz=c.xyz @ rot.T + np.array([351_234.5, 4_123_456.7, 12.0]))
+    r2 = points(moved, model=False)
+    res2 = match([e.to_dict() for e in r2.plane_elements(0)], truth_boxes(moved, r2.whole[0].frame))
+    assert res2["f1"] == res["f1"]
 
 
 @pytest.mark.skipif(not LILLE.is_file(), reason=f"shared Lille scan not found at {LILLE}")
