@@ -634,6 +634,8 @@ def cmd_points(args) -> int:
           f"({kinds.get('facade', 0)} {_plural('facade', kinds.get('facade', 0))}, "
           f"{kinds.get('ground', 0)} ground), {found}; "
           f"{r.report['timings']['total']:.1f} s → {args.output}")
+    for note in r.report.get("notes", []):
+        print(f"note: {note}", file=sys.stderr)
     return 0
 
 

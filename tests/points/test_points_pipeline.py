@@ -322,3 +322,14 @@ def test_sparse_scan_gets_coarser_cells():
     res = match([e.to_dict() for e in w.elements], truth_boxes(c, w.frame))
     assert res["f1"] >= 0.8, res
     assert points(c, model=False, resolution=0.05).whole[0].maps.resolution == 0.05
+
+
+def test_a_scan_without_facades_says_so(tmp_path, capsys):
+    g = np.random.default_rng(0).random((5000, 3)) * [20, 20, 0.02]
+    src = tmp_path / "ground.xyz"
+    np.savetxt(src, g, fmt="%.4f")
+    assert main(["points", str(src), "-o", str(tmp_path / "out")]) == 0
+    cap = capsys.readouterr()
+    assert "0 facades" in cap.out and "no facade plane" in cap.err
+    rep = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert rep["facades"] == [] and "no facade plane" in rep["notes"][0]

@@ -43,7 +43,7 @@ from .cloud import PointCloud, PointCloudError
 from .elements import Element, detect_elements, wall_depth
 from .maps import RESOLUTION, FacadeFrame, FacadeMaps, facade_frame, facade_points, rasterize
 from .outline import segments
-from .planes import Plane, detect_planes
+from .planes import FACADE_MIN_HEIGHT, FACADE_MIN_WIDTH, Plane, detect_planes
 
 __all__ = ["FacadeResult", "PointsResult", "points", "MAX_FACADES"]
 
@@ -383,6 +383,11 @@ def points(cloud, *, resolution: float | None = None, photos=None, cameras=None,
     timings["accuracy"] = time.perf_counter() - t
     result.report = _report(result, timings)
     result.report["accuracy"] = accuracy
+    if not facades:
+        result.report["notes"] = [
+            "no facade plane: a facade is a vertical plane at least "
+            f"{FACADE_MIN_WIDTH} m wide and {FACADE_MIN_HEIGHT} m high; planes found: "
+            + (", ".join(sorted({p.kind for p in planes})) or "none")]
     if out_dir is not None:
         t = time.perf_counter()
         result.save(out_dir)
