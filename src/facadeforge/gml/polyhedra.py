@@ -22,8 +22,9 @@ import numpy as np
 from ..geometry.mesh import Mesh
 
 FIXED = 65536.0
-#: Half the side of the box a shell starts from; a vertex on it means "not bounded".
-BIG = 1.0e6
+#: Half the side of the largest box a shell is clipped from; a vertex on it means "not bounded"
+#: (beyond the models' ±1e9 m, :data:`facadeforge.model.model.MAX_COORDINATE`).
+BIG = 4.0e9
 EPS = 1.0e-9
 
 
@@ -103,15 +104,22 @@ class Polyhedron:
 
     @staticmethod
     def shell(planes: list[Plane]) -> Polyhedron:
-        """The intersection of the planes' interiors.  ``ValueError`` when it is unbounded."""
-        p = Polyhedron.box((-BIG,) * 3, (BIG,) * 3)
-        for plane in planes:
-            p = p.clip(plane)
-            if p.empty:
+        """The intersection of the planes' interiors.  ``ValueError`` when it is unbounded.
+
+        Clipping starts from a box a few times larger than the planes' distances from the
+        origin (small, so rounding stays small) and grows it while the result touches it."""
+        big = max(1e3, 10 * max((abs(p.offset) for p in planes), default=0.0))
+        while True:
+            p = Polyhedron.box((-big,) * 3, (big,) * 3)
+            for plane in planes:
+                p = p.clip(plane)
+                if p.empty:
+                    return p
+            if np.abs(p.vertices()).max() < big * (1 - 1e-9):
                 return p
-        if p.faces and np.abs(p.vertices()).max() >= BIG * (1 - 1e-9):
-            raise ValueError("the planes do not enclose a bounded region (a side is open)")
-        return p
+            if big >= BIG:
+                raise ValueError("the planes do not enclose a bounded region (a side is open)")
+            big = min(big * 1e3, BIG)
 
     # -- queries ---------------------------------------------------------------------------------
     @property

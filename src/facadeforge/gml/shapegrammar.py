@@ -16,7 +16,7 @@ import numpy as np
 
 from ..geometry.mesh import Mesh
 from ..model.labels import label_for_name
-from ..model.model import Material, Part
+from ..model.model import MAX_COORDINATE, Material, Part
 from ..model.scope import Scope
 from ..model.shape import Shape
 from .interpreter import Interpreter, Name, Point, control_repeat, is_number, type_name
@@ -96,6 +96,21 @@ def on_call(it: Interpreter, name: str) -> None:
 
 
 # ------------------------------------------------------------------------------ helpers
+
+
+def check_extent(it: Interpreter, scope: Scope) -> None:
+    """A scope must stay finite and within ±MAX_COORDINATE metres of the origin."""
+    reach = np.abs(scope.origin) + scope.size
+    if not (np.isfinite(reach).all() and reach.max() <= MAX_COORDINATE):
+        raise it.error(f"the scope would reach beyond ±{MAX_COORDINATE:.0e} m (an absurd move "
+                       "or scale?)", "range")
+
+
+def check_points(it: Interpreter, *points) -> None:
+    for p in points:
+        if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in p):
+            raise it.error(f"point {p!r} is not finite or beyond ±{MAX_COORDINATE:.0e} m",
+                           "range")
 
 
 def pop_scope(it: Interpreter) -> GScope:
@@ -216,9 +231,11 @@ def _modified(it: Interpreter, g: GScope, operator: str, params: dict) -> GScope
 def w_move(it: Interpreter) -> None:
     """``s (dx,dy,dz) move → s``: translate along the scope's own axes."""
     d = np.array(it.pop_point())
+    check_points(it, d)
     g = _modified(it, pop_scope(it), "move", {"by": [float(v) for v in d]})
     sc = g.shape.scope
     shift = sc.rotation @ d
+    check_extent(it, Scope.trusted(sc.origin + shift, sc.rotation, sc.size))
     sc.origin = sc.origin + shift
     if g.poly is not None:
         g.poly = g.poly.transformed(np.eye(3), shift)
@@ -236,6 +253,7 @@ def w_scale(it: Interpreter) -> None:
         raise it.error("a polyhedral scope scales by factors > 0 only", "range")
     g = _modified(it, g, "scale", {"by": [float(v) for v in f]})
     sc = g.shape.scope
+    check_extent(it, Scope.trusted(sc.origin, sc.rotation, sc.size * f))
     sc.size = sc.size * f
     if g.poly is not None:
         r = sc.rotation
@@ -409,6 +427,7 @@ def w_cp_plane(it: Interpreter) -> None:
     """``p1 p2 p3 cp-plane → e``: the directed plane through three points (16.16 fixed point);
     its interior is where ``(p2-p1) × (p3-p1)`` points away from."""
     p3, p2, p1 = it.pop_point(), it.pop_point(), it.pop_point()
+    check_points(it, p1, p2, p3)
     plane = Plane.from_points(p1, p2, p3)
     if plane is None:
         raise it.error("the three points are collinear (no plane)", "range")
@@ -443,6 +462,7 @@ def w_cp_shell(it: Interpreter) -> None:
 def w_cp_box(it: Interpreter) -> None:
     """``lo hi cp-box → s``: the axis-aligned box polyhedron between two corners."""
     hi, lo = np.array(it.pop_point()), np.array(it.pop_point())
+    check_points(it, lo, hi)
     if not (np.isfinite(lo).all() and np.isfinite(hi).all() and (hi > lo).all()):
         raise it.error("cp-box needs finite corners with lo < hi on every axis", "range")
     it.push(Polyhedron.box(lo, hi))
