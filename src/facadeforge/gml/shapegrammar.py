@@ -262,6 +262,25 @@ def w_scale(it: Interpreter) -> None:
     it.push(g)
 
 
+@word("extrude")
+def w_extrude(it: Interpreter) -> None:
+    """``s d extrude → s``: set the scope's depth (z size) to d ≥ 0 — a facade rectangle
+    becomes a box standing d in front of it (as CGA's ``extrude``)."""
+    d = it.pop_num()
+    if not (math.isfinite(d) and d >= 0):
+        raise it.error(f"the depth must be a finite number ≥ 0, got {d}", "range")
+    g = pop_scope(it)
+    if g.poly is not None:
+        raise it.error("a polyhedral scope cannot be extruded", "grammar")
+    g = _modified(it, g, "extrude", {"depth": float(d)})
+    sc = g.shape.scope
+    size = sc.size.copy()
+    size[2] = d
+    check_extent(it, Scope.trusted(sc.origin, sc.rotation, size))
+    sc.size = size
+    it.push(g)
+
+
 @word("split")
 def w_split(it: Interpreter) -> None:
     """``s [sizes] /X split → s1 … sn`` (s1 on top): absolute (> 0) and relative (< 0) sizes."""
@@ -364,10 +383,12 @@ def w_terminal_box(it: Interpreter) -> None:
         g.shape.tags["empty"] = True
         return
     it.count_cells(mesh.n_faces)
+    label = _label_of(g.shape)
+    if not g.shape.symbol:  # a part no rule was named for: call it after its label
+        g.shape.symbol = label.capitalize() if label else "Terminal"
     g.shape.geometry = mesh
     g.shape.tags["terminal"] = "box"
-    gram.parts.append(Part(mesh, _label_of(g.shape), g.shape.material,
-                           g.shape.symbol or "Terminal", g.shape.id))
+    gram.parts.append(Part(mesh, label, g.shape.material, g.shape.symbol, g.shape.id))
 
 
 @word("terminal-void")
