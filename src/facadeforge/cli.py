@@ -16,13 +16,14 @@ import warnings
 from collections import Counter
 from pathlib import Path
 
-from .errors import FacadeForgeError
+from .errors import FacadeForgeError, InputError
 
 EXAMPLES = {
     "derive": """examples:
   facadeforge derive examples/grammars/building.cga --lot 24x14 -o building.glb --stats
   facadeforge derive rules.cga --footprint lots.geojson --assets assets/ --attr height=30 -o city.city.json
-  facadeforge derive package.rpk --rule rules/main.cga --footprint lots.geojson -o out.obj""",
+  facadeforge derive package.rpk --rule rules/main.cga --footprint lots.geojson -o out.obj
+  facadeforge derive src/facadeforge/gml/examples/fig13.gml -o fig13.glb --stats   # GML""",
     "render": """examples:
   facadeforge render building.glb -o preview.png
   facadeforge render building.obj -o preview.png --size 1600x1200
@@ -111,8 +112,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
     d = sub.add_parser("derive", help="derive CGA rules on footprints and export a 3D model",
                        epilog=EXAMPLES["derive"], formatter_class=argparse.RawDescriptionHelpFormatter)
-    d.add_argument("rules", help=".cga file or CityEngine rule package (.rpk)")
-    src = d.add_mutually_exclusive_group(required=True)
+    d.add_argument("rules", help=".cga file, CityEngine rule package (.rpk) or GML program "
+                                 "(.gml: one that builds its own scope needs no --lot)")
+    src = d.add_mutually_exclusive_group()
     src.add_argument("--footprint", help="GeoJSON (Polygon/FeatureCollection) or OBJ initial shapes")
     src.add_argument("--lot", help="a rectangular lot WIDTHxDEPTH in metres, e.g. 24x14")
     d.add_argument("--start", help="start rule (default: @StartRule, else the first rule)")
@@ -297,6 +299,14 @@ def cmd_derive(args) -> int:
     from .outdir import check_output_file
 
     check_output_file(args.output, {"--footprint": args.footprint, "rules": args.rules})
+    if str(args.rules).lower().endswith(".gml"):
+        unused = [f for f, v in (("--attr", args.attr), ("--start", args.start),
+                                 ("--style", args.style), ("--rule", args.rule)) if v]
+        if unused:
+            raise InputError(f"{', '.join(unused)} apply to CGA rules, not to the GML program "
+                             f"{args.rules}")
+    elif not args.footprint and not args.lot:
+        raise InputError("give footprints (--footprint FILE) or a lot size (--lot WxD)")
     t0 = time.perf_counter()
     footprints = load_footprints(args.footprint) if args.footprint else None
     if footprints and footprints[0].attributes.get("_projected"):

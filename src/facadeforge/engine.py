@@ -345,6 +345,8 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
     footprints ahead of the one handed out, so memory holds a handful of buildings however
     many the city has (the exporters write them as they come).  Rules and footprints are
     loaded and checked before the first model is asked for."""
+    if _is_gml(rules):
+        return _derive_gml_iter(rules, footprints, lot_size, limits)
     if footprints is None and lot_size is None:
         raise InputError("give footprints (--footprint FILE) or a lot size (--lot WxD)")
     if isinstance(footprints, (str, Path)):
@@ -382,6 +384,38 @@ def derive_iter(rules, footprints=None, *, lot_size: str | None = None,
         for fp, a in zip(fps, around):
             yield one(fp, a)
     return run()
+
+
+def _is_gml(rules) -> bool:
+    return isinstance(rules, (str, Path)) and str(rules).lower().endswith(".gml") \
+        and "\n" not in str(rules)
+
+
+def _derive_gml_iter(program, footprints, lot_size, limits):
+    """A GML program (``hohmann2009`` §5, :mod:`facadeforge.gml`): once on its own scopes, or
+    once per initial shape (footprints, ``lot_size``) with that shape's scope on the stack —
+    the same :class:`Model` as CGA's, so every exporter takes it."""
+    from .gml import Limits as GmlLimits
+    from .gml import derive_gml, load_gml
+
+    prog = load_gml(Path(program))          # a bad program fails before anything is derived
+    gl = GmlLimits()
+    if limits is not None and getattr(limits, "max_seconds", None):
+        gl = dataclasses.replace(gl, max_seconds=float(limits.max_seconds))
+    if isinstance(footprints, (str, Path)):
+        fps = load_footprints(footprints)
+    elif footprints is None:
+        fps = lot(lot_size) if lot_size is not None else None
+    else:
+        fps = list(footprints)
+    def counted(m: Model) -> Model:
+        m.attributes["shapes"] = sum(1 for _ in m.root.walk()) if m.root is not None else 0
+        return m
+
+    if fps is None:
+        return iter([counted(derive_gml(prog, limits=gl, name=Path(program).stem))])
+    return (counted(derive_gml(prog, scope=initial_state(fp).scope, limits=gl, name=fp.name))
+            for fp in fps)
 
 
 def _derive_parallel(spec, fps, n_workers: int, two_pass: bool, keep_tree: bool,
