@@ -39,7 +39,8 @@ def corpus() -> list[list[str]]:
 
 CORPUS = corpus()
 VOCAB = sorted({w for words in CORPUS for w in words} | {"[", "]", "{", "}", "(", ")", "exit",
-                                                         "1e308", "-1", "0", "loop", "exec"})
+                                                         "1e308", "1000000000", "-1", "0", "loop",
+                                                         "exec", "repeat", "for"})
 
 mutation = st.tuples(st.sampled_from(["delete", "duplicate", "swap", "insert"]),
                      st.integers(0, 10_000), st.integers(0, 10_000), st.sampled_from(VOCAB))

@@ -124,6 +124,9 @@ def test_syntax_errors(text, line, col):
 @pytest.mark.parametrize("text, limit, limits", [
     ("{ 1 } loop", "max_stack", Limits(max_stack=1000)),
     ("{ } loop", "max_operations", Limits(max_operations=10_000)),
+    ("1000000000 { } repeat", "max_operations", Limits(max_operations=10_000)),
+    ("0 1 1000000000 { pop } for", "max_operations", Limits(max_operations=10_000)),
+    ("1000 array { pop } forall", "max_operations", Limits(max_operations=500)),
     ("/f { f 1 } def f", "max_call_depth", Limits(max_call_depth=100)),
     ("/f { 1 f } def f", "max_stack", Limits(max_stack=1000)),  # tail call: no nesting
     ("1000 array", "max_array", Limits(max_array=100)),

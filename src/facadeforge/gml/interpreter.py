@@ -332,7 +332,13 @@ class Interpreter:
                 self._step(item)
                 if self.finished:
                     return
-            elif loop == "repeat":  # a: proc, b: remaining
+                continue
+            self.ops += 1  # every turn of a loop costs one, even with an empty body
+            if self.ops > max_ops:
+                raise self.limit("max_operations", "the program executed too many operations")
+            if not self.ops & 1023 and time.monotonic() > self.deadline:
+                raise self.limit("max_seconds", "the program ran too long")
+            if loop == "repeat":  # a: proc, b: remaining
                 if f.b <= 0:
                     frames.pop()
                     continue
@@ -358,11 +364,6 @@ class Interpreter:
                     self.push(v)
                 self.call(f.items)
             else:  # "loop"
-                self.ops += 1  # an empty body still costs: `{} loop` must end
-                if self.ops > max_ops:
-                    raise self.limit("max_operations", "the program executed too many operations")
-                if not self.ops & 1023 and time.monotonic() > self.deadline:
-                    raise self.limit("max_seconds", "the program ran too long")
                 self.call(f.items)
 
     def _step(self, item) -> None:

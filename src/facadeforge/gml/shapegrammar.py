@@ -173,6 +173,8 @@ def split_scope(it: Interpreter, g: GScope, axis: int, lengths: list[float], ope
                 params: dict | None = None) -> list[GScope]:
     grammar_of(it).count(len(lengths))
     it.count_cells(len(lengths))
+    if not all(math.isfinite(v) for v in lengths):
+        raise it.error("the sizes overflow (absurdly large numbers?)", "range")
     parts, pos = [], 0.0
     for i, length in enumerate(lengths):
         p = {"axis": "xyz"[axis], "index": i}
@@ -299,7 +301,7 @@ def w_split_r(it: Interpreter) -> None:
     sizes = [abs(v) for v in _finite(it, it.pop_array(), "split-r sizes")]
     g = pop_scope(it)
     extent, total = float(g.shape.scope.size[axis]), sum(sizes)
-    lengths = [extent * s / total if total > 0 else 0.0 for s in sizes]
+    lengths = [extent * (s / total) if total > 0 else 0.0 for s in sizes]
     push_first_on_top(it, split_scope(it, g, axis, lengths, "split"))
 
 
@@ -334,7 +336,7 @@ def w_subdivide(it: Interpreter) -> None:
     if type(spec) is list:
         w = [abs(v) for v in _finite(it, spec, "subdivide weights")]
         total = sum(w)
-        lengths = [extent * v / total if total > 0 else 0.0 for v in w]
+        lengths = [extent * (v / total) if total > 0 else 0.0 for v in w]
     elif is_number(spec):
         if not spec > 0 or not math.isfinite(spec):
             raise it.error(f"s_min must be a finite number > 0, got {spec}", "range")
