@@ -26,8 +26,8 @@ terminal-void } repeat scope 0.5 /X subdivide { terminal-box } repeat
 
 
 def corpus() -> list[list[str]]:
-    texts = [(EXAMPLES / "fig13.gml").read_text(), (EXAMPLES / "fig14_arch.gml").read_text(),
-             EXTRA]
+    texts = [(EXAMPLES / name).read_text()
+             for name in ("fig13.gml", "fig14_arch.gml", "fig16_facade.gml")] + [EXTRA]
     out = []
     for t in texts:
         words = []

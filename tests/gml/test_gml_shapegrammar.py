@@ -141,3 +141,16 @@ def test_load_gml_from_path_and_text(tmp_path):
     assert load_gml("scope terminal-box").path == "<gml>"
     with pytest.raises(Exception, match="does not exist"):
         load_gml(tmp_path / "missing.gml")
+
+
+def test_engine_initial_shapes_as_scopes():
+    from facadeforge.engine import facade_state, initial_state
+    from facadeforge.geometry.footprints import lot
+
+    # a lot (scope y up, size y 0): split it along x and z, extrude nothing
+    m = derive_gml("[ -1 -1 ] /X split terminal-box terminal-box",
+                   scope=initial_state(lot("20x12")[0]).scope)
+    assert len(m.parts) == 2 and np.isclose(sum(p.mesh.area() for p in m.parts), 240.0)
+    # a facade rectangle (x right, y up): floors along Y
+    m = derive_gml("3 /Y repeat { terminal-box } repeat", scope=facade_state(10, 9).scope)
+    assert sorted(round(float(p.mesh.bounds()[0][1]), 6) for p in m.parts) == [0.0, 3.0, 6.0]
