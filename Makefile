@@ -13,8 +13,12 @@ $(UV):
 	$(PYTHON) -m venv $(TOOLS)
 	$(TOOLS)/bin/pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
 
+# Bytecode compiled at install (uv's --compile-bytecode for the dependencies, compileall for
+# our sources): with PYTHONDONTWRITEBYTECODE set, as on CI machines, every command otherwise
+# recompiles some 600 modules (1.3 s of a 6 s `facadeforge points` run).
 $(VENV)/.synced: $(UV) pyproject.toml uv.lock
-	$(UV) sync --frozen --python $(PYTHON)
+	$(UV) sync --frozen --compile-bytecode --python $(PYTHON)
+	$(VENV)/bin/python -m compileall -q src
 	touch $@
 
 env: $(VENV)/.synced
