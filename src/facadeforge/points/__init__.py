@@ -19,7 +19,7 @@
 
 from .cloud import PointCloud, PointCloudError
 
-__all__ = ["PointCloud", "PointCloudError", "points", "read_cloud"]
+__all__ = ["PointCloud", "PointCloudError", "PointStore", "points", "read_cloud"]
 
 
 def read_cloud(path, **options):
@@ -35,3 +35,11 @@ def points(cloud, **options):
     from .pipeline import points as _points
 
     return _points(cloud, **options)
+
+
+def __getattr__(name: str):
+    if name == "PointStore":          # numba and the store load only when asked for
+        from .store import PointStore
+
+        return PointStore
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
