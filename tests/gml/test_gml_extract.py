@@ -112,7 +112,7 @@ def test_hand_built_tree_round_trips():
 
 def test_program_reads_like_a_grammar():
     program = tree_to_gml(_hand_tree(), name="hand")
-    assert program.splitlines()[0].startswith("% rules.gml — hand")
+    assert program.splitlines()[0].startswith("% rules.gml - hand")
     lines = program.splitlines()
     assert "ShapeGrammar.Tools.init" in lines and lines[-1] == "finish"
     assert "scope (10,7,0) scale (0,0,0) move Facade" in lines

@@ -286,7 +286,7 @@ def tree_to_gml(tree: Shape, *, name: str = "facade") -> str:
     top = w.rule(tree, 0)
     size = np.asarray(tree.scope.size, float)
     label = re.sub(r"[\r\n]+", " ", str(name))
-    lines = [f"% rules.gml — {label}: the shape tree as a GML shape grammar, written by "
+    lines = [f"% rules.gml - {label}: the shape tree as a GML shape grammar, written by "
              "facadeforge.gml.extract.tree_to_gml",
              "% (metres; x along the facade, y up, z out of it; see docs/gml.md)",
              "ShapeGrammar.Tools.init", ""]
