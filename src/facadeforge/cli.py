@@ -383,7 +383,7 @@ def _summary(rec, out) -> str:
              _repair_line(r.get("repair")),
              *(f"note: {n}" for n in r.get("notes", [])),
              f"wrote {out}/: rectified.png structure.png labels.png labels_input.png "
-             "shape_tree.json rules.cga model.glb model.obj model.city.json report.json"]
+             "shape_tree.json rules.cga rules.gml model.glb model.obj model.city.json report.json"]
     return "\n".join(lines)
 
 

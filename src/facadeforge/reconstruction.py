@@ -509,7 +509,7 @@ def reconstruct(photo, *, rectified: bool = False, width_m: float | None = None,
         :data:`DEFAULT_DEPTHS`.
     out_dir : path, optional
         Write ``rectified.png, structure.png, labels.png, labels_input.png, shape_tree.json,
-        rules.cga, assets/, texture.jpg, model.glb, model.obj (+ .mtl, textures/),
+        rules.cga, rules.gml, assets/, texture.jpg, model.glb, model.obj (+ .mtl, textures/),
         model.city.json, report.json`` there (atomically; the folder is replaced whole, and
         refused when it holds an input or files facadeforge did not write: see
         :mod:`facadeforge.outdir`).
@@ -1068,6 +1068,18 @@ def _save(rec: Reconstruction, out: Path) -> list[Path]:
     return write_outdir(out, lambda stage: _write_files(rec, stage), rec.inputs)
 
 
+def _write_gml(tree: Shape, path: Path, report: dict) -> None:
+    """``rules.gml``: the shape tree as a GML program (CityFit §5: grammars written out
+    automatically; :func:`facadeforge.gml.extract.tree_to_gml`).  A tree GML cannot say (a
+    rotated scope) leaves a note in the report instead of failing the OUTDIR."""
+    from .gml.extract import tree_to_gml
+
+    try:
+        path.write_text(tree_to_gml(tree), encoding="utf-8")
+    except InputError as e:
+        report.setdefault("notes", []).append(f"rules.gml not written: {e}")
+
+
 def _write_files(rec: Reconstruction, stage: Path) -> None:
     """The OUTDIR files of one facade, into the folder ``stage`` (of :func:`write_outdir`)."""
     from PIL import Image
@@ -1084,6 +1096,7 @@ def _write_files(rec: Reconstruction, stage: Path) -> None:
     write_label_png(rec.labels, stage / "labels.png")
     write_label_png(rec.labels_input(), stage / "labels_input.png")
     write_json(stage / "shape_tree.json", rec.tree.to_dict(), indent=1)
+    _write_gml(rec.tree, stage / "rules.gml", rec.report)
     if rec.workdir is not None and rec.workdir.is_dir():   # written once, copied here
         mode = stage.stat().st_mode
         shutil.copytree(rec.workdir, stage, dirs_exist_ok=True)

@@ -18,7 +18,7 @@ Stages (``report.json`` times each):
 OUTDIR: ``labels.png`` (the derivation, rectified frame) and ``labels_input.png`` (photo frame:
 the derivation *checked against the evidence*, :meth:`Parse.labels_input`), ``shape_tree.json``, ``rules.cga`` (the grammar
 with the fitted values as attribute defaults, so it derives the same layout on its own),
-``model.glb``, ``model.obj``, ``model.city.json``, ``rectified.png``, ``energy.png`` (the
+``rules.gml`` (the derivation as a GML program), ``model.glb``, ``model.obj``, ``model.city.json``, ``rectified.png``, ``energy.png`` (the
 search's best energy per derivation) and ``report.json``.
 """
 
@@ -329,6 +329,9 @@ def _save(p: Parse, out: Path) -> list[Path]:
         write_label_png(p.labels_input(), stage / "labels_input.png")
         write_json(stage / "shape_tree.json", p.tree.to_dict(), indent=1)
         (stage / "rules.cga").write_text(p.rules)
+        from ..reconstruction import _write_gml
+
+        _write_gml(p.tree, stage / "rules.gml", p.report)
         _energy_png(p.fit.search.curve, stage / "energy.png",
                     f"{p.fit.search.method}: best energy per derivation")
         if p.model is not None:

@@ -21,7 +21,7 @@ Stages (each timed in ``report["timings"]``):
    CRS when it has one).
 
 OUTDIR: ``planes.json``; ``facade_NN/`` per facade with ``depth.png``, ``ortho.png``,
-``structure.png``, ``shape_tree.json``, ``rules.cga``; at the top ``elements.json`` (one record
+``structure.png``, ``shape_tree.json``, ``rules.cga``, ``rules.gml``; at the top ``elements.json`` (one record
 per window, door, balcony: ``label``, ``facade``, ``corners`` — the four 3D corners of its
 rectangle on the facade plane at its depth, cloud coordinates), ``model.glb``, ``model.obj``,
 ``model.city.json`` (every facade) and ``report.json`` (planes, facades, timings, and
@@ -630,6 +630,9 @@ def _write(r: PointsResult, stage: Path) -> None:
         if f.tree is not None:
             write_json(d / "shape_tree.json", f.tree.to_dict())
             (d / "rules.cga").write_text(f.rules, encoding="utf-8")
+            from ..reconstruction import _write_gml
+
+            _write_gml(f.tree, d / "rules.gml", f.report)
         np.savez_compressed(d / "maps.npz", depth=f.maps.depth.astype(np.float32),
                             front=f.maps.front.astype(np.float32), count=f.maps.count,
                             resolution=f.maps.resolution)
