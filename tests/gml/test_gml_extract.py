@@ -152,11 +152,18 @@ def test_gaps_become_voids_and_bad_trees_are_errors():
         tree_to_gml(mixed)
 
     turned = Shape("Facade", _scope(0, 0, 6, 3))
-    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    c = s_ = np.sqrt(0.5)
+    rot = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])         # 45°: not a box
     turned.add(Shape("Tile", Scope((0, 0, 0), rot, (1, 1, 0)), label="wall", operator="split",
                      params={"axis": "x", "index": 0}))
     with pytest.raises(InputError, match="rotate"):
         tree_to_gml(turned)
+    # a quarter turn only swaps axes: the same box, written axis-aligned
+    quarter = Shape("Facade", _scope(0, 0, 6, 3))
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    quarter.add(Shape("Tile", Scope((6, 0, 0), rot, (3, 6, 0)), label="wall", operator="split",
+                      params={"axis": "x", "index": 0}))
+    assert "terminal-box" in tree_to_gml(quarter)
     with pytest.raises(InputError):
         tree_to_gml("not a tree")
 

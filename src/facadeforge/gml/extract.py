@@ -17,7 +17,9 @@ and rectangles) as the tree.  The mapping:
   procedure named after its symbol (``Facade``).
 - **root scope**: ``scope (W,H,D) scale (x,y,z) move Facade`` — the unit box scaled to the root's
   size (``D = 0``: the facade rectangle) and moved to its origin.  GML has no ``rotate`` of
-  scopes: a rotated root is written in its own frame (its axes become x, y, z).
+  scopes: a rotated root is written in its own frame (its axes become x, y, z); a scope whose
+  axes are only swapped or turned against the root's (after CGA's ``extrude``) is written as the
+  same box, axis-aligned.
 - **splits**: a node whose children carry ``operator="split"`` (``params["axis"]`` ``x``/``y``/
   ``z``) becomes ``[s1 … sn] /X split C1 … Cn`` with the children's sizes in metres along the
   axis, absolute (> 0) except the largest, which is relative (``-1``: the rest, so the parts
@@ -110,11 +112,21 @@ class _Writer:
     def box(self, s: Shape) -> tuple[np.ndarray, np.ndarray]:
         sc = s.scope
         rot = np.asarray(sc.rotation, float)
-        if not np.allclose(rot, self.r0, atol=1e-9):
+        lo = self.r0.T @ (np.asarray(sc.origin, float) - self.o0)
+        if np.allclose(rot, self.r0, atol=1e-9):
+            return lo, np.asarray(sc.size, float).copy()
+        m = self.r0.T @ rot
+        if not (np.allclose(np.abs(m).sum(0), 1, atol=1e-9)
+                and np.allclose(np.abs(m).sum(1), 1, atol=1e-9)
+                and np.allclose(np.abs(m), np.round(np.abs(m)), atol=1e-9)):
             raise InputError(f"shape '{s.symbol}' is rotated against the root: GML has no "
                              "'rotate' of scopes, so only axis-aligned trees are written")
-        lo = self.r0.T @ (np.asarray(sc.origin, float) - self.o0)
-        return lo, np.asarray(sc.size, float).copy()
+        # axes only swapped or turned (CGA's extrude turns a scope's y onto the extrusion):
+        # the same box, axis-aligned in the root's frame
+        size = np.asarray(sc.size, float)
+        corners = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)]) * size
+        pts = lo + corners @ m.T
+        return pts.min(0), pts.max(0) - pts.min(0)
 
     def fit(self, have: tuple[np.ndarray, np.ndarray], want: tuple[np.ndarray, np.ndarray]
             ) -> str:
