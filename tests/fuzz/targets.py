@@ -147,6 +147,56 @@ class CGA(Target):
         return _derive_argv(rules, work, case.options, limits, forks)
 
 
+GML_EXAMPLES = Path(__file__).resolve().parents[2] / "src" / "facadeforge" / "gml" / "examples"
+#: Words of the GML dialect the token mutators insert (docs/gml.md).
+GML_TOKENS = ["ShapeGrammar.Tools.init", "scope", "move", "scale", "extrude", "split", "split-r",
+              "repeat", "subdivide", "terminal-box", "terminal-void", "label", "finish", "dup",
+              "exch", "pop", "roll", "index", "add", "sub", "mul", "div", "if", "ifelse", "for",
+              "forall", "loop", "exit", "exec", "def", "begin", "end", "cp-plane", "cp-shell",
+              "/X", "/Y", "/Z", "[", "]", "{", "}", "(1,2,3)", "(0,0,-1e300)", "-1", "1e9",
+              "!x", ":x", "/window", "0", "-0.5", "1e-12"]
+
+
+def _gml_steps():
+    import functools
+
+    steps = {**M.TEXT_MUTATORS, **TEXT_BYTE_STEPS}
+    steps["insert_token"] = functools.partial(M.insert_token, words=GML_TOKENS)
+    steps["replace_token"] = functools.partial(M.replace_token, words=GML_TOKENS)
+    return steps
+
+
+class GML(Target):
+    """GML programs (CityFit §5) through ``facadeforge derive PROGRAM.gml``: the examples,
+    mutated token by token and byte by byte."""
+
+    name = "gml"
+    text = True
+    defaults = {"output": "glb"}
+    table = _gml_steps()
+
+    def generate(self, rng):
+        seeds = sorted(p.name for p in GML_EXAMPLES.glob("*.gml"))
+        names = sorted(M.TEXT_MUTATORS) * 3 + sorted(TEXT_BYTE_STEPS)
+        options = _derive_options(rng, {})
+        if rng.random() < 0.3:
+            options["lot"] = rng.choice(LOTS)
+        return Case(self.name, rng.choice(seeds), _steps(rng, names, 1, 5), options)
+
+    def build(self, case):
+        if case.literal is not None:
+            return case.literal
+        text = (GML_EXAMPLES / case.seed).read_text(encoding="utf-8")
+        return self._apply(text, case.steps, self.table)
+
+    def materialize(self, case, work, limits=(), forks=False):
+        program = _write_text(work / "program.gml", self.build(case))
+        argv, outs, stats = _derive_argv(program, work, case.options, limits, forks)
+        if "lot" not in case.options:                    # a program that makes its own scope
+            argv = [a for a in argv if not a.startswith("--lot=")]
+        return argv, outs, stats
+
+
 FAST_RULES = """Lot --> extrude(4) comp(f) { top : roofHip(30) R | side : split(x) { ~3 : W }* | all : NIL }
 R --> color("#884433")
 W --> color("#ddccbb") report("w", scope.sx)
@@ -582,4 +632,4 @@ class Render(Target):
 
 
 TARGETS = {t.name: t for t in (CGA(), GeoJSON(), OBJFootprint(), Classifier(), RulePackage(),
-                               Render())}
+                               Render(), GML())}

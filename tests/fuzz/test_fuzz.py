@@ -28,7 +28,8 @@ LONG = os.environ.get("FACADEFORGE_FUZZ", "short") == "long"
 SEED = int(os.environ.get("FACADEFORGE_FUZZ_SEED", "20261201"))
 BUDGET_S = float(os.environ.get("FACADEFORGE_FUZZ_SECONDS", "600"))
 #: Cases a target in the short run (each a few tens of milliseconds in-process).
-SHORT_CASES = {"cga": 60, "geojson": 40, "obj": 30, "npz": 30, "rpk": 20, "render": 25}
+SHORT_CASES = {"cga": 60, "geojson": 40, "obj": 30, "npz": 30, "rpk": 20, "render": 25,
+               "gml": 40}
 #: Oracle calls spent reducing one failure (a run past the time bound: a few only).
 REDUCE_CALLS = 400 if LONG else 60
 REDUCE_HANG_CALLS = 8 if LONG else 0
