@@ -168,19 +168,31 @@ def facade_frame(cloud: PointCloud, plane: Plane, ground_level: float | None = N
                        height=float(vhi - vlo))
 
 
+def facade_box(frame: FacadeFrame, behind: float = DEPTH_BEHIND, front: float = DEPTH_FRONT
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """The axis-aligned box (cloud coordinates) around a facade's box: for a spatial query."""
+    corners = np.array([[u, v, d] for u in (0, frame.width) for v in (0, frame.height)
+                        for d in (-behind, front)])
+    pts = frame.to_cloud(corners)
+    return pts.min(0), pts.max(0)
+
+
 def facade_points(cloud: PointCloud, frame: FacadeFrame, behind: float = DEPTH_BEHIND,
-                  front: float = DEPTH_FRONT, exclude: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+                  front: float = DEPTH_FRONT, exclude: np.ndarray | None = None,
+                  candidates: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Indices of the cloud's points in the facade's box (its rectangle, ``behind`` m behind
     to ``front`` m in front) and their facade coordinates; ``exclude`` (a boolean mask over
-    the cloud: the ground's points, which run under the facade's foot) leaves points out."""
-    f = frame.to_facade(cloud.xyz)
+    the cloud: the ground's points, which run under the facade's foot) leaves points out;
+    ``candidates`` (indices, e.g. a store's box query around :func:`facade_box`) limits the
+    points looked at."""
+    cand = np.arange(len(cloud)) if candidates is None else np.asarray(candidates, np.int64)
+    f = frame.to_facade(cloud.xyz[cand])
     keep = ((f[:, 0] >= 0) & (f[:, 0] < frame.width) & (f[:, 1] >= 0) & (f[:, 1] < frame.height)
             & (f[:, 2] >= -behind) & (f[:, 2] <= front))
     if exclude is not None:
-        keep &= ~exclude
-    idx = np.flatnonzero(keep)
-    return idx, f[idx]
+        keep &= ~exclude[cand]
+    sel = np.flatnonzero(keep)
+    return cand[sel], f[sel]
 
 
 def rasterize(cloud: PointCloud, frame: FacadeFrame, *, resolution: float = RESOLUTION,

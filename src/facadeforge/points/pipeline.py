@@ -41,7 +41,15 @@ import numpy as np
 from ..errors import InputError
 from .cloud import PointCloud, PointCloudError
 from .elements import Element, detect_elements, wall_depth
-from .maps import RESOLUTION, FacadeFrame, FacadeMaps, facade_frame, facade_points, rasterize
+from .maps import (
+    RESOLUTION,
+    FacadeFrame,
+    FacadeMaps,
+    facade_box,
+    facade_frame,
+    facade_points,
+    rasterize,
+)
 from .outline import segments
 from .planes import FACADE_MIN_HEIGHT, FACADE_MIN_WIDTH, Plane, detect_planes
 
@@ -85,6 +93,7 @@ class PlaneFacade:
     maps: FacadeMaps
     elements: list[Element]
     ortho: np.ndarray
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # its points
 
 
 @dataclass
@@ -349,12 +358,20 @@ def points(cloud, *, resolution: float | None = None, photos=None, cameras=None,
 
     facades: list[FacadeResult] = []
     whole: list[PlaneFacade] = []
+    store = None
+    ground_at = _Ground(cloud, ground)
     t_maps = t_el = t_rec = 0.0
     for pi in facade_ids:
         t = time.perf_counter()
-        frame = facade_frame(cloud, planes[pi], ground_level=_ground_at(cloud, planes[pi],
-                                                                        ground, ground_level))
-        idx, uvd = facade_points(cloud, frame, exclude=on_ground)
+        frame = facade_frame(cloud, planes[pi],
+                             ground_level=ground_at.at(cloud, planes[pi], ground_level))
+        if store is None:       # CityFit §3's store: a facade's points by a box query
+            from .store import PointStore
+
+            store = PointStore.from_cloud(cloud)
+            store.engine = "numpy"       # a few queries: no kernels to compile or load
+        idx, uvd = facade_points(cloud, frame, exclude=on_ground,
+                                 candidates=store.box(*facade_box(frame)))
         res = resolution if resolution is not None else auto_resolution(planes[pi])
         maps = rasterize(cloud, frame, resolution=res, index=idx, uvd=uvd)
         ortho = ortho_image(maps)
@@ -362,7 +379,7 @@ def points(cloud, *, resolution: float | None = None, photos=None, cameras=None,
         t = time.perf_counter()
         elements = detect_elements(maps)
         t_el += time.perf_counter() - t
-        whole.append(PlaneFacade(pi, frame, maps, elements, ortho))
+        whole.append(PlaneFacade(pi, frame, maps, elements, ortho, idx))
         for seg in segments(maps, elements):
             sub = maps.crop(seg.x0, seg.x1, seg.top)
             f = FacadeResult(index=len(facades), plane=pi, frame=sub.frame, maps=sub,
@@ -411,8 +428,8 @@ def _accuracy(r: PointsResult) -> dict:
     tris, labels = model_triangles(models, r.origin)
     pts, lab = sample_model(tris, labels, spacing=ACCURACY_SPACING)
     keep = np.zeros(len(r.cloud), bool)
-    for f in r.facades:
-        keep[facade_points(r.cloud, f.frame)[0]] = True
+    for w in r.whole:
+        keep[w.index] = True
     out = {"spacing_m": ACCURACY_SPACING, "eq_5_10": model_distance(pts, r.cloud.xyz[keep])}
     if r.cloud.labels is not None:
         out["eq_5_11"] = class_distances(pts, lab, r.cloud.subset(keep),
@@ -435,20 +452,25 @@ def auto_resolution(plane: Plane) -> float:
     return float(np.clip(round(SPACING_SHARE * spacing, 3), MIN_RESOLUTION, MAX_RESOLUTION))
 
 
-def _ground_at(cloud: PointCloud, plane: Plane, ground: list[Plane], level: float | None):
-    """The ground's height in front of a facade: the ground piece nearest to its foot."""
-    if not ground:
-        return level
-    foot = cloud.xyz[plane.inliers]
-    c = foot[np.argmin(foot[:, cloud.up])]
-    best, dist = level, np.inf
-    for g in ground:
-        pts = cloud.xyz[g.inliers]
-        horiz = np.delete(pts - c, cloud.up, axis=1)
-        d = float(np.min(np.einsum("ij,ij->i", horiz, horiz)))
-        if d < dist:
-            best, dist = float(np.median(pts[:, cloud.up])), d
-    return best
+class _Ground:
+    """The ground pieces' points once, for the ground's height in front of each facade."""
+
+    def __init__(self, cloud: PointCloud, ground: list[Plane]):
+        self.up = cloud.up
+        idx = [g.inliers for g in ground]
+        self.xyz = cloud.xyz[np.concatenate(idx)] if idx else np.zeros((0, 3))
+        self.piece = np.repeat(np.arange(len(idx)), [len(i) for i in idx])
+        self.height = [float(np.median(cloud.xyz[i, cloud.up])) for i in idx]
+
+    def at(self, cloud: PointCloud, plane: Plane, level: float | None) -> float | None:
+        """The ground's height in front of a facade: the ground piece nearest to its foot."""
+        if not len(self.xyz):
+            return level
+        foot = cloud.xyz[plane.inliers]
+        c = foot[np.argmin(foot[:, self.up])]
+        horiz = np.delete(self.xyz - c, self.up, axis=1)
+        j = int(np.argmin(np.einsum("ij,ij->i", horiz, horiz)))
+        return self.height[int(self.piece[j])]
 
 
 def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:

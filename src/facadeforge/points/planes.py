@@ -180,7 +180,9 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
     """Sequential RANSAC planes of a cloud, largest first; kinds set by :func:`classify_planes`.
 
     ``min_points`` counts voxels (one point per ``voxel``); default: a plane must cover about
-    1 m² (``1 / voxel²`` voxels), or 1 % of the voxels for small clouds.
+    1 m² (``1 / voxel²`` voxels), or 1 % of the voxels for small clouds.  ``max_planes`` counts
+    RANSAC rounds: a round's plane may come out as several connected pieces (a road between
+    parked cars), which all count as planes of the result.
     """
     xyz = cloud.xyz
     if len(xyz) < 3:
@@ -202,8 +204,8 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
     remaining = np.ones(len(sub), bool)
     seeds_ok = planarity > 0.8
     found: list[tuple[np.ndarray, float, np.ndarray, float]] = []
-    misses = 0
-    while len(found) < max_planes and misses < 3:
+    misses = rounds = 0
+    while rounds < max_planes and misses < 3:
         live = np.flatnonzero(remaining)
         if len(live) < min_points:
             break
@@ -233,9 +235,10 @@ def detect_planes(cloud: PointCloud, *, threshold: float = THRESHOLD, voxel: flo
             seeds_ok[h[best]] = False                               # do not draw it again
             continue
         misses = 0
+        rounds += 1
         remaining[inl] = False
         for piece, area in _pieces(sub[inl], nrm, cloud.up, CONNECT_CELL):
-            if len(piece) < min_points or len(found) >= max_planes:
+            if len(piece) < min_points:
                 break
             found.append((nrm.copy(), off, inl[piece], area))
     planes = _full_resolution(cloud, centre, found, threshold, vox_of, rep)
@@ -263,17 +266,22 @@ def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: fl
     d_on = np.einsum("ij,ij->i", xyz[on], normals[pid[on]]) + offsets[pid[on]]
     pid[on[np.abs(d_on) >= threshold]] = -1
     free = np.flatnonzero(pid < 0)
-    free = free[np.argsort(xyz[free, 0], kind="stable")]    # by x: a plane's x range is a slice
+    # sorted once along the cloud's longer horizontal axis: a piece's extent is one slice
+    horiz = [a for a in range(3) if a != cloud.up]
+    ext = np.ptp(xyz[:, horiz], axis=0) if len(xyz) else np.zeros(2)
+    ax = horiz[int(np.argmax(ext))]
+    free = free[np.argsort(xyz[free, ax], kind="stable")]
+    free_ax = xyz[free, ax]
     for k, (nrm, off, vox_idx, _) in enumerate(found):
-        if not len(free):
-            break
         piece = xyz[rep[vox_idx]]
         lo3, hi3 = piece.min(0) - CONNECT_CELL, piece.max(0) + CONNECT_CELL
-        fxs = xyz[free, 0]
-        a0, a1 = np.searchsorted(fxs, [lo3[0], hi3[0]])
+        a0, a1 = np.searchsorted(free_ax, [lo3[ax], hi3[ax]])
         span = free[a0:a1]
+        span = span[pid[span] < 0]
+        if not len(span):
+            continue
         fx = xyz[span]
-        cand = span[((fx[:, 1:] >= lo3[1:]) & (fx[:, 1:] <= hi3[1:])).all(1)]
+        cand = span[((fx >= lo3) & (fx <= hi3)).all(1)]
         if not len(cand):
             continue
         d = xyz[cand] @ nrm + off
@@ -292,8 +300,6 @@ def _full_resolution(cloud: PointCloud, centre: np.ndarray, found, threshold: fl
         ok = (q >= 0).all(1) & (q[:, 0] < shape[0]) & (q[:, 1] < shape[1])
         ok[ok] = occ[q[ok, 0], q[ok, 1]]
         pid[cand[ok]] = k
-        if ok.any():
-            free = free[pid[free] < 0]
     on = np.flatnonzero(pid >= 0)
     p = pid[on]
     order = np.argsort(p, kind="stable")
