@@ -92,7 +92,8 @@ def test_planes_facade_and_ground_largest_first(cloud):
                for p in planes)
 
 
-def test_frame_depth_map_shows_recesses(cloud):
+def _facade_maps(cloud):
+    """The test facade's frame and rasters, its ground left out, as the pipeline makes them."""
     planes = detect_planes(cloud)
     f = next(p for p in planes if p.kind == "facade")
     frame = facade_frame(cloud, f, ground_level=30.0)
@@ -101,7 +102,11 @@ def test_frame_depth_map_shows_recesses(cloud):
         if p.kind == "ground":
             ground[p.inliers] = True
     idx, uvd = facade_points(cloud, frame, exclude=ground)
-    maps = rasterize(cloud, frame, index=idx, uvd=uvd)
+    return frame, rasterize(cloud, frame, index=idx, uvd=uvd)
+
+
+def test_frame_depth_map_shows_recesses(cloud):
+    frame, maps = _facade_maps(cloud)
     assert abs(frame.u[0] - 1.0) < 1e-3 and frame.n[1] < -0.99 and frame.v[2] == 1.0
     assert frame.width == pytest.approx(12.0, abs=0.8) and frame.height == pytest.approx(9.3, abs=0.4)
     d = maps.depth[np.isfinite(maps.depth)]
@@ -289,23 +294,11 @@ def test_points_coloured_from_photos(tmp_path):
         points(c, photos=tmp_path / "photos")
 
 
-@pytest.mark.parametrize("choice", ["nearest", "front"])
-def test_wall_depth_is_the_front_surface_not_the_glazing(cloud, choice, monkeypatch):
+def test_wall_depth_is_the_front_surface_not_the_glazing(cloud):
     """Were the plane the glazing's, the wall 20 cm in front of it is still the wall."""
     from dataclasses import replace
 
-    from facadeforge.points import elements
-
-    monkeypatch.setattr(elements, "WALL_CHOICE", choice)
-    planes = detect_planes(cloud)
-    f = next(p for p in planes if p.kind == "facade")
-    frame = facade_frame(cloud, f, ground_level=30.0)
-    ground = np.zeros(len(cloud), bool)
-    for p in planes:
-        if p.kind == "ground":
-            ground[p.inliers] = True
-    idx, uvd = facade_points(cloud, frame, exclude=ground)
-    m = rasterize(cloud, frame, index=idx, uvd=uvd)
+    frame, m = _facade_maps(cloud)
     shifted = replace(m, depth=m.depth + RECESS, front=m.front + RECESS, back=m.back + RECESS)
     assert np.allclose(wall_depth(shifted), RECESS, atol=0.021)
     els = detect_elements(shifted)

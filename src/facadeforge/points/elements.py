@@ -83,11 +83,6 @@ WALL_SUPPORT = 0.12
 TIGHTEN = 0.3
 #: A window whose foot is within this (m) above a balcony's top stands behind it.
 BALCONY_GAP_M = 0.3
-#: How a column's wall depth is chosen among its strong depths: "nearest" the plane, or the
-#: "front"-most within FRONT_SPAN (m) of it — right where RANSAC's plane is the glazing, wrong
-#: where a shop sign stands a hand in front of the wall; the same on every scan measured here,
-#: so the choice that the labelled NUIST facade validates stays the default.
-WALL_CHOICE, FRONT_SPAN = "nearest", 0.3
 #: Width (m) over which the wall's depth is smoothed along the facade.
 WALL_SPAN_M = 6.0
 #: An opening larger than this share of the facade, or wider than this (m), is a wall set
@@ -160,8 +155,8 @@ def _boxes(mask: np.ndarray, share: np.ndarray, res: float):
 def wall_depth(maps: FacadeMaps) -> np.ndarray:
     """The wall's depth (m) in each column of the rasters: of the depths (2 cm bins, ±2 cm
     windows) holding at least :data:`WALL_SUPPORT` of the column's cells, the one nearest the
-    plane (:data:`WALL_CHOICE`: or the front-most within :data:`FRONT_SPAN` of it), else the
-    most common; median-filtered over :data:`WALL_SPAN_M`.  One plane rarely holds a whole street front: a house set back or
+    plane (not the front-most: that would take a shop sign a hand in front of the wall for the
+    wall; the same on every scan measured here), else the most common; median-filtered over :data:`WALL_SPAN_M`.  One plane rarely holds a whole street front: a house set back or
     standing forward from its neighbour is wall at its own depth, and its windows are recesses
     *of that wall*."""
     d = maps.depth
@@ -177,22 +172,8 @@ def wall_depth(maps: FacadeMaps) -> np.ndarray:
     has = tot > 0
     sm = hist + np.roll(hist, 1, axis=1) + np.roll(hist, -1, axis=1)
     strong = sm >= WALL_SUPPORT * np.maximum(tot, 1)[:, None]
-    if WALL_CHOICE == "front":
-        # the front-most strong depth within ±FRONT_SPAN of the plane: glazing set back is
-        # never the wall, even where it holds more of the column than the piers
-        near = np.abs(np.arange(101) - 50) <= int(FRONT_SPAN / 0.02)
-        cand = strong & near[None, :]
-        front = 100 - np.argmax(cand[:, ::-1], axis=1)
-        dist = np.abs(np.arange(101) - 50)[None, :] + np.where(strong, 0, 1000)
-        nearest = np.argmin(dist, axis=1)
-        # the strong window's own peak (the ±1-bin window reaches a bin past the surface)
-        lo = np.clip(front - 2, 0, 100)
-        win = np.stack([hist[np.arange(w), np.clip(lo + k, 0, 100)] for k in range(3)], 1)
-        peak = lo + np.argmax(win, axis=1)
-        mode = (np.where(cand.any(1), peak, nearest) - 50) * 0.02
-    else:
-        dist = np.abs(np.arange(101) - 50)[None, :] + np.where(strong, 0, 1000)
-        mode = (np.argmin(dist, axis=1) - 50) * 0.02
+    dist = np.abs(np.arange(101) - 50)[None, :] + np.where(strong, 0, 1000)
+    mode = (np.argmin(dist, axis=1) - 50) * 0.02
     weak = ~strong.any(1)
     mode[weak] = (np.argmax(sm[weak], axis=1) - 50) * 0.02
     if not has.any():

@@ -7,14 +7,13 @@ class on colours the user marked with strokes) and a **depth** energy against a 
 Pareto set (§5.2.3).  On a laser scan both come from the facade's own rasters
 (:mod:`.maps`):
 
-- **appearance** — :data:`APPEARANCE`: by default (``"detection"``) the detector's boxes
-  themselves as class probabilities (trusted at 0.7, blurred by 15 cm), the detector playing
-  the thesis's pixel classifier (§4.3); or (``"scan"``) per cell the laser intensity (glass and
-  dark frames return less) and the log point density (glass returns few points), a Gaussian per
-  class fitted on the cells the detector put in windows, doors and wall — the detector's boxes
-  standing in for the user's strokes (§5.3.1).  On the 4 development synthetic scans
-  ``--fit grammar`` scored F1 0.46 with the first and 0.26 with the second (the element layout
-  alone: 0.50).  Cells outside the facade's silhouette get every class at the same probability:
+- **appearance** — the detector's boxes themselves as class probabilities
+  (:func:`detection_proba`: trusted at 0.7, blurred by 15 cm), the detector playing the
+  thesis's pixel classifier (§4.3).  Tried and removed: per cell the laser intensity and the log
+  point density, a Gaussian per class fitted on the cells the detector put in windows, doors and
+  wall (the detector's boxes standing in for the user's strokes, §5.3.1) — on the 4 development
+  synthetic scans ``--fit grammar`` scored F1 0.26 with it against 0.46 with the boxes (the
+  element layout alone: 0.50).  Cells outside the facade's silhouette get every class at the same probability:
   the scan says nothing there;
 - **depth** — :class:`~facadeforge.parsing.energy.DepthEnergy` on the depth map measured from the
   wall around each cell (:func:`~.elements.wall_depth`), each leaf at its class's **measured**
@@ -38,15 +37,10 @@ from ..datasets import get_label_set
 from .elements import Element, wall_depth
 from .maps import FacadeMaps
 
-__all__ = ["DepthFit", "appearance_proba", "detection_proba", "fit_facade", "tree_layout"]
+__all__ = ["DepthFit", "detection_proba", "fit_facade", "tree_layout"]
 
-#: The appearance energy's probabilities: "scan" (intensity and density per class, learnt on
-#: the detector's boxes) or "detection" (the detector's boxes themselves, blurred).
-APPEARANCE = "detection"
 #: Derivations of the grammar search.
 BUDGET = 600
-#: Classes the appearance model tells apart (ecp7 names).
-_MODEL_CLASSES = ("wall", "window", "door")
 
 
 @dataclass
@@ -60,48 +54,6 @@ class DepthFit:
     alpha_range: tuple[float, float]
     depths: dict
     front: list
-
-
-def appearance_proba(maps: FacadeMaps, elements: list[Element]) -> np.ndarray:
-    """``(H, W, 7)`` ecp7 class probabilities of the facade's cells from intensity and density
-    (see the module docstring)."""
-    ls = get_label_set("ecp7")
-    h, w = maps.shape
-    occupied = maps.count > 0
-    inside = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, np.ones((9, 9)),
-                                                              border_value=0))
-    feats = [np.log1p(ndimage.uniform_filter(maps.count.astype(np.float32), 3))]
-    if maps.intensity is not None and np.isfinite(maps.intensity).any():
-        inten = np.nan_to_num(maps.intensity, nan=float(np.nanmedian(maps.intensity)))
-        feats.append(ndimage.uniform_filter(inten.astype(np.float32), 3))
-    X = np.stack(feats, -1).reshape(-1, len(feats))
-    X = (X - X.mean(0)) / np.maximum(X.std(0), 1e-6)
-    target = np.zeros((h, w), np.int64)               # 0 wall, 1 window, 2 door
-    for e in elements:
-        if e.label in ("window", "door"):
-            x0, y0, x1, y1 = e.box_px
-            target[y0:y1, x0:x1] = _MODEL_CLASSES.index(e.label)
-    flat_t, flat_in = target.ravel(), inside.ravel()
-    loglik = np.full((X.shape[0], len(_MODEL_CLASSES)), -50.0)
-    for k in range(len(_MODEL_CLASSES)):
-        sel = flat_in & (flat_t == k)
-        if sel.sum() < 20:
-            continue
-        mu, sd = X[sel].mean(0), np.maximum(X[sel].std(0), 0.2)
-        prior = sel.mean()
-        loglik[:, k] = (-0.5 * (((X - mu) / sd) ** 2).sum(1) - np.log(sd).sum()
-                        + np.log(max(prior, 1e-3)))
-    loglik -= loglik.max(1, keepdims=True)
-    p3 = np.exp(loglik)
-    p3 /= p3.sum(1, keepdims=True)
-    prob = np.full((h * w, ls.num_classes), 0.01, np.float32)
-    for k, name in enumerate(_MODEL_CLASSES):
-        prob[:, ls.index(name)] = 0.02 + 0.9 * p3[:, k]
-    # outside the silhouette the scan says nothing: every class at the same cost (eq. 5.8's
-    # "average cost" for what a model does not explain), so no layout gains or loses there
-    prob[~flat_in] = 1.0
-    prob /= prob.sum(1, keepdims=True)
-    return prob.reshape(h, w, ls.num_classes)
 
 
 def detection_proba(maps: FacadeMaps, elements: list[Element], sigma_m: float = 0.15,
@@ -167,8 +119,7 @@ def fit_facade(maps: FacadeMaps, elements: list[Element], element_tree=None, *,
     from ..parsing.parse import _load_grammar, _stamp
 
     ls = get_label_set("ecp7")
-    prob = (detection_proba(maps, elements) if APPEARANCE == "detection"
-            else appearance_proba(maps, elements))
+    prob = detection_proba(maps, elements)
     rel = maps.depth - wall_depth(maps)[None, :]
     depths = class_depths(maps, elements)
     gpath = grammar_path(grammar)
