@@ -69,15 +69,7 @@ class SegmentationEnergy:
     def pixel_boxes(self, layout: Layout) -> np.ndarray:
         """``(n, 4)`` int pixel boxes ``r0, c0, r1, c1`` (exclusive ends) of the layout's leaves;
         the layout's ``width`` × ``height`` spans the whole image."""
-        h, w = self.shape
-        b = layout.boxes
-        sx = w / layout.width
-        sy = h / layout.height
-        c0 = np.clip(np.rint(b[:, 0] * sx), 0, w).astype(np.int64)
-        c1 = np.clip(np.rint(b[:, 2] * sx), 0, w).astype(np.int64)
-        r0 = np.clip(np.rint((layout.height - b[:, 3]) * sy), 0, h).astype(np.int64)
-        r1 = np.clip(np.rint((layout.height - b[:, 1]) * sy), 0, h).astype(np.int64)
-        return np.stack([r0, c0, r1, c1], axis=1)
+        return _pixel_boxes(layout, self.shape)
 
     def __call__(self, layout: Layout) -> float:
         """Energy (eq. 4.7) of ``layout``; uncovered pixels are charged as wall."""
