@@ -80,7 +80,9 @@ def load_rules(rules, *, rule: str | None = None, assets=None, start: str | None
             raise InputError(f"asset folder '{assets}' does not exist")
         roots.append(a)
     if package is not None:
-        roots.append(package.root)
+        # as in a CityEngine project (the package root is the project's): the rule's folder, the
+        # project's assets/ folder, then the project itself
+        roots.extend(dict.fromkeys([package.main.parent, package.root / "assets", package.root]))
         import_roots = [package.root]
     elif base is not None:
         import_roots = rule_roots(base)
@@ -207,9 +209,13 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
     t0 = time.perf_counter()
     merged = {**{k: v for k, v in fp.attributes.items() if not k.startswith("_")}, **(attrs or {})}
     known = set(rules.ruleset.main.attrs)
+    if "seed" not in known and "seed" in merged:
+        # PRT's shape attribute 'seed' (PyPRT users pass it with the attributes): the initial
+        # shape's random seed, unless the rules declare an attribute of that name
+        seed = _initial_seed(merged.pop("seed"), fp.name)
     overrides = {k: v for k, v in merged.items() if k in known or "." in k or k in (attrs or {})}
     for k in (attrs or {}):
-        if "." not in k and k not in known:
+        if "." not in k and k not in known and k != "seed":
             raise RuleError(f"--attr {k}: the rules have no attribute '{k}'"
                             + _suggest(k, known))
     from .grammar.ops.occlusion import Occluder
@@ -231,6 +237,19 @@ def derive_footprint(rules: Rules, fp: Footprint, *, attrs=None, seed: int = 0, 
         if problem is not None:
             raise DerivationError(f"'{fp.name}': {problem}")
     return model
+
+
+def _initial_seed(value, name: str) -> int:
+    """The ``seed`` attribute as an integer seed, or a ``RuleError`` naming the shape."""
+    try:
+        f = float(value)
+        ok = math.isfinite(f) and f == int(f) and not isinstance(value, bool)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise RuleError(f"'{name}': attribute seed={value!r} is the initial shape's random seed "
+                        "and must be an integer, e.g. --attr seed=7")
+    return int(f)
 
 
 def _suggest(name, known) -> str:
