@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env bench-env demo test lint bench fuzz clean
+.PHONY: env train-env bench-env prt-env demo test lint bench fuzz clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -32,6 +32,11 @@ train-env: $(UV) pyproject.toml uv.lock
 bench-env: $(UV) pyproject.toml uv.lock
 	UV_PROJECT_ENVIRONMENT=.venv-bench $(UV) sync --frozen --group bench --python $(PYTHON)
 
+# Esri's PyPRT (free for non-commercial use; never a dependency of facadeforge) for
+# benchmarks/vs_prt.py, in its own environment holding nothing else.
+prt-env: $(UV) pyproject.toml uv.lock
+	UV_PROJECT_ENVIRONMENT=.venv-prt $(UV) sync --frozen --only-group prt --no-install-project --python $(PYTHON)
+
 demo: env
 	$(VENV)/bin/facadeforge demo -o demo-out
 
@@ -54,4 +59,4 @@ bench: env
 	$(VENV)/bin/python benchmarks/report.py
 
 clean:
-	rm -rf $(VENV) .venv-train $(TOOLS) .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-train .venv-bench .venv-prt $(TOOLS) .pytest_cache .ruff_cache

@@ -4,7 +4,6 @@
 import pytest
 
 from facadeforge import derive, load_rules
-from facadeforge.errors import RuleError
 
 STRUCTURE = """attr height = 5
 Lot --> extrude(height) comp(f) { side : Facade | top : Roof. }
@@ -44,13 +43,6 @@ def test_a_redefined_rule_that_the_import_only_calls(tmp_path):
         "Facade --> color(1, 0, 0) Wall.\n", ""), "main.cga": MAIN})
     m = derive(load_rules(d / "main.cga"), None, lot_size="10x8")[0]
     assert {p.symbol for p in m.parts} == {"Band", "Rest", "Roof"}
-
-
-def test_unknown_import_in_a_qualified_rule(tmp_path):
-    d = write(tmp_path, {"structure.cga": STRUCTURE,
-                         "main.cga": MAIN.replace("st.Facade -->", "sx.Facade -->")})
-    with pytest.raises(RuleError, match="unknown import 'sx'"):
-        load_rules(d / "main.cga")
 
 
 def test_extension_rule_overridden_in_the_import_statement(tmp_path):

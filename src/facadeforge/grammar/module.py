@@ -67,6 +67,9 @@ class Module:
         self.qualified_rules = {k: v for k, v in self.rules.items() if "." in k}
         for k in self.qualified_rules:
             del self.rules[k]
+        # dotted names this file declares for itself (the prefix is no import): rules kept
+        # by ``link`` out of qualified_rules, and dotted attributes and functions
+        self.dotted: set[str] = set()
         # rules of this module redefined by an importer (qualified rules, extension overrides
         # in the import statement): name -> arity -> (importer, rule); they win over own rules
         self.rule_overrides: dict[str, dict[int, tuple[Module, A.RuleDef]]] = {}
@@ -95,12 +98,17 @@ class Module:
 
     # -- lookups -----------------------------------------------------------------------------
     def resolve(self, qualified: str) -> tuple[Module, str] | None:
-        """``"F.G.Rule"`` → (module of G, "Rule"); ``None`` if an alias is unknown."""
+        """``"F.G.Rule"`` → (module of G, "Rule"); ``None`` if an alias is unknown.
+
+        A dotted name whose prefix is no import names a declaration of that file made under
+        the dotted name (``Lot.Green --> …``, ``attr Report.enabled = …``): it resolves to
+        (that module, the whole remaining name)."""
         mod, parts = self, qualified.split(".")
-        for alias in parts[:-1]:
+        for i, alias in enumerate(parts[:-1]):
             nxt = mod.imports.get(alias)
             if nxt is None:
-                return None
+                rest = ".".join(parts[i:])
+                return (mod, rest) if rest in mod.dotted else None
             mod = nxt
         return mod, parts[-1]
 
@@ -315,6 +323,11 @@ def link(text: str, path: str, read: Callable[[str, str], tuple[str, str]] | Non
             if into.imports.setdefault(k, v) is v and v.importer is m:
                 v.importer = into  # m's attributes are into's now: propagation starts there
     _attach_qualified_rules(main)
+    for into, m in reversed(anonymous):  # dotted rules of an anonymous import join it too
+        for k in m.dotted:
+            if k in m.rules:
+                into.rules.setdefault(k, m.rules[k])
+            into.dotted.add(k)
     return main
 
 
@@ -332,18 +345,59 @@ def _imported_style(ast: A.RuleFile, imp: A.Import, importer: str, chosen: str) 
     return imp.styles[0] if imp.styles else DEFAULT_STYLE
 
 
+def _import_of(m: Module, qualified: str) -> tuple[Module, str] | None:
+    """(imported module, short name) when every alias before the last dot of ``qualified`` is
+    an import (``st.Facade``, ``st.win.Frame``), else ``None``."""
+    mod, parts = m, qualified.split(".")
+    for alias in parts[:-1]:
+        mod = mod.imports.get(alias)
+        if mod is None:
+            return None
+    return mod, parts[-1]
+
+
 def _attach_qualified_rules(main: Module) -> None:
-    """``st.Facade --> …`` in a file redefines rule ``Facade`` of its import ``st``: calls of
-    ``Facade`` inside st (and ``st.Facade`` outside) then run the importer's rule."""
+    """Dotted names in declarations, as CityEngine compiles them.
+
+    * ``st.Facade --> …`` where ``st`` is an import redefines rule ``Facade`` of that import:
+      calls of ``Facade`` inside st (and ``st.Facade`` outside) run the importer's rule
+      (CityEngine's help, "Rule file import").
+    * ``Lot.Green_tile --> …`` where ``Lot`` is no import is a rule of this file under the
+      dotted name; ``Lot.Green_tile`` calls it.  Dotted attributes and functions
+      (``attr Report.enabled = true``, ``Util.half(x) = x / 2``) are the same: declarations
+      of this file under their dotted name.
+    * An import's attribute or function cannot be redefined by a dotted declaration (CityEngine
+      redefines an import's attribute in the import statement or through a same-named
+      attribute of the importer): that is an error naming the way that works."""
     for m in main.all_modules():
         for qualified, overloads in m.qualified_rules.items():
-            found = m.resolve(qualified)
-            first = next(iter(overloads.values()))
-            if found is None:
-                raise RuleError(f"rule '{qualified}' names an unknown import "
-                                f"'{qualified.rsplit('.', 1)[0]}'"
-                                f"{_did_you_mean(qualified.split('.')[0], m.imports)}",
-                                m.path, first.line, first.column)
+            found = _import_of(m, qualified)
+            if found is None:  # the prefix is no import: a rule of this file
+                m.rules[qualified] = overloads
+                m.dotted.add(qualified)
+                continue
             target, short = found
             for arity, rdef in overloads.items():
                 target.rule_overrides.setdefault(short, {})[arity] = (m, rdef)
+        own_attrs = {a.name for a in m.own_declarations[0]}
+        own_functions = {f.name for f in m.own_declarations[1]}
+        for kind, names in (("attribute", [k for k in m.attrs if "." in k]),
+                            ("function", [k for k in m.functions if "." in k])):
+            for qualified in names:
+                if kind == "attribute" and qualified not in own_attrs:
+                    continue  # taken from an anonymous import: checked in its own file
+                if kind == "function" and qualified not in own_functions:
+                    continue
+                found = _import_of(m, qualified)
+                if found is None:
+                    m.dotted.add(qualified)
+                    continue
+                node = (m.attrs[qualified] if kind == "attribute"
+                        else next(iter(m.functions[qualified].values())))
+                prefix, short = qualified.rsplit(".", 1)
+                how = (f"import {prefix} : \"…\" ({short} = …), or an attribute '{short}' "
+                       "of this file, which the import takes" if kind == "attribute" else
+                       f"a rule, or an attribute of {prefix} that its function reads")
+                raise RuleError(f"{kind} '{qualified}' redefines the {kind} '{short}' of the "
+                                f"import '{prefix}', which CGA does not allow; use {how}",
+                                m.path, node.line, node.column)
