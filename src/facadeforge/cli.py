@@ -18,12 +18,41 @@ from pathlib import Path
 
 from .errors import FacadeForgeError, InputError
 
+#: ``facadeforge --help``'s epilog: one example per job; each command's own --help has more.
+TOP_EXAMPLES = """examples:
+  facadeforge demo -o demo-out                                  # the example building, a facade
+  facadeforge derive examples/grammars/building.cga --lot 24x14 -o building.glb --stats
+  facadeforge reconstruct photo.jpg -o out/                     # photo → procedural facade
+  facadeforge parse photo.jpg -o parsed/                        # photo → parse grammar fit
+  facadeforge points scan.ply -o scan-out/                      # laser scan → facades
+  facadeforge repair photo.jpg -o clean/                        # trees and cars removed
+
+  facadeforge COMMAND --help shows every option of a command, with examples."""
+
+
+def _version() -> str:
+    """The installed distribution's version (package metadata), else the source tree's."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("facadeforge")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        from . import __version__
+
+        return __version__
+
+
 EXAMPLES = {
     "derive": """examples:
   facadeforge derive examples/grammars/building.cga --lot 24x14 -o building.glb --stats
   facadeforge derive rules.cga --footprint lots.geojson --assets assets/ --attr height=30 -o city.city.json
   facadeforge derive package.rpk --rule rules/main.cga --footprint lots.geojson -o out.obj
   facadeforge derive src/facadeforge/gml/examples/fig13.gml -o fig13.glb --stats   # GML""",
+    "batch": """examples:
+  facadeforge batch examples/grammars/building.cga --footprint city.geojson -o city-out/
+  facadeforge batch rules.cga --footprint north.geojson south.geojson -o city-out/ --chunk 100
+  facadeforge batch rules.cga --footprint city.geojson -o city-out/ --scheduler tcp://head:8786
+  (the same command again resumes a killed run: finished chunks are kept)""",
     "render": """examples:
   facadeforge render building.glb -o preview.png
   facadeforge render building.obj -o preview.png --size 1600x1200
@@ -107,7 +136,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     def wanted(name: str) -> bool:
         return command in (None, name) or command not in COMMANDS
 
-    p = argparse.ArgumentParser(prog="facadeforge", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="facadeforge", description=__doc__.splitlines()[0],
+                                epilog=TOP_EXAMPLES,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"facadeforge {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     d = sub.add_parser("derive", help="derive CGA rules on footprints and export a 3D model",
@@ -135,6 +167,35 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     d.add_argument("--max-memory", type=_positive, default=None, metavar="MB",
                    help="memory a derivation may add, MiB, shared by the worker processes "
                         "(default 1536)")
+
+    b = sub.add_parser("batch", help="derive CGA rules on a city's footprints on a Dask cluster: "
+                       "resumable, CityJSONSeq chunks, 3D Tiles, buildings.csv",
+                       epilog=EXAMPLES["batch"],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    b.add_argument("rules", help=".cga file or CityEngine rule package (.rpk); workers read it "
+                                 "at this path")
+    b.add_argument("--footprint", nargs="+", required=True, metavar="FILE",
+                   help="GeoJSON or OBJ footprint files (one or more)")
+    b.add_argument("-o", "--output", required=True,
+                   help="output folder; the same command on it again resumes (docs/city.md)")
+    b.add_argument("--scheduler", metavar="ADDRESS",
+                   help="a running Dask scheduler, e.g. tcp://host:8786 (default: a local "
+                        "cluster on 127.0.0.1)")
+    b.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local cluster (default: all cores)")
+    b.add_argument("--chunk", type=int, default=50, metavar="N",
+                   help="buildings a task and a 3D tile (default 50)")
+    b.add_argument("--attr", action="append", type=_parse_attr, default=[], metavar="NAME=VALUE",
+                   help="override an attribute (repeatable)")
+    b.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    b.add_argument("--style", help="CGA style of the rule file (default: Default)")
+    b.add_argument("--start", help="start rule (default: @StartRule, else the first rule)")
+    b.add_argument("--rule", help="main rule file inside an .rpk")
+    b.add_argument("--assets", help="asset folder (relative asset paths resolve here)")
+    b.add_argument("--strict", action="store_true",
+                   help="CGA warnings become errors (the building is recorded as failed)")
+    b.add_argument("--max-seconds", type=_positive, default=None, metavar="S",
+                   help="wall-clock seconds one building's derivation may take (default 30)")
 
     r = sub.add_parser("render", help="CPU preview render of a .glb or .obj model",
                        epilog=EXAMPLES["render"], formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -347,6 +408,25 @@ def cmd_derive(args) -> int:
               f"{len(s['warnings'])} warning(s) → {args.output} ({seconds:.2f} s)")
         for w in s["warnings"][:10]:
             print(f"warning: {w}", file=sys.stderr)
+    return 0
+
+
+def cmd_batch(args) -> int:
+    from .city import batch
+    from .grammar.interpreter import Limits
+
+    limits = Limits()
+    if args.max_seconds is not None:
+        limits.max_seconds = args.max_seconds
+    r = batch(args.rules, args.footprint, args.output, scheduler=args.scheduler,
+              workers=args.workers, chunk=args.chunk, attrs=dict(args.attr), seed=args.seed,
+              style=args.style, assets=args.assets, start=args.start, rule=args.rule,
+              strict=args.strict, limits=limits)
+    print(f"{r.buildings} building(s) in {r.chunks} chunk(s) ({r.derived} derived, {r.skipped} "
+          f"kept from an earlier run), {len(r.failed)} failed → {args.output}/ "
+          f"({r.seconds:.1f} s)")
+    for chunk, name, message in r.failed[:10]:
+        print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
     return 0
 
 
@@ -655,7 +735,7 @@ def cmd_train_classifier(args) -> int:
     return run(args)
 
 
-COMMANDS = {"derive": cmd_derive, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
+COMMANDS = {"derive": cmd_derive, "batch": cmd_batch, "render": cmd_render, "demo": cmd_demo, "bench": cmd_bench,
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
             "synthesize": cmd_synthesize, "repair-model": cmd_repair_model,

@@ -1,0 +1,231 @@
+"""3D Tiles 1.1 tilesets: one glTF (``.glb``) tile per chunk of a city, under a tree of
+bounding boxes.
+
+Axes
+    facadeforge's models are y-up (CGA, glTF).  3D Tiles is z-up and turns glTF content y-up →
+    z-up on loading (a rotation of +90° about x: glTF ``(x, y, z)`` → tiles ``(x, −z, y)``), so
+    the boxes here are in tiles axes: x east, y north, z up, metres.
+Tree
+    The content tiles are grouped, in the order given (a batch gives them in space-filling-curve
+    order, so neighbours share a parent), by at most :data:`FANOUT` under content-less parent
+    tiles up to one root.  A leaf's ``geometricError`` is 0 (its glTF is all there is); a
+    parent's is the diagonal of its box, so a viewer opens it once it covers enough of the
+    screen; ``refine`` is ``ADD`` everywhere.
+Georeference
+    ``transform`` (column-major 4×4) on the root places the local frame on the globe (ECEF,
+    EPSG:4978), see :func:`enu_transform`; without it the tileset is in local coordinates.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["FANOUT", "ContentTile", "box_volume", "enu_transform", "tileset_dict",
+           "tileset_problems", "write_tileset"]
+
+#: Children a parent tile has at most.
+FANOUT = 8
+
+# CGA / glTF (x, y up, z) → 3D Tiles (x, -z, y)
+_TO_TILES = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
+
+
+@dataclass
+class ContentTile:
+    """A tile with glTF content.
+
+    Parameters
+    ----------
+    uri : str
+        Content URI relative to ``tileset.json`` (``"00003.glb"``).
+    lo, hi : (3,) float
+        Bounds of the content in glTF axes (y up), metres.
+    offset : (3,) float
+        Where the content's origin lies in the root's frame, tiles axes (footprint files with
+        different origins); zero for one origin.
+    """
+
+    uri: str
+    lo: Sequence[float]
+    hi: Sequence[float]
+    offset: Sequence[float] = field(default_factory=lambda: (0.0, 0.0, 0.0))
+
+
+def _tiles_bounds(lo, hi) -> tuple[np.ndarray, np.ndarray]:
+    """glTF-axes bounds → tiles-axes bounds."""
+    corners = np.array([[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1])
+                        for c in (lo[2], hi[2])], float) @ _TO_TILES.T
+    return corners.min(axis=0), corners.max(axis=0)
+
+
+def box_volume(lo, hi, pad: float = 0.0) -> list[float]:
+    """An axis-aligned ``boundingVolume.box`` (12 numbers: centre, then the x, y and z half-axes)
+    of tiles-axes bounds ``lo``..``hi``, each side grown by ``pad`` (and kept above zero: a
+    flat tile still has a box)."""
+    lo, hi = np.asarray(lo, float) - pad, np.asarray(hi, float) + pad
+    c, h = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-3)
+    c, h = np.round(c, 6), np.round(h + 1e-6, 6)   # short numbers, still around the content
+    return [*map(float, c), float(h[0]), 0.0, 0.0, 0.0, float(h[1]), 0.0, 0.0, 0.0, float(h[2])]
+
+
+def tileset_dict(tiles: Sequence[ContentTile], *, transform: Sequence[float] | None = None,
+                 generator: str = "facadeforge") -> dict:
+    """The ``tileset.json`` object of ``tiles`` (module docstring).
+
+    Raises
+    ------
+    ValueError
+        No tiles, or bounds that are not finite.
+    """
+    if not tiles:
+        raise ValueError("a tileset needs at least one tile with content")
+    level = []
+    for t in tiles:
+        lo, hi = _tiles_bounds(t.lo, t.hi)
+        off = np.asarray(t.offset, float)
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all() and np.isfinite(off).all()):
+            raise ValueError(f"tile {t.uri}: bounds are not finite")
+        node = {"boundingVolume": {"box": box_volume(lo, hi)}, "geometricError": 0.0,
+                "refine": "ADD", "content": {"uri": t.uri}}
+        if off.any():
+            # a tile's box is in its own frame, which its transform moves into the parent's
+            node["transform"] = [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, *map(float, off), 1.0]
+        level.append((node, lo + off, hi + off))
+    while len(level) > 1 or "content" in level[0][0]:
+        parents = []
+        for k in range(0, len(level), FANOUT):
+            group = level[k:k + FANOUT]
+            lo = np.min([g[1] for g in group], axis=0)
+            hi = np.max([g[2] for g in group], axis=0)
+            parents.append(({"boundingVolume": {"box": box_volume(lo, hi, pad=0.01)},
+                             "geometricError": _diagonal(lo, hi), "refine": "ADD",
+                             "children": [g[0] for g in group]}, lo - 0.01, hi + 0.01))
+        level = parents
+    root = level[0][0]
+    if transform is not None:
+        root["transform"] = [float(v) for v in transform]
+    return {"asset": {"version": "1.1", "generator": generator},
+            "geometricError": root["geometricError"], "root": root}
+
+
+def _diagonal(lo, hi) -> float:
+    return round(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 3)
+
+
+def write_tileset(path: str | os.PathLike, tiles: Sequence[ContentTile], *,
+                  transform: Sequence[float] | None = None) -> Path:
+    """Write ``tileset.json`` atomically (a temporary file beside it, then a rename); the
+    content files are the caller's and must lie beside it under their URIs."""
+    path = Path(path)
+    text = json.dumps(tileset_dict(tiles, transform=transform), indent=1) + "\n"
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
+
+
+def enu_transform(easting: float, northing: float, height: float, epsg: int) -> list[float]:
+    """The column-major 4×4 that places a local east-north-up frame whose origin is at
+    (``easting``, ``northing``, ``height``) in EPSG:``epsg`` on the globe (ECEF, EPSG:4978), for
+    a tileset root's ``transform``.  The local frame is taken as the CRS's own grid axes, which
+    differ from true east-north by the grid convergence (under a degree or two in UTM).
+
+    Raises
+    ------
+    ValueError
+        pyproj cannot transform from that CRS.
+    """
+    from pyproj import Transformer
+
+    try:
+        lon, lat, h = Transformer.from_crs(f"EPSG:{epsg}", "EPSG:4979", always_xy=True
+                                           ).transform(easting, northing, height)
+        x, y, z = Transformer.from_crs("EPSG:4979", "EPSG:4978", always_xy=True
+                                       ).transform(lon, lat, h)
+    except Exception as exc:  # pyproj raises its own types
+        raise ValueError(f"cannot place EPSG:{epsg} on the globe: {exc}") from exc
+    if not all(math.isfinite(v) for v in (lon, lat, x, y, z)):
+        raise ValueError(f"cannot place EPSG:{epsg} coordinates {easting}, {northing} on the "
+                         "globe")
+    lo, la = math.radians(lon), math.radians(lat)
+    east = [-math.sin(lo), math.cos(lo), 0.0]
+    north = [-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la)]
+    up = [math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)]
+    return [*east, 0.0, *north, 0.0, *up, 0.0, x, y, z, 1.0]
+
+
+# -- checks -----------------------------------------------------------------------------------
+
+def tileset_problems(path: str | os.PathLike) -> list[str]:
+    """What is wrong with a tileset by the 3D Tiles 1.1 rules that can be checked without a
+    viewer (an empty list when nothing is): ``asset.version``; every tile's ``boundingVolume``
+    (a box of 12 finite numbers), ``geometricError`` (≥ 0, not above its parent's), ``refine``;
+    content URIs that are relative and name existing files beside the tileset; and each
+    child's box inside its parent's (both in the parent's frame, child ``transform``
+    translations applied)."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        return [f"{path}: unreadable: {exc}"]
+    problems = []
+    if not isinstance(doc, dict) or doc.get("asset", {}).get("version") not in ("1.0", "1.1"):
+        problems.append("asset.version must be '1.0' or '1.1'")
+    if not isinstance(doc.get("geometricError"), int | float) or doc["geometricError"] < 0:
+        problems.append("geometricError must be a number ≥ 0")
+    root = doc.get("root") if isinstance(doc, dict) else None
+    if not isinstance(root, dict):
+        return problems + ["root tile missing"]
+    if "refine" not in root:
+        problems.append("root: refine must be given on the root")
+    base = path.parent.resolve()
+
+    def walk(tile, where, parent_box, parent_error):
+        box = tile.get("boundingVolume", {}).get("box")
+        if not (isinstance(box, list) and len(box) == 12
+                and all(isinstance(v, int | float) and math.isfinite(v) for v in box)):
+            problems.append(f"{where}: boundingVolume.box must be 12 finite numbers")
+            return
+        err = tile.get("geometricError")
+        if not isinstance(err, int | float) or err < 0:
+            problems.append(f"{where}: geometricError must be a number ≥ 0")
+        elif parent_error is not None and err > parent_error:
+            problems.append(f"{where}: geometricError {err} above its parent's {parent_error}")
+        if tile.get("refine", "ADD") not in ("ADD", "REPLACE"):
+            problems.append(f"{where}: refine must be ADD or REPLACE")
+        lo, hi = _box_bounds(box)
+        t = tile.get("transform")
+        if t is not None:
+            lo, hi = lo + np.asarray(t[12:15], float), hi + np.asarray(t[12:15], float)
+        if parent_box is not None:
+            plo, phi = parent_box
+            if (lo < plo - 1e-6).any() or (hi > phi + 1e-6).any():
+                problems.append(f"{where}: bounding volume not inside its parent's")
+        content = tile.get("content")
+        if content is not None:
+            uri = content.get("uri") if isinstance(content, dict) else None
+            if not isinstance(uri, str) or "://" in uri or uri.startswith("/"):
+                problems.append(f"{where}: content.uri must be a relative URI")
+            elif not (base / uri).resolve().is_file():
+                problems.append(f"{where}: content {uri} does not exist")
+        for k, child in enumerate(tile.get("children", [])):
+            # a child's transform is relative to this tile's frame, the one its box is in
+            walk(child, f"{where}.children[{k}]", _box_bounds(box), err)
+
+    walk(root, "root", None, doc.get("geometricError"))
+    return problems
+
+
+def _box_bounds(box) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds of an oriented ``box`` (12 numbers)."""
+    c = np.asarray(box[:3], float)
+    axes = np.abs(np.asarray(box[3:], float).reshape(3, 3))
+    ext = axes.sum(axis=0)
+    return c - ext, c + ext

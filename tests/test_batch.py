@@ -1,0 +1,244 @@
+"""``facadeforge batch`` on Dask: outputs, resume after a lost chunk, refused reruns, failed
+buildings, and a real SIGKILL of the whole run (issue 31)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter
+from pathlib import Path
+
+import pygltflib
+import pytest
+
+from facadeforge.city import plan_chunks, tileset_problems
+from facadeforge.cli import main
+from facadeforge.geometry.footprints import load_footprints
+from facadeforge.scratch import owner_tag
+
+RULES = """version "2019.0"
+attr height = 10
+@StartRule
+Lot --> extrude(height) Mass
+Mass --> comp(f) { side : Wall | top : Roof | bottom : NIL }
+Wall --> split(y) { ~3 : Floor }*
+Floor --> split(x) { ~3 : Tile }*
+Tile --> color("#b0a090") Tile.
+Roof --> color("#803020") Roof.
+"""
+
+
+def city(path: Path, n: int, tall: set[int] = frozenset()) -> Path:
+    """``n`` rectangular lots on a grid; those in ``tall`` far too high to derive."""
+    side = int(n ** 0.5) + 1
+    feats = []
+    for i in range(n):
+        x, y = (i % side) * 30.0, (i // side) * 24.0
+        w, d = 12 + i % 5, 9 + i % 3
+        props = {"name": f"b{i:04d}"}
+        if i in tall:
+            props["height"] = 1e12
+        feats.append({"type": "Feature", "properties": props, "geometry": {
+            "type": "Polygon",
+            "coordinates": [[[x, y], [x + w, y], [x + w, y + d], [x, y + d], [x, y]]]}})
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    return path
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """One local Dask cluster (2 worker processes) for the in-process runs: they go through
+    ``--scheduler``, the multi-machine path; the SIGKILL test starts its own."""
+    distributed = pytest.importorskip("distributed")
+    import logging
+
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None,
+                                  silence_logs=logging.ERROR) as cluster:
+        yield cluster.scheduler_address
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("batch-inputs")
+    (d / "tiny.cga").write_text(RULES)
+    return d / "tiny.cga", city(d / "city.geojson", 30)
+
+
+def run(rules, fps, out, scheduler, *extra) -> int:
+    return main(["batch", str(rules), "--footprint", *map(str, fps), "-o", str(out),
+                 "--chunk", "5", "--scheduler", scheduler, *extra])
+
+
+def buildings_in_chunks(out: Path) -> Counter:
+    """How many times each building is in the CityJSONSeq chunks; checks each line too."""
+    seen: Counter = Counter()
+    for path in sorted((out / "chunks").glob("*.city.jsonl")):
+        lines = path.read_text(encoding="utf-8").splitlines()
+        head = json.loads(lines[0])
+        assert head["type"] == "CityJSON" and head["version"] == "2.0"
+        assert head["CityObjects"] == {} and head["vertices"] == []
+        assert len(head["transform"]["scale"]) == 3
+        for line in lines[1:]:
+            f = json.loads(line)
+            assert f["type"] == "CityJSONFeature"
+            assert f["id"] in f["CityObjects"]
+            assert f["CityObjects"][f["id"]]["type"] == "Building"
+            assert isinstance(f["vertices"], list) and f["vertices"]
+            n = len(f["vertices"])
+            for obj in f["CityObjects"].values():
+                for g in obj["geometry"]:
+                    flat = json.dumps(g["boundaries"]).replace("[", " ").replace("]", " ")
+                    assert max(int(v) for v in flat.replace(",", " ").split()) < n
+            seen[f["id"]] += 1
+    return seen
+
+
+def test_batch_writes_chunks_tiles_and_table(inputs, scheduler, tmp_path, capsys):
+    rules, fps = inputs
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    assert "30 building(s) in 6 chunk(s) (6 derived, 0 kept" in capsys.readouterr().out
+    seen = buildings_in_chunks(out)
+    assert sorted(seen) == [f"b{i:04d}" for i in range(30)] and set(seen.values()) == {1}
+    entries = [json.loads(p.read_text()) for p in sorted((out / "manifest").glob("*.json"))]
+    assert [e["name"] for e in entries] == [f"{k:05d}" for k in range(6)]
+    assert all(len(e["input_hash"]) == 64 and len(e["rules_hash"]) == 64 for e in entries)
+    assert all(e["version"] and e["derived"] == 5 and not e["failed"] for e in entries)
+    rows = list(csv.DictReader((out / "buildings.csv").open(encoding="utf-8")))
+    assert len(rows) == 30 and {r["status"] for r in rows} == {"ok"}
+    assert all(float(r["height_m"]) == pytest.approx(10) for r in rows)
+    for e in entries:
+        glb = pygltflib.GLTF2().load(str(out / e["files"]["glb"]))
+        assert len(glb.meshes) == 5 and glb.asset.version == "2.0"
+    assert tileset_problems(out / "tiles" / "tileset.json") == []
+    assert not list((out / ".work").iterdir())
+
+
+def test_rerun_redoes_only_the_chunk_without_manifest(inputs, scheduler, tmp_path, capsys):
+    rules, fps = inputs
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    stamps = {p.name: p.stat().st_mtime_ns for p in (out / "manifest").glob("*.json")}
+    # as a worker killed while writing chunk 2 leaves it: no manifest entry, its scratch
+    # folder half written (a dead process's), an old jsonl under its final name
+    (out / "manifest" / "00002.json").unlink()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    stale = out / ".work" / f"chunk-{owner_tag().rsplit('-', 1)[0]}-{dead}-x1y2"
+    stale.mkdir()
+    (stale / ".00002.glb.abc.part").write_bytes(b"glTF half")
+    capsys.readouterr()
+    assert run(rules, [fps], out, scheduler) == 0
+    assert "(1 derived, 5 kept from an earlier run)" in capsys.readouterr().out
+    assert not stale.exists()
+    now = {p.name: p.stat().st_mtime_ns for p in (out / "manifest").glob("*.json")}
+    assert set(now) == set(stamps)
+    assert [k for k in now if now[k] != stamps[k]] == ["00002.json"]
+    seen = buildings_in_chunks(out)
+    assert len(seen) == 30 and set(seen.values()) == {1}
+    assert len(list(csv.DictReader((out / "buildings.csv").open()))) == 30
+    assert tileset_problems(out / "tiles" / "tileset.json") == []
+
+
+def test_other_options_on_the_same_outdir_are_refused(inputs, scheduler, tmp_path, capsys):
+    rules, fps = inputs
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    capsys.readouterr()
+    assert run(rules, [fps], out, scheduler, "--attr", "height=4") == 2
+    err = capsys.readouterr().err
+    assert err.startswith("facadeforge: error: output folder") and err.count("\n") == 1
+    assert "--attr was {}" in err and "give a new -o folder" in err
+    other = rules.with_name("other.cga")
+    other.write_text(RULES.replace("height = 10", "height = 12"))
+    assert run(other, [fps], out, scheduler) == 2
+    assert "other rules" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--attr", "heigth=3"], "--attr heigth: the rules have no attribute 'heigth'"),
+    (["--chunk", "0"], "--chunk 0: give a positive number"),
+])
+def test_bad_arguments_are_one_line(inputs, scheduler, tmp_path, capsys, argv, message):
+    rules, fps = inputs
+    assert main(["batch", str(rules), "--footprint", str(fps), "-o", str(tmp_path / "o"),
+                 "--scheduler", scheduler, *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("facadeforge: error: ") and message in err and err.count("\n") == 1
+
+
+def test_foreign_outdir_and_input_inside_are_refused(inputs, tmp_path, capsys):
+    rules, fps = inputs
+    (tmp_path / "mine.txt").write_text("keep me")
+    assert main(["batch", str(rules), "--footprint", str(fps), "-o", str(tmp_path)]) == 2
+    assert "holds files and no batch.json" in capsys.readouterr().err
+    inside = tmp_path / "o"
+    inside.mkdir()
+    local = city(inside / "c.geojson", 2)
+    assert main(["batch", str(rules), "--footprint", str(local), "-o", str(inside)]) == 2
+    assert "is inside the output folder" in capsys.readouterr().err
+
+
+def test_a_failing_building_is_recorded_not_fatal(inputs, scheduler, tmp_path, capsys):
+    rules, _ = inputs
+    fps = city(tmp_path / "c.geojson", 7, tall={3})
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    r = capsys.readouterr()
+    assert "1 failed" in r.out and "b0003" in r.err
+    rows = {row["building"]: row for row in csv.DictReader((out / "buildings.csv").open())}
+    assert rows["b0003"]["status"] == "failed" and rows["b0003"]["error"]
+    assert sum(row["status"] == "ok" for row in rows.values()) == 6
+    failed = [f for p in (out / "manifest").glob("*.json")
+              for f in json.loads(p.read_text())["failed"]]
+    assert [f["building"] for f in failed] == ["b0003"]
+    assert set(buildings_in_chunks(out)) == set(rows) - {"b0003"}
+
+
+def test_chunks_are_compact_and_names_unique_across_files(tmp_path):
+    a = load_footprints(city(tmp_path / "a.geojson", 16))
+    b = load_footprints(city(tmp_path / "b.geojson", 3))
+    chunks = plan_chunks([a, b], 4)
+    assert [len(c.footprints) for c in chunks] == [4, 4, 4, 4, 3]
+    names = [fp.name for c in chunks for fp in c.footprints]
+    assert len(set(names)) == 19 and "b0000~2" in names
+    assert plan_chunks([a, b], 4)[2].input_hash == chunks[2].input_hash   # deterministic
+
+
+def test_sigkill_midway_then_rerun_gives_every_building_once(inputs, tmp_path):
+    """The whole run (driver, scheduler, workers: its process group) killed with SIGKILL once
+    the first chunks are done; the same command again finishes the city."""
+    rules, _ = inputs
+    fps = city(tmp_path / "big.geojson", 200)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "facadeforge.cli", "batch", str(rules), "--footprint",
+           str(fps), "-o", str(out), "--chunk", "5", "--workers", "2"]
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
+    p = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, env=env)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and p.poll() is None:
+            if len(list((out / "manifest").glob("*.json"))) >= 2:
+                break
+            time.sleep(0.02)
+        os.killpg(p.pid, signal.SIGKILL)
+    finally:
+        p.wait(timeout=30)
+    kept = len(list((out / "manifest").glob("*.json")))
+    assert 2 <= kept < 40, "the run was not killed midway"
+    assert not (out / "tiles" / "tileset.json").exists()
+    r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert f"({40 - kept} derived, {kept} kept from an earlier run)" in r.stdout
+    seen = buildings_in_chunks(out)
+    assert len(seen) == 200 and set(seen.values()) == {1}
+    assert len(list(csv.DictReader((out / "buildings.csv").open()))) == 200
+    assert tileset_problems(out / "tiles" / "tileset.json") == []
+    assert not list((out / ".work").iterdir())
