@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env bench-env prt-env demo test lint bench fuzz clean
+.PHONY: env train-env bench-env prt-env demo test lint docs bench fuzz clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -43,8 +43,22 @@ demo: env
 lint: env
 	$(VENV)/bin/ruff check src tests benchmarks docs
 
-test: env lint
+test: env lint docs
 	$(VENV)/bin/python -m pytest
+
+# The documentation site (MkDocs, Material, mkdocstrings; mkdocs.yml) from docs/ into site/, in
+# its own environment .venv-docs holding only the docs group (the API reference is read from
+# src/ without importing it).  --strict: any warning (a broken link, a missing page, a
+# docstring mkdocstrings cannot read) fails the build.  Offline: no fonts or CDN fetched
+# (theme.font: false); the benchmark pages are written from benchmarks/results/*.json by the
+# hook docs/hooks/bench_pages.py at build time.  Not --quiet: it hides the warnings --strict counts.
+DOCS_VENV := .venv-docs
+$(DOCS_VENV)/.synced: $(UV) pyproject.toml uv.lock
+	UV_PROJECT_ENVIRONMENT=$(DOCS_VENV) $(UV) sync --frozen --only-group docs --no-install-project --python $(PYTHON)
+	touch $@
+
+docs: $(DOCS_VENV)/.synced
+	NO_MKDOCS_2_WARNING=1 $(DOCS_VENV)/bin/mkdocs build --strict
 
 # The long fuzz run (tests/fuzz): mutated rules, footprints, classifiers, rule packages and
 # models until FUZZ_SECONDS are spent, each run bounded to 60 s and 3 GiB; FUZZ_SEED for others.
