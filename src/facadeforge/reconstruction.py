@@ -12,10 +12,10 @@
    facade it finds (:func:`_facade_extent`: sky and neighbours around it become background),
    and its elements become boxes (:mod:`.imaging.detect`);
    when it finds at least :data:`MIN_ELEMENTS`, floors, tiles and tile refinements are laid
-   around them (:mod:`.imaging.element_layout`) instead of steps 3's lines and 6 — on the CMP
-   val split this raises window F1 from 0.08 to 0.68 (README, *Benchmarks*); balconies
+   around them (:mod:`.imaging.element_layout`) instead of steps 3's lines and 6 (the
+   ``structure`` against the ``structure-edges`` benchmark rows); balconies
    become boxes too and are hung, outside the partition, on the tile or floor they stand in
-   front of (:mod:`.imaging.shape_tree`; CMP val balcony IoU 0 → 0.56);
+   front of (:mod:`.imaging.shape_tree`);
 5. ``cluster`` — groups of similar floors and tiles (§2.3's groups);
 6. ``refine`` — tile refinement with split synchronisation (§3), on the paper's path
    (``classifier=False``, or too few elements detected);

@@ -91,17 +91,13 @@ def default_label_set(rectified: bool, elements: bool = False) -> str:
     """The shipped model ``parse`` and ``reconstruct`` use when none is given: ``cmp6``
     (trained on rectified facades of many cities, CMP) for photos given as rectified, ``ecp7``
     (trained on Parisian street photos, RueMonge) for street photos: it knows roof and sky, and
-    labels railings balcony as RueMonge does.  On the RueMonge validation photos
-    ``reconstruct`` scored window F1 0.54 with ``ecp7`` against 0.17 with the auto-context
-    ``cmp6`` forest, whose windows take in the railings in front of them; the ``cmp6``
-    networks that replaced it generalise better (first four photos: the convnet 0.57, the
-    ensemble 0.56, ``ecp7`` 0.51), so the choice stands on the classes, not on the windows.
+    labels railings balcony as RueMonge does; the choice stands on the classes a street
+    photo shows, not on the windows alone.
 
     ``elements``: for element detection (``reconstruct``), rectified photos get CMP's twelve
-    classes (``cmp12``), in which a window's glass is apart from its shutters and sills:
-    window detection F1 on the 60 CMP val facades 0.765 with the ``cmp12`` network against
-    0.754 with the ``cmp6`` ensemble (whose windows take in their shutters, as ``cmp6`` does),
-    and on the demo's shuttered synthetic facade 0.47 against 0.21."""
+    classes (``cmp12``), in which a window's glass is apart from its shutters and sills (the
+    ``cmp6`` windows take in their shutters).  How each choice scored:
+    ``docs/design-measurements.md``."""
     if rectified:
         return "cmp12" if elements else "cmp6"
     return "ecp7"

@@ -6,10 +6,8 @@ two facade U-Nets (:mod:`.convnet`) trained on the same CMP facades, one in the 
 classes and one in CMP's twelve (``cmp12``: it must tell shutters from glass and sills from
 wall).  A member's probabilities are first projected onto the ensemble's label set
 (:meth:`~facadeforge.datasets.LabelSet.project_proba`: ``cmp12``'s blind adds into ``cmp6``'s
-window, its sill into wall).  On the 60 CMP val facades: mIoU 0.524 (cmp6 net), 0.533 (cmp12
-net, projected), 0.548 (both averaged); the grid grammar fitted to them scored 0.441, 0.433
-and 0.456 (probabilities cached at the energy's scale; the bench of the shipped ensemble:
-0.455).
+window, its sill into wall).  The members' and the ensemble's scores are in
+``benchmarks/results/classifiers.json`` (the docs site's benchmark pages).
 
 Members are stored whole inside the ensemble's ``.npz`` (their arrays under ``m0.``, ``m1.``…,
 their kinds, classes and provenance in the metadata), so the file is as safe to load as any

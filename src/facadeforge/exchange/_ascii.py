@@ -1,7 +1,7 @@
 """Numbers to text for the text formats (OBJ), vectorised.
 
 A city's OBJ holds millions of ``v``, ``vt`` and ``f`` lines; ``np.savetxt`` formats them one
-row at a time in Python (15 s for 40 benchmark buildings).  :func:`format_lines` writes every
+row at a time in Python (slow: ``docs/benchmarks.md``).  :func:`format_lines` writes every
 digit of a block of lines with a few numpy passes over all numbers at once instead, into one
 byte buffer: each number is rounded to fixed point, its digits are peeled off one decimal place
 per pass, and separators, signs and decimal points are placed by offset arithmetic.

@@ -3,7 +3,7 @@ classifier's probabilities.
 
 Why this exists
     Müller et al. 2007 find windows from image edges alone (§2–3); on the varied facades of
-    CMP that path finds few of them (window F1 0.08 on the development val split).  A pixel
+    CMP that path finds few of them (the ``structure-edges`` benchmark rows).  A pixel
     classifier (:mod:`facadeforge.classify`, ``simon2011`` §4.3) sees most window pixels, but
     the connected components of its class map are poor objects: neighbouring windows merge
     through piers it half sees, fragments and faint blobs appear.  :func:`detect_elements`
@@ -50,9 +50,8 @@ Balconies (:data:`PROTRUDING_LABELS`) stand in front of the wall and of the wind
 :func:`detect_protruding` gives their boxes by steps 1–4 with the same parameters — a band
 running along a floor is one box, the XY-cut separates the balconies of single windows — and
 keeps them apart from the other elements, which they overlap (a window behind a railing stays
-a window).  On the 60 CMP val facades their boxes reach a balcony IoU of 0.561 against the
-truth (the classifier's own balcony pixels: 0.551), box F1 0.45 (IoU ≥ 0.5); leaving step 2
-out (0.551, F1 0.43) or a looser XY-cut (``xy_tol=0.3``: 0.575, F1 0.40) was not better.
+a window).  Leaving step 2 out or a looser XY-cut was tried for them and was not better
+(figures: ``docs/design-measurements.md``).
 """
 
 from __future__ import annotations
@@ -332,9 +331,8 @@ def detect_elements(prob: np.ndarray, classes: Sequence[str],
         draws each window whole behind them, as CMP does (12 % of its windows overlap a
         balcony box, by a median 39 % of their area): a window is extended down through the
         rows below it where these classes are most probable across its width, by at most a
-        third of its height (CMP val window F1 with the ``cmp6`` convnet 0.724 → 0.729, with
-        the ``cmp12`` network 0.755 → 0.765; by up to its whole height, 0.708 with the
-        ``cmp6`` convnet).
+        third of its height (step 6 of ``benchmarks/results/detect_cmp.json``; by up to its
+        whole height it scored lower: ``docs/design-measurements.md``).
 
     Returns
     -------

@@ -289,7 +289,7 @@ def refine_clusters(floors: Sequence[tuple[int, int]], tiles: Sequence[Sequence[
     within ``tol``.  Protruding elements (``fronts``, :attr:`ElementLayout.fronts`) count as
     elements of the tile or floor they hang on.  The elements themselves are not moved:
     synchronising them instead (§3.2: every window edge moved to the median of its 1-D cluster
-    of edges) lowered window F1 on CMP val from 0.683 to 0.676.
+    of edges) lowered window F1 on CMP val (``docs/design-measurements.md``).
 
     ``floors``, ``tiles`` and ``regions`` are an :class:`ElementLayout`'s (or stage 1's with
     the §3 refinements: element leaves are those with ``role == "element"``).  Returns new

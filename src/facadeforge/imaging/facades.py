@@ -32,8 +32,8 @@ A street photo often shows a corner (two facade planes) or several houses side b
 
 Conventions as in :mod:`.rectify`: pixel ``(r, c)`` has its centre at ``(c + 0.5, r + 0.5)``,
 homographies map photo pixels → rectified pixels.  Everything runs at the size it is given
-(``reconstruct`` gives the analysis copy, :func:`facadeforge.photo.analysis_copy`); about 0.2 s
-for an 800 × 1067 photo on a 2-core VM, half of it the line segment detector.
+(``reconstruct`` gives the analysis copy, :func:`facadeforge.photo.analysis_copy`); the line
+segment detector is about half of its time.
 """
 
 from __future__ import annotations

@@ -39,8 +39,8 @@ window or none).
 
 The results are written into the grammar's own attributes, derived by the same layout code as
 the search (and by the engine for the model), and kept only if the derived layout's energy is
-lower than before the stage.  About 0.05 s per facade on the CMP validation facades (at most
-0.25 s), against about 1.3 s for the consistent search.
+lower than before the stage.  It costs a small part of the consistent search's time
+(``docs/design-measurements.md``).
 """
 
 from __future__ import annotations

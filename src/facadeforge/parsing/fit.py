@@ -38,11 +38,9 @@ DEFAULT_GRAMMAR = "grid"
 ENERGY_SIDE = 256
 #: Nats per pixel the derivation's label is worth against the classifier's evidence in the
 #: parse's label map (:meth:`facadeforge.parsing.parse.Parse.labels_input`).  Chosen on 30
-#: train photos of each development split (``benchmarks/evidence.py``,
-#: ``benchmarks/results/evidence.json``): mean mIoU 0.734 at 0.25 (RueMonge 0.831, CMP 0.638)
-#: against 0.733 at 0.5, 0.728 at 1, 0.663 for the derivation alone (inf) and 0.733 for the
-#: classifier alone (0).  On its own training photos a classifier is more right than on new
-#: ones, so this choice leans towards the classifier, if anything.
+#: train photos of each development split (``benchmarks/evidence.py``; every value tried and
+#: its scores: ``benchmarks/results/evidence.json``).  On its own training photos a classifier
+#: is more right than on new ones, so this choice leans towards the classifier, if anything.
 EVIDENCE = 0.25
 
 

@@ -14,7 +14,7 @@ sign is where the front-most points stand well *in front* of it:
    (any point); empty pieces of the facade where glass gave no return, next to a recess,
    count as recessed (:func:`glass_holes`: glass "returns little", ``simon2011`` §5.4.3);
    (a density cue — cells with under 30 % of the wall's point density around them as flush
-   glass — was tried and lowered F1 on NUIST, 0.94 → 0.70, and on the synthetic scans);
+   glass — was tried and lowered F1 on NUIST and on the synthetic scans);
 2. the recessed share of the occupied cells in a :data:`WINDOW_M` box (a box filter on each),
    above :data:`MIN_SHARE` where at least :data:`MIN_OCCUPIED` of the box holds points — the
    scan's line pattern leaves empty stripes on a wall, and an opening with no return at all is

@@ -11,9 +11,9 @@ Pareto set (§5.2.3).  On a laser scan both come from the facade's own rasters
   (:func:`detection_proba`: trusted at 0.7, blurred by 15 cm), the detector playing the
   thesis's pixel classifier (§4.3).  Tried and removed: per cell the laser intensity and the log
   point density, a Gaussian per class fitted on the cells the detector put in windows, doors and
-  wall (the detector's boxes standing in for the user's strokes, §5.3.1) — on the 4 development
-  synthetic scans ``--fit grammar`` scored F1 0.26 with it against 0.46 with the boxes (the
-  element layout alone: 0.50).  Cells outside the facade's silhouette get every class at the same probability:
+  wall (the detector's boxes standing in for the user's strokes, §5.3.1) — on the development
+  synthetic scans ``--fit grammar`` scored lower with it than with the boxes
+  (``docs/design-measurements.md``).  Cells outside the facade's silhouette get every class at the same probability:
   the scan says nothing there;
 - **depth** — :class:`~facadeforge.parsing.energy.DepthEnergy` on the depth map measured from the
   wall around each cell (:func:`~.elements.wall_depth`), each leaf at its class's **measured**

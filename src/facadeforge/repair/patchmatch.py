@@ -26,20 +26,10 @@ et al. 2009) whose patch distance (eq. 3) is
 **w, h.**  The paper borrows ``σ_c = max(w, h)/8`` and the initial search radius ``max(w, h)``
 from Zhu et al. (2021b) without defining w, h.  Here they are the width and height of the image
 at the current pyramid level, as in Huang et al. (2014), where eq. 5 comes from, and as Barnes et
-al.'s search radius.  The hole's bounding box was measured as the alternative (a window grid:
-4 holes hiding windows × 8 seeds, and 30 random holes; 6 brick-facade photo fills):
-
-=========================  =========================  ============  ==========
-w, h                       hiding windows (4 holes)   random holes  photo PSNR
-=========================  =========================  ============  ==========
-the image's, both (used)   0.971  1.0    0.928  0.932  0.9965        18.1 dB
-the hole's box for σ_c     0.964  1.0    0.899  0.917  0.9909        18.4 dB
-the hole's box for r       0.977  0.998  0.942  0.951  0.9922        18.2 dB
-=========================  =========================  ============  ==========
-
-— small differences; with a shallow pyramid (see :func:`_level_count`) the hole's box as σ_c was
-clearly worse (0.92 / 1.0 / 0.86 / 0.90 against 1.0 / 1.0 / 0.88 / 0.97): for a small hole it
-makes the proximity cost strong enough to prefer the nearest wall over the repetition.
+al.'s search radius.  The hole's bounding box was tried as the alternative, with small
+differences; with a shallow pyramid (see :func:`_level_count`) the hole's box as σ_c was
+clearly worse: for a small hole it makes the proximity cost strong enough to prefer the
+nearest wall over the repetition (figures: ``docs/design-measurements.md``).
 
 **Search** (§3.2.2).  A pyramid (labels and guide downsampled ×2 by the mode of each 2 × 2 block,
 colour by its mean, the hole by "any pixel unknown"); at each level ``iterations`` passes, each
@@ -52,8 +42,7 @@ visiting every target pixel (one whose patch overlaps the hole) and comparing ``
    ``W // 2`` along the horizontal or the vertical line through p (the directions Θ, as in Zhu
    et al. 2021b) — or as a Barnes refinement around the current match, from a rectangle of
    length 2r along one of Θ and width ``2·min(r, W // 2) + 1`` across it.  (Drawing both at every
-   radius costs 30 % more time; measured as above it gave 0.955 / 0.9902 / 18.7 dB against
-   0.958 / 0.9965 / 18.1 dB.)
+   radius costs more time for no clear gain: ``docs/design-measurements.md``.)
 
 Sources are known pixels whose whole W × W patch is known and lies inside the image (when no such
 patch exists, any known centre whose patch fits; hole pixels of such a patch never vote).  The
@@ -71,9 +60,8 @@ for the output rather than the best patch's centre: where the NNF is coherent (a
 one offset, which is what propagation produces) every vote agrees and the vote *is* the centre
 copy, sharp; where neighbouring offsets disagree, the centre copy leaves seams and isolated wrong
 pixels, while the vote settles on the majority (labels) or blends the seam (colour).  The
-Gaussian weight favours the patch centred on q, so the blend stays narrow.  Measured, the two
-hardly differ (inside-hole label accuracy 1.0 for both on 12 random holes of a window grid;
-PSNR within 0.11 dB on three brick-facade fills of 19.7–25.9 dB): the NNF is coherent almost
+Gaussian weight favours the patch centred on q, so the blend stays narrow.  The two hardly
+differ in practice (``docs/design-measurements.md``): the NNF is coherent almost
 everywhere, and the vote is the EM step of every pass anyway.
 
 The inner loops are numba kernels (``@njit(cache=True)``); numba is imported on first use, not with

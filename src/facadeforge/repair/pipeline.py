@@ -21,9 +21,9 @@ Stages, each on arrays (ARCHITECTURE.md: repair never imports the engine):
    (:func:`~.smooth.expected_fill`: normalised convolution and the facade's periods) plus
    :data:`DETAIL` of that texture's fine detail (its difference from a σ = 3 px blur); with
    ``fill="texture"`` the texture as it is.  A texture paints *a* plausible facade; where
-   the hidden facade is not predictable its details fall in the wrong place, and on 20 CMP
-   train facades with LabelMeFacade train occluders the texture alone scored 13.3 dB masked
-   PSNR against 16.6 dB for the blend (OpenCV Telea 15.5; ``benchmarks/repair.py``).
+   the hidden facade is not predictable its details fall in the wrong place, which is why
+   the blend is the default (``repair-mask`` against ``repair-mask-texture`` in
+   ``benchmarks/results/repair.json``).
 """
 
 from __future__ import annotations

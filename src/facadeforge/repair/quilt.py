@@ -17,10 +17,9 @@ Candidate search
     ``Σ M|T|² − 2 Σ_c corr(I_c, M·T_c) + corr(|I|², M)`` (``T`` what is placed, ``M`` the mask of
     placed pixels, ``I`` the source), three correlations computed with FFTs of the source done
     once; per block that is one batched forward FFT and one inverse, whatever the mask's shape.
-    The FFTs run in single precision (≈2× faster; the error is ~1 in sums of ~10⁶, far below
-    the 0.5 (of 255²) per overlap pixel of slack added to the tolerance test).  A 600×400
-    region filled from a 300×300 source (default 50 px blocks) takes about 0.6–1.1 s on one
-    core.
+    The FFTs run in single precision (faster; the error is ~1 in sums of ~10⁶, far below
+    the 0.5 (of 255²) per overlap pixel of slack added to the tolerance test).  The cost grows
+    with the region's and the source's areas (``docs/design-measurements.md``).
 
 Constrained quilting (:func:`quilt`)
     To fill a region of a photo the blocks are laid over the region's bounding box, starting one

@@ -12,9 +12,8 @@ group that holds hole pixels:
    instance's own pixels) maximising the normalised cross-correlation of its grey values with
    the target's *known* pixels — boxes from a detector or a shape tree are often a pixel or two
    off; without enough known target pixels (a wholly hidden window) the box is trusted.
-   Measured on a synthetic facade with boxes moved ±2 px: the partly hidden windows come back
-   at 13.7 dB PSNR trusting the boxes, 30.2 dB searching ±2 px, 31.9 dB ±3 px (the default;
-   relative offsets reach ±4 px), 31.6 dB from the exact boxes;
+   The default search is ±3 px (relative offsets reach ±4 px;
+   ``docs/design-measurements.md``);
 3. per pixel, the instances that see it are combined by their median (per channel, weighted by
    visibility); the target's own hole pixels are never read, and a pixel no other instance
    sees stays unfilled;
@@ -22,9 +21,9 @@ group that holds hole pixels:
    (Poisson) solve: the unknowns are the painted hole pixels, the guidance is the gradient of
    the painted estimate inside the box, the boundary values are the known (or already painted)
    pixels next to them, and unfilled hole pixels are a free (Neumann) boundary.  This takes out
-   the brightness difference between the instances and the target (shading across a facade):
-   on a facade lit ±20 % across, all painted pixels 28.8 dB pasted → 30.7 dB blended (a window
-   hidden whole, with little boundary to meet, loses a little: 33.4 → 31.3 dB).
+   the brightness difference between the instances and the target (shading across a facade;
+   a window hidden whole, with little boundary to meet, loses a little:
+   ``docs/design-measurements.md``).
    ``cv2.seamlessClone`` was not used: it clamps to every pixel around the mask, occluder
    pixels included, and fails on masks touching the image border.
 

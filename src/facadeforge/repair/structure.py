@@ -42,15 +42,10 @@ where the row of its neighbours crosses the column of the windows above it.
        goes on around complete elements — and wall in at least one.  Everything else stays
        undecided for a texture-driven completion (PatchMatch) to take.
 
-Measured on 30 CMP facades (cmp6 classes, element classes window, balcony, door, shop; a
-car-sized blob at the bottom and a tree-sized blob in the middle of each, accuracy over the hole
-pixels): the nearest visible pixel (``distance_transform_edt``) gets 0.752 (car) / 0.700
-(tree); this completion decides 70 % / 86 % of the hole at 0.90 / 0.91 accuracy, and with the
-nearest visible pixel for the undecided rest scores 0.867 / 0.877; hidden window pixels
-recovered 0.86 / 0.77 against 0.74 / 0.42.  (The undecided rest is best taken from the
-visible pixels: from the nearest pixel of the completed map it is 0.797 / 0.860.)  An element
-seen only in its row, or only in its column, and hidden whole is not restored (a balcony with
-no balcony above or below it).  About 0.25 s a 1024-px label map.
+The undecided rest is best taken from the visible pixels (how this completion scored
+against the nearest visible pixel: ``docs/design-measurements.md``).  An element seen only
+in its row, or only in its column, and hidden whole is not restored (a balcony with no
+balcony above or below it).
 """
 
 from __future__ import annotations

@@ -35,10 +35,9 @@ photo's mean colour of that class — what the per-class style vectors are meant
 exact at full resolution.  ``benchmarks/synthesis.py`` reports the network with and without it.
 
 Shipped weights (``sean-cmp12.npz``): 4307 steps of batch 2 in 55 min on one shared CPU
-thread.  On CMP val (``benchmarks/synthesis.py``, whole image at the photo's size) they give
-PSNR 14.51 dB / SSIM 0.363 alone and 14.84 / 0.362 with colour matching, against 14.28 / 0.380
-for painting each class its mean colour: a weak network, short of the paper (SEAN 16.76 / 0.489
-on LSAA) — blurry, with generic window and cornice structure that costs SSIM.
+thread.  How they score on CMP val, with and without colour matching, against painting each
+class its mean colour and against the paper: ``benchmarks/results/synthesis.json`` (a weak
+network — blurry, with generic window and cornice structure).
 
 Weights ship as float16 arrays in ``data/synthesis/*.npz`` named by the PyTorch ``state_dict``
 keys, with a JSON document ``__meta__`` (format, spec, how it was trained); they are read with
