@@ -75,8 +75,25 @@ def run(rules, fps, out, scheduler, *extra) -> int:
                  "--chunk", "5", "--scheduler", scheduler, *extra])
 
 
-def buildings_in_chunks(out: Path) -> Counter:
-    """How many times each building is in the CityJSONSeq chunks; checks each line too."""
+SCHEMAS = Path(__file__).resolve().parent / "data" / "cityjson-2.0"
+
+
+def cityjson_validator():
+    """The CityJSON 2.0 schema (tests/data/cityjson-2.0) as a jsonschema validator."""
+    import jsonschema
+    from referencing import Registry, Resource
+
+    resources = []
+    for file in sorted(SCHEMAS.glob("*.schema.json")):
+        schema = json.loads(file.read_text())
+        resources.append((schema["$id"], Resource.from_contents(schema)))
+    root = json.loads((SCHEMAS / "cityjson.schema.json").read_text())
+    return jsonschema.Draft7Validator(root, registry=Registry().with_resources(resources))
+
+
+def buildings_in_chunks(out: Path, schema=None) -> Counter:
+    """How many times each building is in the CityJSONSeq chunks; checks each line too (with
+    ``schema``: each feature, with its file's first line, as a CityJSON 2.0 document)."""
     seen: Counter = Counter()
     for path in sorted((out / "chunks").glob("*.city.jsonl")):
         lines = path.read_text(encoding="utf-8").splitlines()
@@ -96,6 +113,12 @@ def buildings_in_chunks(out: Path) -> Counter:
                     flat = json.dumps(g["boundaries"]).replace("[", " ").replace("]", " ")
                     assert max(int(v) for v in flat.replace(",", " ").split()) < n
             seen[f["id"]] += 1
+            if schema is not None:
+                doc = {**head, "CityObjects": f["CityObjects"], "vertices": f["vertices"]}
+                if "appearance" in f:
+                    doc["appearance"] = f["appearance"]
+                problems = [e.message for e in schema.iter_errors(doc)]
+                assert not problems, (path.name, f["id"], problems[:3])
     return seen
 
 
@@ -104,7 +127,7 @@ def test_batch_writes_chunks_tiles_and_table(inputs, scheduler, tmp_path, capsys
     out = tmp_path / "out"
     assert run(rules, [fps], out, scheduler) == 0
     assert "30 building(s) in 6 chunk(s) (6 derived, 0 kept" in capsys.readouterr().out
-    seen = buildings_in_chunks(out)
+    seen = buildings_in_chunks(out, cityjson_validator())
     assert sorted(seen) == [f"b{i:04d}" for i in range(30)] and set(seen.values()) == {1}
     entries = [json.loads(p.read_text()) for p in sorted((out / "manifest").glob("*.json"))]
     assert [e["name"] for e in entries] == [f"{k:05d}" for k in range(6)]

@@ -88,10 +88,11 @@ def tileset_dict(tiles: Sequence[ContentTile], *, transform: Sequence[float] | N
         raise ValueError("a tileset needs at least one tile with content")
     level = []
     for t in tiles:
-        lo, hi = _tiles_bounds(t.lo, t.hi)
         off = np.asarray(t.offset, float)
-        if not (np.isfinite(lo).all() and np.isfinite(hi).all() and np.isfinite(off).all()):
+        if not (np.isfinite(np.asarray(t.lo, float)).all()
+                and np.isfinite(np.asarray(t.hi, float)).all() and np.isfinite(off).all()):
             raise ValueError(f"tile {t.uri}: bounds are not finite")
+        lo, hi = _tiles_bounds(t.lo, t.hi)
         node = {"boundingVolume": {"box": box_volume(lo, hi)}, "geometricError": 0.0,
                 "refine": "ADD", "content": {"uri": t.uri}}
         if off.any():
