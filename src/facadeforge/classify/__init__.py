@@ -37,7 +37,7 @@ __all__ = ["CLASSIFIER_KINDS", "MODEL_DIR", "PROJECTED", "SHIPPED_KINDS", "Class
 #: Folder of the shipped models.
 MODEL_DIR = Path(__file__).resolve().parent.parent / "data" / "classifiers"
 
-#: Kinds of shipped models, best first (CMP val mIoU in README.md's classifier table).
+#: Kinds of shipped models, best first (CMP val mIoU: ``benchmarks/results/classifiers.json``).
 SHIPPED_KINDS: tuple[str, ...] = ("ensemble", "convnet", "autocontext")
 
 #: Label sets served by a shipped model of other classes, projected onto theirs

@@ -61,8 +61,8 @@ _STRONG, _WEAK = 0.5, 0.25
 #: Least visible wall (pixels) to quilt from; smaller walls are filled by PatchMatch.
 _QUILT_SOURCE = 48 * 48
 #: ``fill="expected"``: the share of the texture's fine detail added to the expected colour
-#: (chosen on CMP train facades: 0 → 16.60 dB, 0.3 → 16.56 dB, 0.6 → 16.38 dB masked PSNR;
-#: a little detail costs little and keeps the repaired wall from looking smeared).
+#: (chosen on CMP train facades, ``docs/design-measurements.md``: a little detail costs little
+#: masked PSNR and keeps the repaired wall from looking smeared).
 DETAIL: float = 0.3
 FILLS: tuple[str, ...] = ("expected", "texture")
 #: Longest side the fill runs at (:func:`_fill_scaled`).
