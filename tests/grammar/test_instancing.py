@@ -153,8 +153,8 @@ def test_stochastic_tiles_are_replayed_by_the_outcome_of_their_choice(monkeypatc
     outcomes = []
     real = interp._choices_hold
 
-    def counting(seed, choices):
-        outcomes.append(real(seed, choices))
+    def counting(seed, choices, memo=None):
+        outcomes.append(real(seed, choices, memo))
         return outcomes[-1]
     monkeypatch.setattr(interp, "_choices_hold", counting)
     rules = load_rules(ROOT / "benchmarks" / "grammars" / "detailed_varied.cga",
@@ -174,3 +174,80 @@ def test_choice_outcomes():
         [0, 0, 1, 1, 2, 2]
     assert outcome("p", 0.2, 0.25) is True and outcome("p", 0.25, 0.25) is False
     assert [outcome("list", r, 3) for r in (0.0, 0.34, 0.67, 0.999999)] == [0, 1, 2, 2]
+
+
+# Window tiles as Esri's Candler building writes them: a facade-wide projection that a
+# projectUV below the tile uses, a window texture chosen by floor(rand(…)), a center() in a
+# callee, and a branch on an attribute (never set) that would edit the inherited UVs
+CANDLER_LIKE = """
+attr Mode = "Visualization"
+Lot --> extrude(18) comp(f) { side : Facade | top : Roof. }
+Facade --> setupProjection(0, scope.xy, 2, 2) projectUV(0)
+           split(y) { ~3 : split(x) { ~2.5 : Tile }* }*
+Tile --> split(x) { ~1 : Wall | 1.2 : split(y) { ~1 : Wall | 1.5 : Window | ~0.5 : Wall } | ~1 : Wall }
+Window --> Sill Opening t(0, 0, -0.2) Asset
+Sill --> s(scope.sx + 0.2, 0.1, 0.1) center(x) t(0, -0.1, 0) i("builtin:cube") Sill.
+Opening --> extrude(-0.2) comp(f) { front : reverseNormals Back. | side = Reveal }
+Reveal --> reverseNormals projectUV(0) Wall
+Asset --> case Mode != "3DPrint" : s('1, '1, 0.1) i("builtin:cube") Tex(floor(rand(0, 3.99)))
+          else : Tex(0)
+Tex(n) --> tileUV(0, '4, '1) translateUV(0, -n / 4, 0) texture("win.jpg") Glass.
+Wall --> color("#ccbb99") Wall.
+"""
+
+
+def _rule_runs(monkeypatch):
+    import facadeforge.grammar.interpreter as interp
+
+    runs = []
+    real = interp.Derivation._run_rule
+
+    def counting(self, *a):
+        runs.append(a[3])
+        return real(self, *a)
+    monkeypatch.setattr(interp.Derivation, "_run_rule", counting)
+    return runs
+
+
+def test_candler_like_windows_are_instanced_and_equal_plain(monkeypatch):
+    rules = load_rules(CANDLER_LIKE)
+    runs = _rule_runs(monkeypatch)
+    plain = derive(rules, lot_size="40.3x20.1", keep_tree=True)
+    plain_runs, windows = len(runs), runs.count("Window")
+    runs.clear()
+    fast = derive(rules, lot_size="40.3x20.1", keep_tree=False)
+    assert_same_parts(signature(plain), signature(fast))
+    assert plain[0].attributes["shapes"] == fast[0].attributes["shapes"]
+    assert windows > 40
+    # windows replay recordings (a few per size and texture choice): their rules mostly do
+    # not run again
+    assert runs.count("Asset") < 0.5 * windows and len(runs) < 0.6 * plain_runs
+
+
+def test_uv_flow_centers_and_folded_cases():
+    rules = load_rules(CANDLER_LIKE)
+    pur = Purity(rules.ruleset, chance=True)
+    main = rules.ruleset.main
+    # tileUV after an insert works on the asset's UVs; the else branch's on the inherited ones
+    assert pur.rule(main, "Tex").uses_uv and pur.rule(main, "Asset").uses_uv
+    assert not pur.rule(main, "Sill").uses_uv
+    # Sill's center() aligns to the scope Window had when calling it: Window does not centre
+    assert pur.rule(main, "Sill").centers and not pur.rule(main, "Window").centers
+    assert pur.rule(main, "Asset").chance  # floor(rand(…)) is a choice among whole numbers
+    # with Mode known not to be "3DPrint" (no rule sets it), the else branch does not count
+    folded = Purity(rules.ruleset, chance=True, fold=lambda m, c, p: True)
+    assert not folded.rule(main, "Asset").uses_uv and not folded.rule(main, "Window").uses_uv
+
+
+@pytest.mark.skipif(not (ROOT.parent / "shared" / "data" / "cga" / "candler.rpk").exists(),
+                    reason="../shared/data/cga/candler.rpk (Esri's Candler package) is absent")
+def test_candler_package_instanced_equals_plain():
+    rules = load_rules(ROOT.parent / "shared" / "data" / "cga" / "candler.rpk")
+    fp = ROOT.parent / "shared" / "data" / "cga" / "candler_footprint.obj"
+    plain = derive(rules, fp, keep_tree=True, workers=1)
+    fast = derive(rules, fp, keep_tree=False, workers=1)
+    assert_same_parts(signature(plain), signature(fast))
+    assert plain[0].attributes["shapes"] == fast[0].attributes["shapes"]
+    assert plain[0].warnings == fast[0].warnings
+    for k in plain[0].reports:
+        assert np.allclose(sorted(plain[0].reports[k]), sorted(fast[0].reports[k]), atol=1e-6)

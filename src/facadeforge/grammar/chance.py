@@ -9,22 +9,36 @@ streams, so both always agree.
 
 from __future__ import annotations
 
+import numpy as np
+
+#: ``floor(rand(lo, hi))`` and its kin: a draw rounded to a whole number is a discrete choice
+ROUNDINGS = {"floor": np.floor, "ceil": np.ceil, "rint": np.rint}
+
+
+def rand_value(r: float, params) -> float:
+    """``rand(lo, hi)`` of the draw ``r`` (``params``: ``(lo, hi)``), as the builtin has it."""
+    lo, hi = params
+    return lo + r * (hi - lo)
+
 
 def outcome(kind: str, r: float, params):
     """The outcome of a draw ``r``.
 
     Parameters
     ----------
-    kind : {"pct", "p", "list"}
+    kind : {"pct", "p", "list", "floor", "ceil", "rint"}
         A stochastic choice (``params``: its percentages, in order; the outcome is the index of
         the branch taken, ``len(params)`` for ``else``), ``p(prob)`` (``params``: the
         probability; the outcome is a bool) or ``listRandom`` (``params``: the number of items;
-        the outcome is the index of the item).
+        the outcome is the index of the item), or a rounded ``rand(lo, hi)``
+        (``params``: ``(lo, hi)``; the outcome is the whole number).
     r : float
         The draw, in [0, 1).
     """
     if kind == "p":
         return r < params
+    if kind in ROUNDINGS:  # floor(rand(lo, hi)): params (lo, hi)
+        return float(ROUNDINGS[kind](rand_value(r, params)))
     if kind == "list":
         return min(int(r * params), params - 1)
     r = r * 100.0

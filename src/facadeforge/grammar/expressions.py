@@ -10,6 +10,7 @@ import numpy as np
 from . import arrays
 from . import ast as A
 from .budget import check_string_length
+from .chance import ROUNDINGS as _ROUNDINGS
 from .chance import outcome
 from .ops import SHAPE_FUNCTIONS as SELECTOR_FUNCTIONS
 from .values import (
@@ -109,6 +110,11 @@ class Evaluator:
         ``list``: ``listRandom``): environments that instance subtrees by their choices'
         outcomes record it (``interpreter.Env``); plain evaluators need not."""
 
+    def discrete_rand(self, node):
+        """``floor(rand(…))`` (ceil, rint) as one choice among whole numbers, noted for
+        instancing by chance; ``NotImplemented`` where the general path evaluates it."""
+        return NotImplemented
+
     def evaluate(self, node):
         """The value of the expression ``node``."""
         return _DISPATCH[type(node)](self, node)
@@ -131,6 +137,11 @@ class Evaluator:
         return self.lookup(node.name, node)
 
     def _call(self, node):
+        if node.name in _ROUNDINGS and len(node.args) == 1 and type(node.args[0]) is A.Call \
+                and node.args[0].name == "rand":
+            v = self.discrete_rand(node)
+            if v is not NotImplemented:
+                return v
         if node.name in SELECTOR_FUNCTIONS:
             # shape queries take selector keywords (``geometry.area(top)``, ``imageInfo(f, sx)``)
             return self.call(node.name, [self._selector(a) for a in node.args], node)

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from .budget import check_string_length
-from .chance import outcome
+from .chance import outcome, rand_value
 from .values import (
     CGARuntimeError,
     from_numpy,
@@ -162,10 +162,13 @@ def _print(env, a):
 
 @builtin("rand", 0, 2)
 def _rand(env, a):
-    r = env.random_float()
-    lo, hi = (0.0, 1.0) if not a else ((0.0, to_float(a[0])) if len(a) == 1 else
-                                       (to_float(a[0]), to_float(a[1])))
-    return lo + r * (hi - lo)
+    return rand_value(env.random_float(), rand_bounds(a))
+
+
+def rand_bounds(a) -> tuple[float, float]:
+    """``(lo, hi)`` of ``rand()``, ``rand(hi)``, ``rand(lo, hi)``."""
+    return (0.0, 1.0) if not a else ((0.0, to_float(a[0])) if len(a) == 1 else
+                                     (to_float(a[0]), to_float(a[1])))
 
 
 @builtin("p", 1)

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import ast as A
-from .functions import bare_call
+from .functions import FUNCTIONS, bare_call
 from .module import Module, RuleSet
 from .ops import OPERATIONS
 from .ops.subdivision import SELECTOR_WORDS
@@ -50,6 +50,12 @@ OCCLUSION_CALLS = {"inside", "overlaps", "touches"}
 CHANCE_CALLS = {"p", "listRandom"}
 IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
               "resetGeometry"}  # resetGeometry: back to the initial shape, wherever this one is
+# operations after which a shape's texture coordinates are its new geometry's own (an asset's,
+# a primitive's, none): the same wherever the shape is
+FRESH_UV_OPS = {"i", "insert", "primitiveCube", "primitiveQuad", "primitiveCylinder",
+                "primitiveCone", "primitiveDisk", "primitiveSphere", "deleteUV"}
+# rounding of a random draw that makes it a discrete choice: ``floor(rand(0, 9.99))``
+DISCRETE_OF_RAND = {"floor", "ceil", "rint"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
 # operations whose result depends on the UV values a shape inherits (not only on its position)
 UV_OPS = {"tileUV", "translateUV", "offsetUV", "scaleUV", "rotateUV", "normalizeUV", "copyUV",
@@ -83,13 +89,20 @@ class RuleInfo:
     pure: bool = True
     reads: set = field(default_factory=set)  # context names read (split.index, …)
     projects: bool = False  # calls projectUV (depends on inherited projections)
-    centers: bool = False  # calls center (depends on the pivot scope)
-    uses_uv: bool = False  # reads or rewrites texture coordinates (tileUV, split(u|v), …)
+    centers: bool = False  # calls center on its own shape (depends on the pivot it inherits)
+    uses_uv: bool = False  # reads or rewrites the texture coordinates it inherits (tileUV, …)
+    # rewrites texture coordinates that a projectUV below made from an inherited projection:
+    # then the projection's place matters, not only its direction and scale
+    uv_projected: bool = False
     trims: bool = False  # inserts or trims (depends on the trim planes it inherits)
     assets: set = field(default_factory=set)  # the i("literal") assets it inserts
     far: bool = False  # may put geometry beyond its scope box (s, t, extrude, primitives…)
     chance: bool = False  # makes stochastic choices (``p% : … else : …``), itself or below
     calls: set = field(default_factory=set)  # (module id, rule or function name)
+    # the calls made while the shape's texture coordinates were still the inherited ones, and
+    # while they came from a projectUV of its own: their use of UVs counts for this rule
+    uv_calls: set = field(default_factory=set)
+    projected_calls: set = field(default_factory=set)
 
 
 class Purity:
@@ -100,26 +113,35 @@ class Purity:
     its choices (``RuleInfo.chance`` says it makes any), which the interpreter replays by
     outcome (see ``Derivation._instanced``)."""
 
-    def __init__(self, ruleset: RuleSet, chance: bool = False):
+    def __init__(self, ruleset: RuleSet, chance: bool = False, fold=None):
         self.chance = chance
+        # ``fold(module, condition) -> bool | None``: the value of a case condition that
+        # depends on nothing but attributes no rule sets (``case Mode == "3DPrint"``), which
+        # a derivation knows before it starts; only the branch taken is then looked at
+        self.fold = fold
         self.modules = {id(m): m for m in ruleset.main.all_modules()}
         self.info: dict[tuple, RuleInfo] = {}
         self.uses_occlusion = False
         # whether a query may look at the neighbouring buildings (``inter``, ``all`` or a
         # target not known before the derivation): only then are neighbours derived first
         self.queries_neighbours = False
+        self._uv = "inherited"  # where the UVs come from, for the expression being looked at
+        self._params: set[str] = set()  # parameters of the rule being looked at
         for m in self.modules.values():
             for name, overloads in m.rules.items():
                 info = RuleInfo()
                 for rdef in overloads.values():
+                    self._params = {p.name for p in rdef.params}
                     self._ops(m, rdef.body, info)
                 self.info[(id(m), name)] = info
             for name, redefined in m.rule_overrides.items():  # an importer's version wins
                 info = RuleInfo()
                 for owner, rdef in redefined.values():
+                    self._params = {p.name for p in rdef.params}
                     self._ops(owner, rdef.body, info)
                 for arity, rdef in m.rules.get(name, {}).items():  # and the rest stay
                     if arity not in redefined:
+                        self._params = {p.name for p in rdef.params}
                         self._ops(m, rdef.body, info)
                 self.info[(id(m), name)] = info
             for name, (owner, target) in m.rule_forwards.items():
@@ -146,19 +168,25 @@ class Purity:
                     other = self.info.get(callee)
                     if other is None:
                         continue
-                    before = (info.pure, len(info.reads), info.projects, info.centers,
-                              info.uses_uv, info.trims, len(info.assets), info.far, info.chance)
+                    before = (info.pure, len(info.reads), info.projects, info.uses_uv,
+                              info.uv_projected, info.trims, len(info.assets), info.far,
+                              info.chance)
                     info.pure &= other.pure
                     info.chance |= other.chance
                     info.reads |= other.reads
                     info.projects |= other.projects
-                    info.centers |= other.centers
-                    info.uses_uv |= other.uses_uv
+                    # a callee's center() aligns to the scope its caller had when calling it
+                    # (every successor's pivot), which the caller's key fixes: not propagated
+                    if callee in info.uv_calls:
+                        info.uses_uv |= other.uses_uv
+                    if callee in info.projected_calls:
+                        info.uv_projected |= other.uses_uv
+                    info.uv_projected |= other.uv_projected
                     info.trims |= other.trims
                     info.assets |= other.assets
                     info.far |= other.far
-                    if (info.pure, len(info.reads), info.projects, info.centers,
-                            info.uses_uv, info.trims, len(info.assets), info.far,
+                    if (info.pure, len(info.reads), info.projects, info.uses_uv,
+                            info.uv_projected, info.trims, len(info.assets), info.far,
                             info.chance) != before:
                         changed = True
 
@@ -173,7 +201,13 @@ class Purity:
         found = m.resolve(name) if "." in name else (m, name)
         return None if found is None else (id(found[0]), prefix + found[1])
 
-    def _ops(self, m, ops, info):
+    def _ops(self, m, ops, info, uv: str = "inherited", top: bool = True) -> str:
+        """Note what ``ops`` do in ``info``.  ``uv`` says where the shape's texture coordinates
+        come from at the first op — ``inherited`` (the caller's), ``fresh`` (an inserted asset's
+        or a primitive's own: the same wherever the shape is) or ``projected`` (a projectUV of
+        this subtree) — and the state after the last op is returned.  ``top``: the ops work on
+        the rule's own shape (not a piece of a split or comp, nor a pushed copy, whose pivot is
+        their own), where center() aligns to the pivot the shape inherits."""
         for op in ops:
             t = type(op)
             if t is A.Successor or t is A.Leaf:
@@ -188,22 +222,29 @@ class Purity:
                     if name == "setupProjection" and len(args) > 1 and isinstance(args[1], A.Name) \
                             and args[1].name.startswith("world."):
                         info.pure = False
-                    if name == "projectUV":
-                        info.projects = True
                     if name == "set" and args and isinstance(args[0], A.Name) \
                             and args[0].name.startswith(("scope.t", "trim.")):
                         info.pure = False  # sets an absolute position, or which planes trim
-                    if name == "center":
+                    if name == "center" and top:
                         info.centers = True
                     if name in UV_OPS:
-                        info.uses_uv = True
+                        self._uses_uv(info, uv)
                     _note_reach(name, args, info)
+                    self._uv = uv
                     self._args(m, spec, args, info)
+                    if name == "projectUV":
+                        info.projects = True
+                        if not (args and isinstance(args[0], A.Num) and args[0].value != 0):
+                            uv = "projected"  # only UV set 0 is kept
+                    elif name in FRESH_UV_OPS and (name != "deleteUV" or (
+                            args and isinstance(args[0], A.Num) and args[0].value == 0)):
+                        uv = "fresh"
                     continue
                 if t is A.Successor:
                     callee = self._callee(m, name)
                     if callee is not None:
-                        info.calls.add(callee)
+                        self._call(info, callee, uv)
+                self._uv = uv
                 for a in args:
                     self._expr(m, a, info)
             elif t is A.BodyOp:
@@ -212,27 +253,63 @@ class Purity:
                 _note_reach(op.name, op.args, info)
                 if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
                         and op.args[0].name in ("u", "v"):
-                    info.uses_uv = True
+                    self._uses_uv(info, uv)
+                self._uv = uv
                 self._args(m, OPERATIONS.get(op.name), op.args, info)
-                self._branches(m, op.branches, info)
-            elif t is A.Push or t is A.Inline:
-                self._ops(m, op.ops, info)
-            elif t is A.Boolean:
-                self._ops(m, op.a, info)
-                self._ops(m, op.b, info)
+                self._branches(m, op.branches, info, uv)
+            elif t is A.Push:
+                self._ops(m, op.ops, info, uv, top=False)
+            elif t is A.Inline or t is A.Boolean:
+                for part in ((op.ops,) if t is A.Inline else (op.a, op.b)):
+                    self._ops(m, part, info, uv, top=False)
+                # the merged leaves' UVs may come from anywhere below: the least known
+                uv = "inherited" if uv == "inherited" else "projected"
             elif t is A.CaseOps:
-                for c, b in op.branches:
+                branches = op.branches
+                if self.fold is not None:
+                    branches, taken = self._fold_case(m, op)
+                    if taken is not None:
+                        return self._ops(m, taken, info, uv, top)
+                ends = []
+                for c, b in branches:
+                    self._uv = uv
                     self._expr(m, c, info)
-                    self._ops(m, b, info)
-                self._ops(m, op.otherwise, info)
+                    ends.append(self._ops(m, b, info, uv, top))
+                ends.append(self._ops(m, op.otherwise, info, uv, top))
+                return _worst(ends)
             elif t is A.StochasticOps:
                 if not self.chance:
                     info.pure = False
                     continue
                 info.chance = True
-                for _, b in op.branches:
-                    self._ops(m, b, info)
-                self._ops(m, op.otherwise, info)
+                ends = [self._ops(m, b, info, uv, top) for _, b in op.branches]
+                ends.append(self._ops(m, op.otherwise, info, uv, top))
+                return _worst(ends)
+        return uv
+
+    def _fold_case(self, m, op: A.CaseOps):
+        """(branches still to look at, ops of the branch surely taken or None)."""
+        for k, (cond, ops) in enumerate(op.branches):
+            value = self.fold(m, cond, self._params)
+            if value is None:
+                return op.branches[k:], None
+            if value:
+                return (), ops
+        return (), op.otherwise
+
+    def _uses_uv(self, info: RuleInfo, uv: str) -> None:
+        """An operation or query works on the shape's texture coordinates in state ``uv``."""
+        if uv == "inherited":
+            info.uses_uv = True
+        elif uv == "projected":
+            info.uv_projected = True
+
+    def _call(self, info: RuleInfo, callee, uv: str) -> None:
+        info.calls.add(callee)
+        if uv == "inherited":
+            info.uv_calls.add(callee)
+        elif uv == "projected":
+            info.projected_calls.add(callee)
 
     def _args(self, m, spec, args, info):
         """An operation's arguments, but the bare keywords it takes (``offset(-1, inside)``:
@@ -242,15 +319,16 @@ class Purity:
             if not (i in keywords and type(a) is A.Name):
                 self._expr(m, a, info)
 
-    def _branches(self, m, branches, info):
+    def _branches(self, m, branches, info, uv: str = "inherited"):
         for b in branches:
             if isinstance(b, A.RepeatGroup):
-                self._branches(m, b.branches, info)
+                self._branches(m, b.branches, info, uv)
             else:
+                self._uv = uv
                 self._expr(m, b.selector, info, selector=True)
                 if b.depth is not None:
                     self._expr(m, b.depth, info)
-                self._ops(m, b.ops, info)
+                self._ops(m, b.ops, info, uv, top=False)
 
     def _expr(self, m, node, info, selector: bool = False):
         """``selector``: ``node`` selects components, where ``inside`` (offset's inner face)
@@ -270,14 +348,19 @@ class Purity:
                 elif n.name in CONTEXT_NAMES:
                     info.reads.add(n.name)
                 elif n.name in UV_NAMES:
-                    info.uses_uv = True
+                    self._uses_uv(info, self._uv)
                 elif m.function(n.name, 0) is not None:
                     callee = self._callee(m, n.name, "fn:")
                     if callee is not None:
-                        info.calls.add(callee)
+                        self._call(info, callee, self._uv)
             elif t is A.Call:
                 if n.name in UV_NAMES:
-                    info.uses_uv = True
+                    self._uses_uv(info, self._uv)
+                if (self.chance and n.name in DISCRETE_OF_RAND and len(n.args) == 1
+                        and discrete_rand(m, n)):
+                    info.chance = True  # floor(rand(a, b)): a choice among whole numbers
+                    stack.extend(n.args[0].args)
+                    continue
                 if n.name in IMPURE_CALLS:
                     if self.chance and n.name in CHANCE_CALLS:
                         info.chance = True
@@ -291,7 +374,7 @@ class Purity:
                 if m.function(n.name, len(n.args)) is not None:
                     callee = self._callee(m, n.name, "fn:")
                     if callee is not None:
-                        info.calls.add(callee)
+                        self._call(info, callee, self._uv)
                 stack.extend(n.args)
             elif t is A.StochasticExpr:
                 if not self.chance:
@@ -319,6 +402,77 @@ class Purity:
             elif t is A.CompFunction:
                 for b in n.branches:
                     stack.extend((b.selector, b.ops))
+
+
+def set_targets(ruleset: RuleSet) -> set[str]:
+    """Names of the attributes some rule of the set changes (``set(name, …)``), short and as
+    written."""
+    out: set[str] = set()
+    stack: list = []
+    for m in ruleset.main.all_modules():
+        stack.extend(r.body for by_arity in m.rules.values() for r in by_arity.values())
+        stack.extend(r.body for by_arity in m.rule_overrides.values() for _, r in by_arity.values())
+        stack.extend(r.body for by_arity in m.qualified_rules.values() for r in by_arity.values())
+    while stack:
+        n = stack.pop()
+        if isinstance(n, (tuple, list)):
+            stack.extend(n)
+        elif isinstance(n, A.Node):
+            if type(n) is A.Successor and n.name == "set" and n.args \
+                    and type(n.args[0]) is A.Name:
+                out.add(n.args[0].name)
+                out.add(n.args[0].name.rsplit(".", 1)[-1])
+            stack.extend(getattr(n, f) for f in n.__dataclass_fields__
+                         if f not in ("line", "column"))
+    return out
+
+
+def constant_attributes(m: Module, node, changed: set[str], local: set[str] = frozenset()):
+    """The ``(module, AttrDef)`` an expression reads when it reads nothing but attributes no
+    rule changes, literals and CGA's deterministic functions of them; else ``None``.
+    ``local``: the names of the rule's parameters, which hide attributes."""
+    from .ops import SHAPE_FUNCTIONS
+
+    deps, stack = [], [node]
+    while stack:
+        n = stack.pop()
+        t = type(n)
+        if t in (A.Num, A.Str, A.Bool):
+            continue
+        if t is A.Name:
+            found = m.attr(n.name) if n.name not in local else None
+            if found is None or n.name in changed or found[1].name in changed:
+                return None
+            deps.append(found)
+        elif t is A.Unary:
+            stack.append(n.operand)
+        elif t is A.Binary:
+            stack.extend((n.left, n.right))
+        elif t is A.Call:
+            if (n.name in IMPURE_CALLS or n.name in SHAPE_FUNCTIONS or n.name in OCCLUSION_CALLS
+                    or m.function(n.name, len(n.args)) is not None or "." in n.name
+                    or n.name not in FUNCTIONS):
+                return None
+            stack.extend(n.args)
+        else:
+            return None
+    return deps
+
+
+def _worst(states: list[str]) -> str:
+    """The texture coordinates after one of several branches: the least known of theirs."""
+    for state in ("inherited", "projected"):
+        if state in states:
+            return state
+    return "fresh"
+
+
+def discrete_rand(m: Module, call: A.Call) -> bool:
+    """Whether ``call`` is ``floor(rand(…))`` (or ceil, rint) of CGA's own functions: a draw
+    whose outcome is one of a few whole numbers, which instancing by chance can match."""
+    inner = call.args[0]
+    return (type(inner) is A.Call and inner.name == "rand" and len(inner.args) <= 2
+            and m.function(call.name, 1) is None and m.function("rand", len(inner.args)) is None)
 
 
 def _note_reach(name: str, args, info: RuleInfo) -> None:
@@ -389,11 +543,21 @@ def instance_key(mod, name, args, state, info: RuleInfo):
     ctx_key = tuple((k, _hashable(ctx.get(k))) for k in sorted(info.reads))
     extra = (ctx.get("label"), _face_data_key(g))
     proj_key = ()
-    if info.projects:
+    proj_map = None
+    if info.projects and info.uv_projected:  # UVs projected below are edited: all of it
         proj_key = tuple(sorted(
             (k, np.round((o - org) @ rot, 6).tobytes(), np.round(u @ rot, 9).tobytes(),
              np.round(v @ rot, 9).tobytes(), w, h, off)
             for k, (o, u, v, w, h, off) in state.projections.items()))
+    elif info.projects:
+        # where the projection lies moves the UVs a projectUV below makes by a constant, which
+        # the replay puts right (its map, affine in the scope frame): the key holds only the
+        # projection's directions and tile sizes; set 0 is the only one kept in the geometry
+        proj_key = tuple(sorted(
+            (k, np.round(u @ rot, 9).tobytes(), np.round(v @ rot, 9).tobytes(), w, h)
+            for k, (o, u, v, w, h, off) in state.projections.items() if k == 0))
+        if 0 in state.projections:
+            proj_map = projection_uv_map(state.projections[0], rot, org)
     pivot_key = ()
     if info.centers and state.pivot is not None:
         p = state.pivot
@@ -405,7 +569,16 @@ def instance_key(mod, name, args, state, info: RuleInfo):
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
            state.label, proj_key, pivot_key, trims)
-    return key, uv_map
+    return key, (uv_map, proj_map)
+
+
+def projection_uv_map(projection, rot: np.ndarray, org: np.ndarray) -> np.ndarray:
+    """(4, 2) map with ``[x, y, z, 1] @ map`` the UVs ``projectUV(0)`` gives a point at
+    ``x, y, z`` of the scope frame ``rot``, ``org`` (ops/appearance.py, ``op_project_uv``)."""
+    o, u, v, w, h, off = projection
+    lin = np.column_stack([(u @ rot) / w, (v @ rot) / h])
+    const = np.array([((org - o) @ u - off[0]) / w, ((org - o) @ v - off[1]) / h])
+    return np.vstack([lin, const])
 
 
 def affine_uv_map(local: np.ndarray, uv: np.ndarray) -> np.ndarray | None:
@@ -430,11 +603,12 @@ class Payoff:
     TRIES = 16
     MIN_SAVED = 2.0  # shapes saved per try, on average, for instancing to pay
 
-    __slots__ = ("tries", "hits", "recorded", "records", "off")
+    __slots__ = ("tries", "hits", "recorded", "records", "off", "judge_after")
 
-    def __init__(self):
+    def __init__(self, tries: int | None = None):
         self.tries = self.hits = self.recorded = self.records = 0
         self.off = False
+        self.judge_after = self.TRIES if tries is None else tries
 
     def note(self, hit: bool, shapes: int) -> None:
         """One try: a hit, or a new recording of ``shapes`` shapes."""
@@ -444,7 +618,7 @@ class Payoff:
         else:
             self.records += 1
             self.recorded += shapes + 1  # the subtree's shapes and its root
-        if self.tries >= self.TRIES and self.records:
+        if self.tries >= self.judge_after and self.records:
             saved = self.hits / self.tries * (self.recorded / self.records)
             self.off = saved < self.MIN_SAVED
 
@@ -457,4 +631,5 @@ class Recording:
     reports: list  # (name, value) in order
     prints: list
     shapes: int
-    uv_map: np.ndarray | None
+    # the affine UV maps at recording (the inherited UVs', projectUV(0)'s), or None each
+    uv_map: tuple

@@ -25,10 +25,18 @@ from ..model.model import Material, Model, Part
 from ..model.shape import Shape
 from . import ast as A
 from .budget import Budget
-from .chance import outcome
+from .chance import outcome, rand_value
 from .expressions import Evaluator
-from .functions import FUNCTIONS, bare_call
-from .instancing import Payoff, Purity, Recording, instance_key
+from .functions import FUNCTIONS, bare_call, rand_bounds
+from .instancing import (
+    Payoff,
+    Purity,
+    Recording,
+    _hashable,
+    constant_attributes,
+    instance_key,
+    set_targets,
+)
 from .module import Module, RuleSet
 from .ops import OPERATIONS, OpCall, load_all, operation_of
 from .ops import SHAPE_FUNCTIONS as _SHAPE_FUNCTIONS
@@ -118,6 +126,18 @@ class Env(Evaluator):
 
     def random_float(self) -> float:
         return self.state.random_float()
+
+    def discrete_rand(self, node):
+        if self.derivation._chance_log is None:  # nobody records choices: the general path
+            return NotImplemented
+        inner = node.args[0]
+        if self.module.function(node.name, 1) is not None or \
+                self.module.function("rand", len(inner.args)) is not None or len(inner.args) > 2:
+            return NotImplemented
+        bounds = rand_bounds([self.evaluate(a) for a in inner.args])
+        got = FUNCTIONS[node.name][0](self, [rand_value(self.random_float(), bounds)])
+        self.note_choice(node.name, bounds, got)
+        return got
 
     def note_choice(self, kind: str, params, outcome) -> None:
         log = self.derivation._chance_log
@@ -325,13 +345,43 @@ class Derivation:
         self._chance = None
         self._chance_log: list | None = None  # the choices of the subtree being recorded
         self._chance_instances: dict = {}  # key -> [(choices, Recording)]
-        if instancing:
-            self._purity = None if purity.uses_occlusion else purity
-            if self._purity is not None:
-                chance = getattr(ruleset, "_chance_purity", None)
-                if chance is None:
-                    chance = ruleset._chance_purity = Purity(ruleset, chance=True)
-                self._chance = chance
+        if instancing and not purity.uses_occlusion:
+            self._purity = self._folded_purity(chance=False)
+            self._chance = self._folded_purity(chance=True)
+
+    def _folded_purity(self, chance: bool) -> Purity:
+        """The purity analysis of the rule set for this derivation's attribute values: a case
+        whose conditions read only attributes that no rule sets is decided before the
+        derivation starts, and only its branch taken counts (``case Mode == "3DPrint" : …``
+        in Esri's rules).  Kept on the rule set with the attribute values it was worked out
+        for, and reused by derivations whose values are the same."""
+        ruleset = self.ruleset
+        cache = ruleset.__dict__.setdefault("_folded_purities", [])
+        for c, deps, purity in cache:
+            if c == chance and all(_hashable(self.attr_value(m, a, self.initial)) == v
+                                   for m, a, v in deps):
+                return purity
+        changed = ruleset.__dict__.get("_set_targets")
+        if changed is None:
+            changed = ruleset._set_targets = set_targets(ruleset)
+        deps: dict = {}
+
+        def fold(module, cond, params):
+            attrs = constant_attributes(module, cond, changed, params)
+            if attrs is None:
+                return None
+            try:
+                value = to_bool(Env(self, module, {}, self.initial.copy()).evaluate(cond))
+                for m, a in attrs:
+                    deps[(id(m), a.name)] = (m, a, _hashable(self.attr_value(m, a, self.initial)))
+            except (CGARuntimeError, DerivationError, ArithmeticError, TypeError, ValueError):
+                return None
+            return value
+
+        purity = Purity(ruleset, chance=chance, fold=fold)
+        if len(cache) < 16:
+            cache.append((chance, list(deps.values()), purity))
+        return purity
 
     # -- attributes --------------------------------------------------------------------------
     def attr_value(self, module: Module, adef: A.AttrDef, state: ShapeState):
@@ -448,7 +498,8 @@ class Derivation:
                 if info is not None and info.pure and info.chance:
                     payoff = self._payoff.get(id(info))
                     if payoff is None:
-                        payoff = self._payoff[id(info)] = Payoff()
+                        # its first tries record a variant per outcome: judged later
+                        payoff = self._payoff[id(info)] = Payoff(CHANCE_TRIES)
                     if not payoff.off:
                         key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
                         if key is not None and self._by_chance(key, uv_map, node, state, name,
@@ -523,8 +574,9 @@ class Derivation:
         shape is left to the caller to derive directly."""
         variants = self._chance_instances.setdefault(key, [])
         scope0 = state.scope
+        memo: dict = {}
         for choices, rec in variants:
-            if _choices_hold(state.seed, choices):
+            if _choices_hold(state.seed, choices, memo):
                 payoff.note(True, rec.shapes)
                 self._note_choices(state, choices)
                 self._replay(rec, scope0, uv_map, node, count=True)
@@ -557,14 +609,23 @@ class Derivation:
 
     def _replay(self, rec, scope, uv_map, node, count: bool) -> None:
         rot, org = scope.rotation, scope.origin
+        # UVs that follow from where the shape is — inherited from its ancestors, or made by a
+        # projectUV below from an inherited projection — are affine in the scope frame: the
+        # corners that carry the recording's map get this shape's
+        maps = [(a, b) for a, b in zip(rec.uv_map, uv_map)
+                if a is not None and b is not None and not np.array_equal(a, b)]
         for local, label, material, symbol in rec.parts:
             mesh = local.with_vertices(local.vertices @ rot.T + org)
-            if uv_map is not None and local.corner_uvs is not None and rec.uv_map is not None:
+            if maps and local.corner_uvs is not None:
                 pts = np.column_stack([local.vertices[local.corners], np.ones(len(local.corners))])
-                inherited = np.abs(pts @ rec.uv_map - local.corner_uvs).max(axis=1) < 1e-7
-                if inherited.any():
-                    uv = local.corner_uvs.copy()
-                    uv[inherited] = (pts @ uv_map)[inherited]
+                uv, done = None, np.zeros(len(pts), bool)
+                for old, new in maps:
+                    hit = ~done & (np.abs(pts @ old - local.corner_uvs).max(axis=1) < 1e-7)
+                    if hit.any():
+                        uv = local.corner_uvs.copy() if uv is None else uv
+                        uv[hit] = (pts @ new)[hit]
+                        done |= hit
+                if uv is not None:
                     mesh = mesh.with_uvs(uv)
             self.parts.append(Part(mesh, label, material, symbol, node.id))
         for k, values in rec.reports:
@@ -681,19 +742,28 @@ class Derivation:
 
 
 #: Recordings kept per key of a subtree instanced by the outcomes of its stochastic choices.
-CHANCE_VARIANTS = 8
+CHANCE_VARIANTS = 16
+#: Tries after which instancing by chance is judged for a rule (see ``instancing.Payoff``).
+CHANCE_TRIES = 64
 
 
-def _choices_hold(seed: int, choices) -> bool:
+def _choices_hold(seed: int, choices, memo: dict | None = None) -> bool:
     """Whether the random streams below a shape of ``seed`` give every recorded choice
     ``(successor indices, draw, kind, parameters, outcome)`` the same outcome: the streams by
     ``child_seed`` and ``random_value``, the outcome by :func:`chance.outcome`, as when the
-    shapes derive."""
+    shapes derive.  ``memo`` keeps the outcomes worked out for this seed, for checking the
+    next recording of the same key."""
     for path, draw, kind, params, recorded in choices:
-        s = seed
-        for i in path:
-            s = child_seed(s, i)
-        if outcome(kind, random_value(s, draw), params) != recorded:
+        key = (path, draw, kind, params)
+        got = memo.get(key, memo) if memo is not None else memo
+        if got is memo:
+            s = seed
+            for i in path:
+                s = child_seed(s, i)
+            got = outcome(kind, random_value(s, draw), params)
+            if memo is not None:
+                memo[key] = got
+        if got != recorded:
             return False
     return True
 
