@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env bench-env prt-env demo test lint docs bench fuzz clean
+.PHONY: env train-env bench-env prt-env demo test lint docs bench fuzz cjval clean
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -71,6 +71,15 @@ fuzz: env
 bench: env
 	$(VENV)/bin/python benchmarks/engine.py
 	$(VENV)/bin/python benchmarks/report.py
+
+# cjval, the official CityJSON validator (a Rust crate; cargo from rustup), into .tools/cjval for
+# tests/test_batch.py's check of the CityJSONSeq chunks, which skips without it.  Not part of
+# `make test`: it compiles for about 10 minutes on two cores.
+CJVAL_VERSION := 0.10.0
+CARGO ?= $(shell command -v cargo || echo $(HOME)/.cargo/bin/cargo)
+cjval: $(TOOLS)/cjval/bin/cjval
+$(TOOLS)/cjval/bin/cjval:
+	$(CARGO) install cjval --version $(CJVAL_VERSION) --features build-binary --root $(TOOLS)/cjval
 
 clean:
 	rm -rf $(VENV) .venv-train .venv-bench .venv-prt $(TOOLS) .pytest_cache .ruff_cache

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -222,6 +223,27 @@ def test_a_failing_building_is_recorded_not_fatal(inputs, scheduler, tmp_path, c
               for f in json.loads(p.read_text())["failed"]]
     assert [f["building"] for f in failed] == ["b0003"]
     assert set(buildings_in_chunks(out)) == set(rows) - {"b0003"}
+
+
+CJVAL = Path(__file__).resolve().parents[1] / ".tools" / "cjval" / "bin" / "cjval"
+
+
+@pytest.mark.skipif(not CJVAL.is_file() and shutil.which("cjval") is None,
+                    reason="cjval (the official CityJSON validator) is not installed: "
+                           "`make cjval` builds it into .tools/cjval (about 10 minutes)")
+def test_chunks_pass_cjval(inputs, scheduler, tmp_path):
+    rules, fps = inputs
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    exe = str(CJVAL) if CJVAL.is_file() else shutil.which("cjval")
+    for path in sorted((out / "chunks").glob("*.city.jsonl")):
+        with path.open("rb") as fh:   # a CityJSONSeq stream is read from stdin
+            r = subprocess.run([exe, "--report"], stdin=fh, capture_output=True, text=True,
+                               timeout=120)
+        reports = [json.loads(line) for line in r.stdout.splitlines() if line.strip()]
+        assert r.returncode == 0 and len(reports) == 6, (path.name, r.stdout[-500:], r.stderr)
+        bad = [(x["file"], x["checks"]) for x in reports if not x["valid"]]
+        assert not bad, (path.name, bad[:1])
 
 
 def test_chunks_are_compact_and_names_unique_across_files(tmp_path):

@@ -290,6 +290,7 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
              "bbox": [lo.tolist(), hi.tolist()] if has_geometry else None,
              "origin_offset": first.get("_origin_offset"), "crs": first.get("_crs"),
              "unit": first.get("_unit"), "seconds": round(seconds, 3),
+             "write_seconds": None,
              "worker": f"{os.uname().nodename}:{os.getpid()}", "files": {}}
 
     (out / _WORK).mkdir(exist_ok=True)
@@ -312,6 +313,7 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
             dest = out / rel
             dest.parent.mkdir(parents=True, exist_ok=True)
             os.replace(src, dest)
+        entry["write_seconds"] = round(time.perf_counter() - t0 - seconds, 3)
         entry["files"] = {"cityjsonseq": f"chunks/{name}.city.jsonl" if has_geometry else None,
                           "glb": f"tiles/{name}.glb" if has_geometry else None,
                           "stats": f"chunks/{name}.buildings.csv"}
@@ -496,8 +498,11 @@ def _client(scheduler: str | None, workers: int | None):
     n = workers if workers is not None else (os.cpu_count() or 1)
     if n < 1:
         raise InputError(f"--workers {n}: give at least 1")
+    # no dashboard; the scheduler's HTTP server (health and metrics routes, which it always
+    # starts, on 8787 unless told) on a free port of the loopback: runs side by side never fight
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                            host="127.0.0.1", dashboard_address=None, scheduler_port=0,
+                           scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                            silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
