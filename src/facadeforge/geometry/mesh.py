@@ -541,7 +541,28 @@ class Mesh:
             rest_quads = b[~convex]
         else:
             rest_quads = np.zeros(0, np.int64)
-        others = np.concatenate([s[sizes > 4], rest_quads])
+        big = s[sizes > 4]
+        if len(big):
+            # convex polygons (most of an asset's n-gons: cylinder caps, mouldings) as fans,
+            # all at once; the others by ear clipping below
+            k = sizes[sizes > 4]
+            corner = ranges_of(big, k)
+            first = np.concatenate([[0], np.cumsum(k)[:-1]])
+            nxt = np.arange(1, len(corner) + 1)
+            nxt[first + k - 1] = first
+            p = self.vertices[self.corners[corner]]
+            e = p[nxt] - p
+            turn = cross3(e, e[nxt])
+            n = np.add.reduceat(turn, first, axis=0)
+            convex = np.minimum.reduceat(
+                np.einsum("ij,ij->i", turn, np.repeat(n, k, axis=0)), first) >= -EPS
+            if convex.any():
+                bc, kc = big[convex], k[convex]
+                fan = np.repeat(bc, kc - 2)
+                j = ranges_of(np.ones(len(kc), np.int64), kc - 2)
+                out.append(np.stack([fan, fan + j, fan + j + 1], axis=1))
+            big = big[~convex]
+        others = np.concatenate([big, rest_quads])
         for b in np.sort(others):
             k = int(self.starts[np.searchsorted(self.starts, b) + 1] - b)
             local = triangulate_polygon(self.vertices[self.corners[b:b + k]])
@@ -557,6 +578,13 @@ class Mesh:
 
 
 # -- polygon helpers -------------------------------------------------------------------------
+
+def ranges_of(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """``starts[0] … starts[0] + lengths[0] - 1``, then the next range…, as one array."""
+    lengths = np.asarray(lengths, np.int64)
+    return np.repeat(np.asarray(starts, np.int64) - (np.cumsum(lengths) - lengths), lengths) \
+        + np.arange(int(lengths.sum()))
+
 
 def weld_ids(points: np.ndarray, tolerance: float = 1e-6) -> np.ndarray:
     """(N,) for each point, the id of its welded vertex: points on the same ``tolerance`` grid

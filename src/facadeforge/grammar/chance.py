@@ -48,3 +48,28 @@ def outcome(kind: str, r: float, params):
         if r < acc:
             return k
     return len(params)
+
+
+def outcomes(kind: str, params) -> float:
+    """How many outcomes a choice can have (``inf`` when it cannot be told)."""
+    if kind == "p":
+        return 2
+    if kind == "list":
+        return max(int(params), 1)
+    if kind == "pct":
+        return len(params) + 1
+    if kind in ROUNDINGS:
+        lo, hi = sorted(params)
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            return float("inf")
+        return float(np.floor(hi) - np.floor(lo) + 2)  # floor, ceil and rint alike, at most
+    return float("inf")
+
+
+def combinations(choices) -> float:
+    """How many outcome combinations the recorded ``choices`` of a subtree (``(path, draw,
+    kind, params, outcome)``) could have had: the product of their outcome counts."""
+    n = 1.0
+    for _, _, kind, params, _ in choices:
+        n *= outcomes(kind, params)
+    return n

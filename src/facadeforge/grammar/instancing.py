@@ -528,15 +528,25 @@ def instance_key(mod, name, args, state, info: RuleInfo):
     g = state.geometry
     rot, org = sc.rotation, sc.origin
     uv_map = None
+    proj0 = state.projections.get(0)
+    proj0_map = projection_uv_map(proj0, rot, org) if proj0 is not None else None
     if g.n_faces:
+        if g.corner_uvs is not None and info.uses_uv:
+            return None, None  # the subtree works on the inherited UV values themselves
         local = (g.vertices[g.corners] - org) @ rot
         geom_key = (np.round(local, 6).tobytes(), g.starts.tobytes(), g.corner_uvs is not None)
         if g.corner_uvs is not None:
-            if info.uses_uv:  # the subtree works on the inherited UV values themselves
-                return None, None
-            uv_map = affine_uv_map(local, g.corner_uvs)
+            # most inherited UVs are the projection's (a facade's projectUV): its map, when it
+            # gives them, saves a least-squares fit
+            if proj0_map is not None and np.abs(
+                    local @ proj0_map[:3] + proj0_map[3] - g.corner_uvs).max() <= 1e-7:
+                uv_map = proj0_map
+            how = "projection" if uv_map is not None else "fit"
+            if uv_map is None:
+                uv_map = affine_uv_map(local, g.corner_uvs)
             if uv_map is None:
                 return None, None
+            geom_key = (*geom_key, how)
     else:
         geom_key = ()
     ctx = state.context
@@ -556,8 +566,7 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         proj_key = tuple(sorted(
             (k, np.round(u @ rot, 9).tobytes(), np.round(v @ rot, 9).tobytes(), w, h)
             for k, (o, u, v, w, h, off) in state.projections.items() if k == 0))
-        if 0 in state.projections:
-            proj_map = projection_uv_map(state.projections[0], rot, org)
+        proj_map = proj0_map
     pivot_key = ()
     if info.centers and state.pivot is not None:
         p = state.pivot

@@ -25,7 +25,7 @@ from ..model.model import Material, Model, Part
 from ..model.shape import Shape
 from . import ast as A
 from .budget import Budget
-from .chance import outcome, rand_value
+from .chance import combinations, outcome, rand_value
 from .expressions import Evaluator
 from .functions import FUNCTIONS, bare_call, rand_bounds
 from .instancing import (
@@ -573,6 +573,9 @@ class Derivation:
         recorded, up to :data:`CHANCE_VARIANTS` recordings a key).  Returns False when the
         shape is left to the caller to derive directly."""
         variants = self._chance_instances.setdefault(key, [])
+        if variants is None:  # its choices have more outcomes together than recordings kept
+            payoff.note(False, 0)
+            return False
         scope0 = state.scope
         memo: dict = {}
         for choices, rec in variants:
@@ -591,7 +594,12 @@ class Derivation:
             choices = self._chance_log
         finally:
             self._chance_log, state.path = outer_log, outer_path
-        if all(path is not None for path, *_ in choices):
+        if combinations(choices) > CHANCE_VARIANTS:
+            # a subtree of several choices (a row of windows, each with its own texture):
+            # its recordings would rarely repeat, while the subtrees of each choice (one window)
+            # do; shapes of this key are derived directly from now on, their parts instanced
+            self._chance_instances[key] = None
+        elif all(path is not None for path, *_ in choices):
             variants.append((tuple(choices), rec))
         payoff.note(False, rec.shapes)
         self._note_choices(state, choices)
