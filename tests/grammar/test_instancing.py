@@ -83,6 +83,15 @@ def assert_same_parts(a, b):
     ("Lot --> extrude(6) comp(f){ side : F }\n"
      "F --> tag(\"rim\", edges) split(x){ ~3 : T }*\n"
      "T --> extrude(0.2) comp(f){ isTagged(\"rim\") : A. | all : B. }", "24x12", None),
+    # tiles alike but for their heading: selectors of the world's and the lot's frame must
+    # keep the facades apart (scope-frame words may share one recording across facades)
+    ("Lot --> extrude(6) comp(f){ side : F }\n"
+     "F --> split(x){ ~3 : T }*\n"
+     "T --> extrude(0.5) comp(f){ world.south : S. | object.left : L. | front : F. | all : A. }",
+     "24x12", None),
+    ("Lot --> extrude(6) comp(f){ side : F }\n"
+     "F --> split(x){ ~3 : T }*\n"
+     "T --> alignScopeToAxes(y) extrude(0.5) comp(f){ left : L. | all : A. }", "24x12", None),
 ])
 def test_instanced_derivation_equals_plain(grammar, lot, assets):
     rules = load_rules(grammar, assets=assets)

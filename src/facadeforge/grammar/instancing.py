@@ -54,6 +54,12 @@ IMPURE_OPS = {"scatter", "consistent", "differentiate", "translate", "rotate",
 # a primitive's, none): the same wherever the shape is
 FRESH_UV_OPS = {"i", "insert", "primitiveCube", "primitiveQuad", "primitiveCylinder",
                 "primitiveCone", "primitiveDisk", "primitiveSphere", "deleteUV"}
+# names of the world's or the initial shape's heading (selectors, axes, built-ins): all but
+# the vertical ones make a subtree depend on how its scope is turned about the vertical
+_HEADED = ("world.", "object.", "street.", "streetSide", "noStreetSide")
+_UPRIGHT = {"world.up", "world.down", "world.y"}
+YAWED_OPS = {"alignScopeToAxes", "alignScopeToGeometry", "setPivot", "rotate", "translate"}
+YAWED_CALLS = {"geometry.angle", "convert", "getGeoCoord"}
 # rounding of a random draw that makes it a discrete choice: ``floor(rand(0, 9.99))``
 DISCRETE_OF_RAND = {"floor", "ceil", "rint"}
 CONTEXT_NAMES = {"split.index", "split.total", "comp.index", "comp.total", "comp.sel"}
@@ -98,6 +104,10 @@ class RuleInfo:
     assets: set = field(default_factory=set)  # the i("literal") assets it inserts
     far: bool = False  # may put geometry beyond its scope box (s, t, extrude, primitives…)
     chance: bool = False  # makes stochastic choices (``p% : … else : …``), itself or below
+    # reads the heading of the world or of the initial shape (``world.south``, ``object.front``,
+    # alignScopeToAxes…): without it, a subtree turned about the vertical makes the same parts,
+    # turned, and shapes whose scopes differ only by that turn share one recording
+    yawed: bool = False
     calls: set = field(default_factory=set)  # (module id, rule or function name)
     # the calls made while the shape's texture coordinates were still the inherited ones, and
     # while they came from a projectUV of its own: their use of UVs counts for this rule
@@ -170,8 +180,9 @@ class Purity:
                         continue
                     before = (info.pure, len(info.reads), info.projects, info.uses_uv,
                               info.uv_projected, info.trims, len(info.assets), info.far,
-                              info.chance)
+                              info.chance, info.yawed)
                     info.pure &= other.pure
+                    info.yawed |= other.yawed
                     info.chance |= other.chance
                     info.reads |= other.reads
                     info.projects |= other.projects
@@ -187,7 +198,7 @@ class Purity:
                     info.far |= other.far
                     if (info.pure, len(info.reads), info.projects, info.uses_uv,
                             info.uv_projected, info.trims, len(info.assets), info.far,
-                            info.chance) != before:
+                            info.chance, info.yawed) != before:
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -227,6 +238,8 @@ class Purity:
                         info.pure = False  # sets an absolute position, or which planes trim
                     if name == "center" and top:
                         info.centers = True
+                    if name in YAWED_OPS:
+                        info.yawed = True
                     if name in UV_OPS:
                         self._uses_uv(info, uv)
                     _note_reach(name, args, info)
@@ -250,6 +263,8 @@ class Purity:
             elif t is A.BodyOp:
                 if op.name in IMPURE_OPS:
                     info.pure = False
+                if op.name in YAWED_OPS:
+                    info.yawed = True
                 _note_reach(op.name, op.args, info)
                 if op.name == "split" and op.args and isinstance(op.args[0], A.Name) \
                         and op.args[0].name in ("u", "v"):
@@ -338,6 +353,8 @@ class Purity:
             n = stack.pop()
             t = type(n)
             if t is A.Name:
+                if n.name.startswith(_HEADED) and n.name not in _UPRIGHT:
+                    info.yawed = True
                 if selector and n.name in SELECTOR_WORDS:
                     continue
                 if n.name in OCCLUSION_CALLS and m.attr(n.name) is None:  # `case inside : …`
@@ -354,6 +371,8 @@ class Purity:
                     if callee is not None:
                         self._call(info, callee, self._uv)
             elif t is A.Call:
+                if n.name in YAWED_CALLS:
+                    info.yawed = True
                 if n.name in UV_NAMES:
                     self._uses_uv(info, self._uv)
                 if (self.chance and n.name in DISCRETE_OF_RAND and len(n.args) == 1
@@ -529,7 +548,9 @@ def instance_key(mod, name, args, state, info: RuleInfo):
     rot, org = sc.rotation, sc.origin
     uv_map = None
     proj0 = state.projections.get(0)
-    proj0_map = projection_uv_map(proj0, rot, org) if proj0 is not None else None
+    proj0_map = None
+    if proj0 is not None and (info.projects or g.corner_uvs is not None):
+        proj0_map = projection_uv_map(proj0, rot, org)
     if g.n_faces:
         if g.corner_uvs is not None and info.uses_uv:
             return None, None  # the subtree works on the inherited UV values themselves
@@ -573,8 +594,10 @@ def instance_key(mod, name, args, state, info: RuleInfo):
         pivot_key = (np.round((p.origin - org) @ rot, 6).tobytes(), np.round(p.size, 6).tobytes(),
                      np.round(rot.T @ p.rotation, 9).tobytes())
     trims = trim_key(state, info.assets, info.far) if info.trims else ()
+    # the scope's turn: whole, or only where the vertical lies in it (its up in scope axes)
+    turn = np.round(rot if info.yawed else rot[1], 9).tobytes()
     key = (id(mod), name, tuple(_hashable(a) for a in args), np.round(sc.size, 6).tobytes(),
-           np.round(rot, 9).tobytes(), geom_key, tuple(sorted((k, _hashable(v))
+           turn, info.yawed, geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
            state.label, proj_key, pivot_key, trims)
@@ -585,9 +608,13 @@ def projection_uv_map(projection, rot: np.ndarray, org: np.ndarray) -> np.ndarra
     """(4, 2) map with ``[x, y, z, 1] @ map`` the UVs ``projectUV(0)`` gives a point at
     ``x, y, z`` of the scope frame ``rot``, ``org`` (ops/appearance.py, ``op_project_uv``)."""
     o, u, v, w, h, off = projection
-    lin = np.column_stack([(u @ rot) / w, (v @ rot) / h])
-    const = np.array([((org - o) @ u - off[0]) / w, ((org - o) @ v - off[1]) / h])
-    return np.vstack([lin, const])
+    out = np.empty((4, 2))
+    out[:3, 0] = (u @ rot) / w
+    out[:3, 1] = (v @ rot) / h
+    d = org - o
+    out[3, 0] = (d @ u - off[0]) / w
+    out[3, 1] = (d @ v - off[1]) / h
+    return out
 
 
 def affine_uv_map(local: np.ndarray, uv: np.ndarray) -> np.ndarray | None:
@@ -642,3 +669,24 @@ class Recording:
     shapes: int
     # the affine UV maps at recording (the inherited UVs', projectUV(0)'s), or None each
     uv_map: tuple
+    _uv_corners: dict = field(default_factory=dict)
+
+    def uv_corners(self, j: int):
+        """Part ``j``'s corners as ``[x, y, z, 1]`` rows, and per UV map the corners whose UVs
+        it gave (the first map that does; ``None`` where it gave none): the corners a replay
+        re-derives when that map differs for the shape it goes to."""
+        got = self._uv_corners.get(j)
+        if got is None:
+            local = self.parts[j][0]
+            pts = np.column_stack([local.vertices[local.corners], np.ones(len(local.corners))])
+            done = np.zeros(len(pts), bool)
+            hits = []
+            for m in self.uv_map:
+                if m is None:
+                    hits.append(None)
+                    continue
+                hit = ~done & (np.abs(pts @ m - local.corner_uvs).max(axis=1) < 1e-7)
+                done |= hit
+                hits.append(np.flatnonzero(hit) if hit.any() else None)
+            got = self._uv_corners[j] = (pts, hits)
+        return got

@@ -620,19 +620,18 @@ class Derivation:
         # UVs that follow from where the shape is — inherited from its ancestors, or made by a
         # projectUV below from an inherited projection — are affine in the scope frame: the
         # corners that carry the recording's map get this shape's
-        maps = [(a, b) for a, b in zip(rec.uv_map, uv_map)
-                if a is not None and b is not None and not np.array_equal(a, b)]
-        for local, label, material, symbol in rec.parts:
+        moved = [i for i, (a, b) in enumerate(zip(rec.uv_map, uv_map))
+                 if a is not None and b is not None and not np.array_equal(a, b)]
+        for j, (local, label, material, symbol) in enumerate(rec.parts):
             mesh = local.with_vertices(local.vertices @ rot.T + org)
-            if maps and local.corner_uvs is not None:
-                pts = np.column_stack([local.vertices[local.corners], np.ones(len(local.corners))])
-                uv, done = None, np.zeros(len(pts), bool)
-                for old, new in maps:
-                    hit = ~done & (np.abs(pts @ old - local.corner_uvs).max(axis=1) < 1e-7)
-                    if hit.any():
+            if moved and local.corner_uvs is not None:
+                pts, hits = rec.uv_corners(j)
+                uv = None
+                for i in moved:
+                    hit = hits[i]
+                    if hit is not None:
                         uv = local.corner_uvs.copy() if uv is None else uv
-                        uv[hit] = (pts @ new)[hit]
-                        done |= hit
+                        uv[hit] = pts[hit] @ uv_map[i]
                 if uv is not None:
                     mesh = mesh.with_uvs(uv)
             self.parts.append(Part(mesh, label, material, symbol, node.id))
