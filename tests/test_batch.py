@@ -188,6 +188,7 @@ def test_other_options_on_the_same_outdir_are_refused(inputs, scheduler, tmp_pat
 @pytest.mark.parametrize("argv, message", [
     (["--attr", "heigth=3"], "--attr heigth: the rules have no attribute 'heigth'"),
     (["--chunk", "0"], "--chunk 0: give a positive number"),
+    (["--workers", "3"], "--workers sizes the local cluster"),
 ])
 def test_bad_arguments_are_one_line(inputs, scheduler, tmp_path, capsys, argv, message):
     rules, fps = inputs
@@ -244,6 +245,51 @@ def test_chunks_pass_cjval(inputs, scheduler, tmp_path):
         assert r.returncode == 0 and len(reports) == 6, (path.name, r.stdout[-500:], r.stderr)
         bad = [(x["file"], x["checks"]) for x in reports if not x["valid"]]
         assert not bad, (path.name, bad[:1])
+
+
+def test_lon_lat_footprints_put_the_tileset_on_the_globe(inputs, scheduler, tmp_path):
+    import numpy as np
+
+    rules, _ = inputs
+    feats = []
+    for i in range(3):   # three lots in Stuttgart, lon/lat (projected to UTM 32N on reading)
+        x, y = 9.18 + i * 0.0003, 48.78
+        ring = [[x, y], [x + 0.0002, y], [x + 0.0002, y + 0.0001], [x, y + 0.0001], [x, y]]
+        feats.append({"type": "Feature", "properties": {"name": f"s{i}"},
+                      "geometry": {"type": "Polygon", "coordinates": [ring]}})
+    fps = tmp_path / "stuttgart.geojson"
+    fps.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    out = tmp_path / "out"
+    assert run(rules, [fps], out, scheduler) == 0
+    doc = json.loads((out / "tiles" / "tileset.json").read_text())
+    m = np.array(doc["root"]["transform"]).reshape(4, 4).T
+    assert 6.35e6 < np.linalg.norm(m[:3, 3]) < 6.40e6
+    assert tileset_problems(out / "tiles" / "tileset.json") == []
+    head = json.loads((out / "chunks" / "00000.city.jsonl").open().readline())
+    assert head["metadata"]["referenceSystem"].endswith("/EPSG/0/32632")
+
+
+def test_progress_is_one_updating_line_on_a_terminal_and_plain_lines_elsewhere():
+    import io
+
+    from facadeforge.city.batch import _Progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty, log = Tty(), io.StringIO()
+    for stream in (tty, log):
+        bar = _Progress(10, stream, every=0.0)
+        bar.update(5, 1, 2)
+        bar.update(5, 2, 2)
+    text = tty.getvalue()   # the line rewritten in place, ended once the last chunk is in
+    assert text.count("\r") == 2 and text.count("\n") == 1 and text.endswith("\n")
+    assert text.rstrip().endswith("ETA 0:00")
+    lines = log.getvalue().splitlines()
+    assert len(lines) == 2 and "\r" not in log.getvalue()
+    assert lines[0].startswith("batch: 5/10 buildings (50 %), chunk 1/2, ")
+    assert "buildings/s, ETA " in lines[0] and lines[1].endswith("ETA 0:00")
 
 
 def test_chunks_are_compact_and_names_unique_across_files(tmp_path):

@@ -182,7 +182,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="a running Dask scheduler, e.g. tcp://host:8786 (default: a local "
                         "cluster on 127.0.0.1)")
     b.add_argument("--workers", type=int, default=None,
-                   help="worker processes of the local cluster (default: all cores)")
+                   help="worker processes of the local cluster (default: all cores; not "
+                        "with --scheduler)")
     b.add_argument("--chunk", type=int, default=50, metavar="N",
                    help="buildings a task and a 3D tile (default 50)")
     b.add_argument("--attr", action="append", type=_parse_attr, default=[], metavar="NAME=VALUE",

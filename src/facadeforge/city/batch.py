@@ -194,6 +194,10 @@ def _worker_rules(spec: dict):
 
 
 def _message(exc: BaseException) -> str:
+    if type(exc).__name__ == "KilledWorker":
+        # Dask gave the chunk to a new worker allowed-failures times, and each died
+        return ("every worker that took it died (out of memory? see the workers' logs; a "
+                "smaller --chunk helps when a few buildings are very large)")
     if isinstance(exc, FacadeForgeError):
         return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
     return f"internal error: {type(exc).__name__}: {exc}"
@@ -500,10 +504,15 @@ def _client(scheduler: str | None, workers: int | None):
         raise InputError(f"--workers {n}: give at least 1")
     # no dashboard; the scheduler's HTTP server (health and metrics routes, which it always
     # starts, on 8787 unless told) on a free port of the loopback: runs side by side never fight
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                           host="127.0.0.1", dashboard_address=None, scheduler_port=0,
-                           scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                           silence_logs=logging.ERROR)
+    # and no statistical profiler in the workers: it walks the deep stacks of a derivation
+    # every 10 ms (docs/city.md: the figures, and how to do the same on a cluster)
+    import dask
+
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None, scheduler_port=0,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
@@ -555,6 +564,10 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
     rules_path = Path(rules)
     if not footprints:
         raise InputError("give footprints: --footprint FILE (one or more files)")
+    if scheduler and workers is not None:
+        raise InputError(f"--workers sizes the local cluster; with --scheduler {scheduler} the "
+                         "cluster's own workers derive (start more with `dask worker "
+                         f"{scheduler}`): leave --workers out")
     # loaded here once too: bad rules or attributes fail at once, with the CLI's message
     loaded = load_rules(rules_path, rule=rule, assets=assets, start=start, style=style)
     known = set(loaded.ruleset.main.attrs)
