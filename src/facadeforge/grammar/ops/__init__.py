@@ -37,7 +37,7 @@ OPERATIONS: dict[str, OpSpec] = {}
 #: ``primitiveQuad``); other bare lower-case names stay rule calls or leaves (``trim``, ``tag``).
 BARE_OPERATIONS: frozenset[str] = frozenset({
     "primitiveCube", "primitiveQuad", "primitiveCylinder", "primitiveCone", "primitiveDisk",
-    "primitiveSphere", "reverseNormals"})
+    "primitiveSphere", "reverseNormals", "convexify"})
 
 
 def operation_of(op, module) -> OpSpec | None:

@@ -14,7 +14,6 @@ from ...geometry.mesh import (
     cross3,
     plane_basis,
     polygon_normal,
-    triangulate_polygon,
     weld_ids,
 )
 from ...geometry.polygon import simple_pieces
@@ -323,43 +322,107 @@ def op_offset(call):
 
 # ---- convexify --------------------------------------------------------------------------------
 
-def convex_parts(poly: np.ndarray) -> list[np.ndarray]:
-    """Hertel–Mehlhorn: triangulate, then drop diagonals while the merged pieces stay convex."""
+def convex_parts(poly: np.ndarray, max_length: float = math.inf) -> list[np.ndarray]:
+    """Convex pieces of a planar polygon (k, 3) by split lines, as CityEngine's ``convexify``
+    describes them: at a concave corner, one of its two edges is carried on into the polygon
+    until it meets the outline, and the polygon is cut along that line.  The shortest such
+    line of all concave corners is cut first, then each piece in turn, until every piece is
+    convex; ``max_length`` leaves lines longer than it uncut (a piece may stay concave).
+    Corners are shared: a cut point on an edge becomes a corner of both pieces."""
     n = polygon_normal(poly)
     if not n.any():
         return []
     basis = plane_basis(n)
-    xy = (poly - poly[0]) @ basis[:, :2]
-    if _is_convex2(xy):
-        return [poly]
-    tris = [list(t) for t in triangulate_polygon(poly)]
-    pieces = [t for t in tris]
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(pieces)):
-            for j in range(i + 1, len(pieces)):
-                m = _merge(pieces[i], pieces[j])
-                if m is not None and _is_convex2(xy[m]):
-                    pieces[i] = m
-                    del pieces[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return [poly[p] for p in pieces]
+    xy = ((poly - poly[0]) @ basis[:, :2]).tolist()
+    pts = [list(map(float, q)) for q in poly]
+    out: list[list] = []
+    todo = [(xy, pts)]
+    while todo:
+        if len(out) + len(todo) > 10_000:
+            raise CGARuntimeError("convexify: more than 10,000 pieces; cleanupGeometry first?")
+        xy, pts = todo.pop()
+        cut = _shortest_split(xy, max_length)
+        if cut is None:
+            out.append(pts)
+            continue
+        todo.extend(_cut_polygon(xy, pts, *cut))
+    return [np.array(q) for q in out]
 
 
-def _merge(a: list, b: list) -> list | None:
-    ea = {(a[k], a[(k + 1) % len(a)]): k for k in range(len(a))}
-    for k in range(len(b)):
-        u, v = b[k], b[(k + 1) % len(b)]
-        if (v, u) in ea:
-            ka = ea[(v, u)]
-            # a: ... v u ...  insert b's path from v around to u (exclusive) after v
-            rest_b = [b[(k + 2 + s) % len(b)] for s in range(len(b) - 2)]
-            return a[:ka + 1] + rest_b + a[ka + 1:]
-    return None
+def _shortest_split(xy: list, max_length: float):
+    """``(corner, edge, t, length)`` of the shortest split line from a concave corner of the
+    counter-clockwise ring ``xy``: an edge of the corner carried on until it meets edge
+    ``edge`` at parameter ``t``; ``None`` when the ring is convex (or no line is short enough)."""
+    k = len(xy)
+    if k < 4:
+        return None
+    best = None
+    for i in range(k):
+        a, v, b = xy[i - 1], xy[i], xy[(i + 1) % k]
+        turn = (v[0] - a[0]) * (b[1] - v[1]) - (v[1] - a[1]) * (b[0] - v[0])
+        scale = math.hypot(v[0] - a[0], v[1] - a[1]) * math.hypot(b[0] - v[0], b[1] - v[1])
+        if turn >= -1e-9 * max(scale, 1e-12):
+            continue  # convex (or straight) corner
+        for d in ((v[0] - a[0], v[1] - a[1]), (v[0] - b[0], v[1] - b[1])):
+            hit = _ray_hit(xy, i, d)
+            if hit is not None and hit[2] <= max_length and (best is None or hit[2] < best[3] - 1e-12):
+                best = (i, hit[0], hit[1], hit[2])
+    return best
+
+
+def _ray_hit(xy: list, i: int, d) -> tuple[int, float, float] | None:
+    """First crossing ``(edge, t, distance)`` of the ray from corner ``i`` along ``d`` with an
+    edge of the ring not at that corner (``t`` in [0, 1) along the edge)."""
+    k = len(xy)
+    norm = math.hypot(*d)
+    if norm < 1e-12:
+        return None
+    dx, dy = d[0] / norm, d[1] / norm
+    ox, oy = xy[i]
+    best = None
+    for e in range(k):
+        if e == i or (e + 1) % k == i:
+            continue
+        p, q = xy[e], xy[(e + 1) % k]
+        ex, ey = q[0] - p[0], q[1] - p[1]
+        den = dx * ey - dy * ex
+        if abs(den) < 1e-12:
+            continue
+        wx, wy = p[0] - ox, p[1] - oy
+        s = (wx * ey - wy * ex) / den          # along the ray
+        t = (wx * dy - wy * dx) / den          # along the edge
+        if s > 1e-9 and -1e-9 <= t < 1 - 1e-9 and (best is None or s < best[2]):
+            best = (e, min(max(t, 0.0), 1.0), s)
+    return best
+
+
+def _cut_polygon(xy: list, pts: list, i: int, e: int, t: float, _length: float):
+    """The two rings of ``xy`` (and of its 3D corners ``pts``) cut from corner ``i`` to the
+    point at ``t`` along edge ``e``."""
+    k = len(xy)
+    j = (e + 1) % k
+    if t <= 1e-9:  # the line ends at a corner
+        hit_xy, hit_p, at = None, None, e
+    else:
+        hit_xy = [xy[e][c] + t * (xy[j][c] - xy[e][c]) for c in range(2)]
+        hit_p = [pts[e][c] + t * (pts[j][c] - pts[e][c]) for c in range(3)]
+        at = None
+
+    def walk(frm: int, to: int) -> list[int]:
+        idx, c = [], frm
+        while True:
+            idx.append(c)
+            if c == to:
+                return idx
+            c = (c + 1) % k
+
+    if at is not None:
+        a, b = walk(i, at), walk(at, i)
+        return [([xy[c] for c in a], [pts[c] for c in a]), ([xy[c] for c in b], [pts[c] for c in b])]
+    a = walk(i, e)   # i … e, then the cut point
+    b = walk(j, i)   # the cut point, then j … i
+    return [([xy[c] for c in a] + [hit_xy], [pts[c] for c in a] + [hit_p]),
+            ([hit_xy] + [xy[c] for c in b], [hit_p] + [pts[c] for c in b])]
 
 
 def _is_convex2(xy: np.ndarray) -> bool:
@@ -370,10 +433,13 @@ def _is_convex2(xy: np.ndarray) -> bool:
 
 @operation("convexify", 0, 1)
 def op_convexify(call):
+    """``convexify()`` / ``convexify(maxLength)``: every face cut into convex pieces along
+    split lines no longer than ``maxLength`` (:func:`convex_parts`)."""
     st = call.state
+    max_length = call.num(0) if call.args else math.inf
     polys, source = [], []
     for f, p in enumerate(st.geometry.polygons()):
-        parts = convex_parts(p)
+        parts = convex_parts(p, max_length)
         polys.extend(parts)
         source.extend([f] * len(parts))
     # convex parts are faces of their own (a face with holes too: its pieces come apart)
