@@ -171,6 +171,28 @@ def repair_table() -> str:
     return head + "\n".join(rows)
 
 
+def vs_prt_table() -> str:
+    """Esri's runtime (PyPRT) and facadeforge on the same rule package and initial shapes,
+    whole processes alternating (benchmarks/vs_prt.py)."""
+    path = ROOT / "benchmarks" / "results" / "vs_prt.json"
+    if not path.exists():
+        return "_no result yet: run `make prt-env` and `benchmarks/vs_prt.py`_"
+    r = json.loads(path.read_text())
+    m, made = r["machine"], r["made"]
+    rate, wall, peak = r["buildings_per_second"], r["wall_seconds"], r["peak_memory_mib"]
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}): `{r['rules']}` on {r['initial_shapes']}, GLB out, whole processes "
+            f"alternating, best of {r['runs']} runs.  **facadeforge / PRT = {r['ratio']:.2f}×**\n\n")
+    rows = [("buildings / s", f"{rate['prt']:.2f}", f"{rate['facadeforge']:.2f}"),
+            ("wall seconds (each run)", ", ".join(f"{x:.1f}" for x in wall["prt"]),
+             ", ".join(f"{x:.1f}" for x in wall["facadeforge"])),
+            ("peak memory", f"{peak['prt']:,} MiB", f"{peak['facadeforge']:,} MiB"),
+            ("faces made", f"{made['prt']['faces']:,}", f"{made['facadeforge']['faces']:,}"),
+            ("area made", f"{made['prt']['area']:,.0f} m²", f"{made['facadeforge']['area']:,.0f} m²")]
+    return (head + "| | PyPRT (Esri's runtime) | facadeforge |\n|---|---|---|\n"
+            + "\n".join(f"| {a} | {b} | {c} |" for a, b, c in rows))
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -189,6 +211,7 @@ def main() -> None:
     parsing = parsing_table()
     summary = methods_table(SUMMARY_METHODS)
     repair = repair_table()
+    prt = vs_prt_table()
     for p in (ROOT / "README.md", ROOT / "docs" / "benchmarks.md",
               ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
@@ -197,6 +220,7 @@ def main() -> None:
         replace(p, "reconstruct", rec)
         replace(p, "parsing", parsing)
         replace(p, "repair", repair)
+        replace(p, "vs_prt", prt)
     print(table)
     print(methods)
 

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..geometry.mesh import Mesh
+from ..geometry.mesh import Mesh, _take
 
 if TYPE_CHECKING:
     from .shape import Shape
@@ -103,6 +103,8 @@ class Model:
         state["_packed"] = {
             "vertices": merged.vertices, "corners": merged.corners, "starts": merged.starts,
             "uvs": merged.corner_uvs,
+            # face and corner columns (faces with holes, tags, materials of assets…)
+            "face_data": merged.face_data, "corner_data": merged.corner_data,
             "faces": np.array([p.mesh.n_faces for p in parts], np.int64),
             "has_uv": np.array([p.mesh.corner_uvs is not None for p in parts], bool),
             "material": [mats.setdefault(p.material, len(mats)) for p in parts],
@@ -118,6 +120,7 @@ class Model:
             return
         merged = Mesh(packed["vertices"], corners=packed["corners"], starts=packed["starts"],
                       corner_uvs=packed["uvs"])
+        face_data, corner_data = packed.get("face_data"), packed.get("corner_data")
         face_end = np.cumsum(packed["faces"])
         parts = []
         for k, (label, symbol, shape_id) in enumerate(packed["meta"]):
@@ -128,7 +131,9 @@ class Model:
             mesh = Mesh(merged.vertices[used], corners=local.reshape(-1),
                         starts=merged.starts[f0:f1 + 1] - c0,
                         corner_uvs=merged.corner_uvs[c0:c1] if (packed["has_uv"][k] and
-                                                                 merged.corner_uvs is not None) else None)
+                                                                 merged.corner_uvs is not None) else None,
+                        face_data=_take(face_data, slice(f0, f1)),
+                        corner_data=_take(corner_data, slice(c0, c1)))
             parts.append(Part(mesh, label, packed["materials"][packed["material"][k]], symbol,
                               shape_id))
         self.parts = parts
