@@ -82,4 +82,4 @@ $(TOOLS)/cjval/bin/cjval:
 	$(CARGO) install cjval --version $(CJVAL_VERSION) --features build-binary --root $(TOOLS)/cjval
 
 clean:
-	rm -rf $(VENV) .venv-train .venv-bench .venv-prt $(TOOLS) .pytest_cache .ruff_cache
+	rm -rf $(VENV) .venv-train .venv-bench .venv-prt .venv-docs site $(TOOLS) .pytest_cache .ruff_cache
