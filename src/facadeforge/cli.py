@@ -318,7 +318,12 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         g = sub.add_parser("parse", help="photo → best derivation of a parse grammar (Simon 2011)",
                            description="Fit a parse grammar to a facade photo: pixel classifier "
                                        "→ energy → hill climbing or evolutionary search → shape "
-                                       "tree, labels, fitted rules and 3D model in OUTDIR.")
+                                       "tree, labels, fitted rules and 3D model in OUTDIR.",
+                           epilog="examples:\n"
+                                  "  facadeforge parse street.jpg -o parsed/\n"
+                                  "  facadeforge parse facade.png --rectified --grammar generic "
+                                  "--method hill --budget 3000 -o parsed/",
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
         g.add_argument("photo", help="facade photo")
         g.add_argument("--grammar", help="parse grammar: grid (default), haussmann, generic or a "
                                          ".cga file")

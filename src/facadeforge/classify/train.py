@@ -197,7 +197,13 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         help="train a pixel classifier (forest, autocontext, convnet, gmm, ensemble)",
         description="Train a pixel classifier for grammar parsing. forest, autocontext and "
                     "convnet learn from a labelled dataset's train split; gmm learns from one "
-                    "photo's scribbles; ensemble averages trained models (--members).")
+                    "photo's scribbles; ensemble averages trained models (--members).",
+        epilog="examples:\n"
+               "  facadeforge train-classifier --kind autocontext --dataset cmp --data ../shared/data/cmp "
+               "-o cmp.npz\n"
+               "  facadeforge train-classifier --kind gmm --image photo.jpg "
+               "--scribbles strokes.png -o gmm.npz",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--kind", default="autocontext",
                    choices=(*TRAINABLE_KINDS, "gmm", "ensemble"))
     p.add_argument("--dataset",
