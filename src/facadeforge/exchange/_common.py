@@ -250,14 +250,6 @@ def triangulate_corners(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     return tri, face_of
 
 
-def ranges_index(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """The indices ``starts[0] … starts[0] + lengths[0] - 1``, then those of the next range…,
-    as one array (the corners of chosen faces or rings, gathered at once)."""
-    lengths = np.asarray(lengths, np.int64)
-    return np.repeat(np.asarray(starts, np.int64) - (np.cumsum(lengths) - lengths), lengths) \
-        + np.arange(int(lengths.sum()))
-
-
 def previous_corner(starts: np.ndarray) -> np.ndarray:
     """Index of the previous corner of the same face for every flattened corner (C,)."""
     prev = np.arange(-1, int(starts[-1]) - 1)

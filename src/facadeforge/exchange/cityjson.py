@@ -41,7 +41,7 @@ import numpy as np
 
 from ..geometry.assets import inside
 from ..geometry.holed import HOLED, face_groups, fresh_ids, plane_polygon, rings
-from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal
+from ..geometry.mesh import Mesh, column_bounds, plane_basis, polygon_normal, ranges_index
 from ..jsonfile import JsonMembers, json_type, parse_json, read_json
 from ..model.labels import Labels, label_for_name
 from ..model.model import MAX_COORDINATE, Material, Model, Part
@@ -54,7 +54,6 @@ from ._common import (
     iter_models,
     jsonable,
     previous_corner,
-    ranges_index,
     read_texture,
     safe_name,
     scalar_attributes,

@@ -546,7 +546,7 @@ class Mesh:
             # convex polygons (most of an asset's n-gons: cylinder caps, mouldings) as fans,
             # all at once; the others by ear clipping below
             k = sizes[sizes > 4]
-            corner = ranges_of(big, k)
+            corner = ranges_index(big, k)
             first = np.concatenate([[0], np.cumsum(k)[:-1]])
             nxt = np.arange(1, len(corner) + 1)
             nxt[first + k - 1] = first
@@ -559,7 +559,7 @@ class Mesh:
             if convex.any():
                 bc, kc = big[convex], k[convex]
                 fan = np.repeat(bc, kc - 2)
-                j = ranges_of(np.ones(len(kc), np.int64), kc - 2)
+                j = ranges_index(np.ones(len(kc), np.int64), kc - 2)
                 out.append(np.stack([fan, fan + j, fan + j + 1], axis=1))
             big = big[~convex]
         others = np.concatenate([big, rest_quads])
@@ -579,8 +579,9 @@ class Mesh:
 
 # -- polygon helpers -------------------------------------------------------------------------
 
-def ranges_of(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """``starts[0] … starts[0] + lengths[0] - 1``, then the next range…, as one array."""
+def ranges_index(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The indices ``starts[0] … starts[0] + lengths[0] - 1``, then those of the next range…,
+    as one array (the corners of chosen faces or rings, gathered at once)."""
     lengths = np.asarray(lengths, np.int64)
     return np.repeat(np.asarray(starts, np.int64) - (np.cumsum(lengths) - lengths), lengths) \
         + np.arange(int(lengths.sum()))

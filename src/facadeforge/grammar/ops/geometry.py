@@ -425,12 +425,6 @@ def _cut_polygon(xy: list, pts: list, i: int, e: int, t: float, _length: float):
             ([hit_xy] + [xy[c] for c in b], [hit_p] + [pts[c] for c in b])]
 
 
-def _is_convex2(xy: np.ndarray) -> bool:
-    e = np.roll(xy, -1, axis=0) - xy
-    c = e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
-    return bool(np.all(c >= -1e-12))
-
-
 @operation("convexify", 0, 1)
 def op_convexify(call):
     """``convexify()`` / ``convexify(maxLength)``: every face cut into convex pieces along
