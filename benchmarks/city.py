@@ -34,6 +34,8 @@ import time
 from collections import Counter
 from pathlib import Path
 
+from engine import lot_feature  # benchmarks/engine.py, beside this file
+
 from facadeforge.evaluation.bench import provenance, save_result
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -51,13 +53,7 @@ def city(n: int) -> dict:
         x0 = gx * 24.0 + (gx // 4) * 16.0        # a 16 m street every fourth lot
         y0 = gy * 20.0 + (gy // 4) * 16.0
         w, d = 8 + (i * 7) % 13, 9 + (i * 5) % 7
-        if i % 4 == 3:
-            ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d / 2], [x0 + w / 2, y0 + d / 2],
-                    [x0 + w / 2, y0 + d], [x0, y0 + d], [x0, y0]]
-        else:
-            ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d], [x0, y0 + d], [x0, y0]]
-        feats.append({"type": "Feature", "properties": {"name": f"b{i:06d}"},
-                      "geometry": {"type": "Polygon", "coordinates": [ring]}})
+        feats.append(lot_feature(f"b{i:06d}", x0, y0, w, d, i % 4 == 3))
     return {"type": "FeatureCollection", "features": feats}
 
 

@@ -31,21 +31,22 @@ GRAMMAR = ROOT / "benchmarks" / "grammars" / "detailed.cga"
 ASSETS = ROOT / "examples" / "assets"
 
 
+def lot_feature(name: str, x0: float, y0: float, w: float, d: float, l_shape: bool) -> dict:
+    """A GeoJSON lot ``w`` × ``d`` at ``x0, y0``: a rectangle, or an L (the upper right
+    quarter cut away)."""
+    if l_shape:
+        ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d / 2], [x0 + w / 2, y0 + d / 2],
+                [x0 + w / 2, y0 + d], [x0, y0 + d], [x0, y0]]
+    else:
+        ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d], [x0, y0 + d], [x0, y0]]
+    return {"type": "Feature", "properties": {"name": name},
+            "geometry": {"type": "Polygon", "coordinates": [ring]}}
+
+
 def footprints(n: int = 40) -> dict:
     """``n`` rectangular and L-shaped lots on a grid, sizes varied deterministically."""
-    feats = []
-    for i in range(n):
-        gx, gy = i % 8, i // 8
-        w = 26 + (i * 7) % 9
-        d = 14 + (i * 5) % 5
-        x0, y0 = gx * 50.0, gy * 40.0
-        if i % 4 == 3:  # L-shape
-            ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d / 2], [x0 + w / 2, y0 + d / 2],
-                    [x0 + w / 2, y0 + d], [x0, y0 + d], [x0, y0]]
-        else:
-            ring = [[x0, y0], [x0 + w, y0], [x0 + w, y0 + d], [x0, y0 + d], [x0, y0]]
-        feats.append({"type": "Feature", "properties": {"name": f"b{i:02d}"},
-                      "geometry": {"type": "Polygon", "coordinates": [ring]}})
+    feats = [lot_feature(f"b{i:02d}", (i % 8) * 50.0, (i // 8) * 40.0, 26 + (i * 7) % 9,
+                         14 + (i * 5) % 5, i % 4 == 3) for i in range(n)]
     return {"type": "FeatureCollection", "features": feats}
 
 
