@@ -83,6 +83,14 @@ EXAMPLES = {
   facadeforge points scan.ply --fit grammar -o out/    # + grid grammar fitted with depth energy""",
     "demo": """examples:
   facadeforge demo -o demo-out""",
+    "edit": """examples:
+  facadeforge edit out/                      # the OUTDIR of reconstruct or parse, in a browser
+  facadeforge edit out/ --facade facade_01   # one facade of a street photo's OUTDIR
+  facadeforge edit out/ --port 8800 --no-browser   # then open the URL it prints""",
+    "view": """examples:
+  facadeforge view building.glb                      # any model we write
+  facadeforge view out/model.glb scan.ply            # a points model over its scan
+  facadeforge view city-out/tiles/tileset.json       # a 3D Tiles tileset""",
 }
 
 
@@ -349,6 +357,27 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 
         add_train(sub)
 
+    ed = sub.add_parser("edit", help="correct a reconstruction in the browser: drag split lines, "
+                        "set depths, change elements; the 3D model follows; save rewrites OUTDIR",
+                        epilog=EXAMPLES["edit"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    ed.add_argument("outdir", help="OUTDIR of `facadeforge reconstruct` or `facadeforge parse`")
+    ed.add_argument("--facade", default=None, metavar="NAME",
+                    help="which facade folder of a street photo's OUTDIR (facade_01); default "
+                         "the first")
+    ed.add_argument("--port", type=int, default=0,
+                    help="port on 127.0.0.1 (default: any free one)")
+    ed.add_argument("--no-browser", action="store_true",
+                    help="print the URL only; do not open a browser")
+    vw = sub.add_parser("view", help="look at models (.glb .obj .city.json .city.jsonl, a 3D "
+                        "Tiles tileset.json) and point clouds (.ply .las …) in the browser",
+                        epilog=EXAMPLES["view"], formatter_class=argparse.RawDescriptionHelpFormatter)
+    vw.add_argument("files", nargs="+", metavar="FILE", help="models and point clouds, drawn "
+                    "together")
+    vw.add_argument("--port", type=int, default=0,
+                    help="port on 127.0.0.1 (default: any free one)")
+    vw.add_argument("--no-browser", action="store_true",
+                    help="print the URL only; do not open a browser")
+
     m = sub.add_parser("demo", help="derive the example building and reconstruct a synthetic facade",
                        epilog=EXAMPLES["demo"], formatter_class=argparse.RawDescriptionHelpFormatter)
     m.add_argument("-o", "--output", default="demo-out", help="output folder (default demo-out)")
@@ -433,6 +462,33 @@ def cmd_batch(args) -> int:
           f"({r.seconds:.1f} s)")
     for chunk, name, message in r.failed[:10]:
         print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
+    return 0
+
+
+def _announce(url: str) -> None:
+    print(url, flush=True)     # the first line: the URL with the session's token
+    print("serving on 127.0.0.1 only; Ctrl-C stops", file=sys.stderr, flush=True)
+
+
+def cmd_edit(args) -> int:
+    from .editor.server import editor_app, serve
+    from .editor.session import EditSession
+
+    session = EditSession(args.outdir, facade=args.facade)
+    serve(lambda token: editor_app(session, token), args.port,
+          open_browser=not args.no_browser, announce=_announce)
+    if session.version != session.saved_version:
+        print(f"facadeforge edit: {len(session.log)} edit(s) not saved", file=sys.stderr)
+    return 0
+
+
+def cmd_view(args) -> int:
+    from .editor.scene import load_scene
+    from .editor.server import serve, viewer_app
+
+    scene = load_scene(args.files)
+    serve(lambda token: viewer_app(scene, token), args.port,
+          open_browser=not args.no_browser, announce=_announce)
     return 0
 
 
@@ -745,7 +801,7 @@ COMMANDS = {"derive": cmd_derive, "batch": cmd_batch, "render": cmd_render, "dem
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
             "synthesize": cmd_synthesize, "repair-model": cmd_repair_model,
-            "points": cmd_points}
+            "points": cmd_points, "edit": cmd_edit, "view": cmd_view}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -152,7 +152,7 @@ def check_output_file(out: str | os.PathLike, inputs: Inputs = None) -> None:
 
 
 def write_outdir(out: str | os.PathLike, write: Callable[[Path], None],
-                 inputs: Inputs = None) -> list[Path]:
+                 inputs: Inputs = None, *, carry_foreign: bool = False) -> list[Path]:
     """Fill a staging folder with ``write(stage)``, then swap it in for ``out`` (module
     docstring); returns the written paths (under ``out``).
 
@@ -164,6 +164,10 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None],
         Writes every output file into the folder it is given (sub-folders allowed).
     inputs : optional
         The run's input files, as for :func:`check_outdir`.
+    carry_foreign : bool
+        For a ``write`` that copies the current OUTDIR into the stage first (``facadeforge
+        edit``'s save): files facadeforge did not write are allowed, carried over by ``write``
+        and left out of the marker; one that appears while ``write`` runs stops the swap.
 
     Raises
     ------
@@ -171,7 +175,12 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None],
         As :func:`check_outdir`.
     """
     given = Path(out)
-    real = check_outdir(given, inputs)
+    foreign_before: set[str] = set()
+    if carry_foreign and given.is_dir():
+        foreign_before = set(_foreign(given.resolve())[0])
+        real = given.resolve()
+    else:
+        real = check_outdir(given, inputs)
     real.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(real.parent, f".{real.name}.old-")
     stage = scratch_dir(f".{real.name}.staging-", real.parent)
@@ -180,10 +189,16 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None],
             write(stage)
             # after write(): mkdtemp's 0700 (or a copytree's copied mode) would become OUTDIR's
             os.chmod(stage, 0o777 & ~_UMASK)
-            files = _entries(stage)
+            files = [f for f in _entries(stage) if f not in foreign_before]
             (stage / MARKER).write_text(json.dumps(
                 {"written_by": "facadeforge", "files": files}, indent=1) + "\n")
-            check_outdir(given, inputs)   # unchanged while we worked? (never delete foreign files)
+            if carry_foreign:    # a file added while we worked would be lost by the swap
+                added = set(_foreign(real)[0]) - foreign_before if real.is_dir() else set()
+                if added:
+                    raise InputError(f"{given} gained {', '.join(sorted(added)[:3])} while it "
+                                     "was being written; nothing was changed, save again")
+            else:
+                check_outdir(given, inputs)   # unchanged while we worked? (never delete foreign)
             _swap(stage, real)
         return [given / f for f in files]
     finally:

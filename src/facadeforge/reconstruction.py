@@ -58,7 +58,7 @@ from .model.shape import INSERT, Shape
 from .photo import MAX_ANALYSIS_SIDE, MIN_SIDE, analysis_copy, as_rgb, check_facade_size, check_size
 
 __all__ = ["DEFAULT_DEPTHS", "FACADE_MODES", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE",
-           "PhotoReconstruction", "Reconstruction", "load_depths", "reconstruct",
+           "PhotoReconstruction", "Reconstruction", "draw_structure", "load_depths", "reconstruct",
            "reconstruct_facades", "review_flags", "structure_image"]
 
 #: Default depth per class in metres: negative = recessed behind the wall plane (§5 rule 15).
@@ -1036,21 +1036,27 @@ def structure_image(rec: Reconstruction) -> np.ndarray:
     """``structure.png``: the rectified photo with floors and tiles drawn, a translucent colour
     per tile cluster and the elements outlined (blue; balconies and other inserted elements
     orange)."""
+    return draw_structure(rec.rectified, rec.tree)
+
+
+def draw_structure(rectified: np.ndarray, tree: Shape) -> np.ndarray:
+    """:func:`structure_image` of a photo and a shape tree with ``box_px`` tags (also what
+    ``facadeforge edit`` writes after an edit)."""
     import cv2
 
-    img = rec.rectified.astype(np.float32).copy()
+    img = rectified.astype(np.float32).copy()
     rng = np.random.default_rng(7)
     palette: dict[str, np.ndarray] = {}
     overlay = img.copy()
-    for node in rec.tree.walk():
-        if node.symbol == "Tile":
+    for node in tree.walk():
+        if node.symbol == "Tile" and "box_px" in node.tags:
             c = palette.setdefault(node.tags["cluster"], rng.uniform(40, 255, 3))
             x0, y0, x1, y1 = node.tags["box_px"]
             overlay[y0:y1, x0:x1] = c
     img = 0.65 * img + 0.35 * overlay
     out = np.clip(img, 0, 255).astype(np.uint8)
     thick = max(1, round(max(out.shape[:2]) / 500))
-    for node in rec.tree.walk():
+    for node in tree.walk():
         x0, y0, x1, y1 = node.tags.get("box_px", (0, 0, 0, 0))
         if node.symbol == "Floor":
             cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), (255, 40, 40), 2 * thick)

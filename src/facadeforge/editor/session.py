@@ -1,0 +1,294 @@
+"""One OUTDIR being edited: its shape tree, the edits made (undo, redo), the model re-derived
+after each edit, and the save that rewrites the OUTDIR's files atomically.
+
+The flow is one way: an edit changes the shape tree (:mod:`.edits`); the rules are extracted
+from the tree again (:func:`facadeforge.grammar.extract.extract_rules`, Müller §5) and derived
+on the facade rectangle (:func:`facadeforge.engine.derive_facade`) in a scratch folder holding
+the facade's texture and element assets; the page shows that model.  :meth:`EditSession.save`
+writes ``shape_tree.json``, ``rules.cga``, ``model.glb/.obj/.city.json``, ``labels.png``,
+``structure.png`` and ``report.json`` (with the edits appended under ``"edits"``) through
+:func:`facadeforge.outdir.write_outdir`: the whole OUTDIR is staged beside itself and swapped in,
+so a failed save leaves every file as it was.
+"""
+
+from __future__ import annotations
+
+import copy
+import io
+import json
+import shutil
+import threading
+import time
+import weakref
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..model.shape import Shape
+from .edits import EditError, apply_edit, update_boxes
+
+__all__ = ["MAX_HISTORY", "EditSession", "find_facades"]
+
+#: Edits kept for undo.
+MAX_HISTORY: int = 500
+#: Largest ``shape_tree.json`` read (a photo's tree is a few hundred kB).
+MAX_TREE_BYTES: int = 64 * 2**20
+#: The images a facade folder may show under its tree, best first.
+_BACKDROPS = ("rectified.png", "ortho.png")
+
+
+def find_facades(outdir: Path) -> list[str]:
+    """The facade folders of an OUTDIR, relative to it: ``"."`` for a single facade's OUTDIR
+    (``reconstruct``, ``parse``), else each ``facade_NN`` that holds a shape tree."""
+    if (outdir / "shape_tree.json").is_file():
+        return ["."]
+    return sorted(p.parent.name for p in outdir.glob("facade_*/shape_tree.json"))
+
+
+@dataclass
+class _Derived:
+    rules: str
+    glb: bytes
+    model: object
+    seconds: float
+
+
+class EditSession:
+    """An OUTDIR of ``reconstruct`` or ``parse`` opened for editing.
+
+    Parameters
+    ----------
+    outdir : path
+        The OUTDIR (it holds ``shape_tree.json``, or ``facade_NN/`` folders that do).
+    facade : str, optional
+        Which facade folder (``facade_01``); the first by default.
+    """
+
+    def __init__(self, outdir, facade: str | None = None):
+        self.outdir = Path(outdir).resolve()
+        if not self.outdir.is_dir():
+            raise InputError(f"edit: {outdir} is not a folder; give the OUTDIR of "
+                             "`facadeforge reconstruct` or `facadeforge parse`")
+        self.facades = find_facades(self.outdir)
+        if not self.facades:
+            raise InputError(f"edit: {outdir} holds no shape_tree.json (nor facade_NN/ "
+                             "folders with one); give the OUTDIR of `facadeforge reconstruct` "
+                             "or `facadeforge parse`")
+        facade = facade or self.facades[0]
+        if facade not in self.facades:
+            raise InputError(f"edit: --facade {facade} is not a facade of {outdir}; choose "
+                             f"one of {', '.join(self.facades)}")
+        self.facade = facade
+        self.folder = (self.outdir / facade).resolve()
+        if not (self.folder / "model.glb").is_file() and (self.outdir / "planes.json").is_file():
+            raise InputError(f"edit: {outdir} is a `facadeforge points` OUTDIR, whose model is "
+                             "in the scan's coordinates; the editor edits the OUTDIRs of "
+                             "`reconstruct` and `parse` for now")
+        self.tree = _read_tree(self.folder / "shape_tree.json")
+        self.report = _read_json(self.folder / "report.json")
+        self.backdrop = next((self.folder / n for n in _BACKDROPS
+                              if (self.folder / n).is_file()), None)
+        self.textured = (self.folder / "texture.jpg").is_file()
+        self._undo: list[dict] = []       # tree snapshots before each edit
+        self._redo: list[dict] = []
+        self.log: list[dict] = []         # the edits in effect (undo pops, redo pushes)
+        self._redo_log: list[dict] = []
+        self.version = 0
+        self.saved_version = 0
+        self.lock = threading.RLock()
+        from ..scratch import scratch_dir
+
+        self.work = scratch_dir("facadeforge-edit-")
+        weakref.finalize(self, shutil.rmtree, self.work, True)
+        if self.textured:
+            shutil.copy2(self.folder / "texture.jpg", self.work / "texture.jpg")
+        if (self.folder / "assets").is_dir():
+            shutil.copytree(self.folder / "assets", self.work / "assets", dirs_exist_ok=True)
+        update_boxes(self.tree)
+        self.derived = self._derive()
+
+    # -- state ------------------------------------------------------------------------------------
+    def state(self) -> dict:
+        """What the page shows besides the tree: versions, what undo/redo can do, the facade."""
+        w, h = (float(v) for v in self.tree.scope.size[:2])
+        return {"version": self.version, "saved_version": self.saved_version,
+                "dirty": self.version != self.saved_version,
+                "can_undo": bool(self._undo), "can_redo": bool(self._redo),
+                "edits": len(self.log), "facade": self.facade, "facades": self.facades,
+                "size_m": [w, h], "outdir": str(self.outdir),
+                "backdrop": self.backdrop.name if self.backdrop else None,
+                "flags": self.report.get("flags", []),
+                "derive_seconds": round(self.derived.seconds, 3),
+                "rules": self.derived.rules}
+
+    def tree_dict(self) -> dict:
+        return self.tree.to_dict()
+
+    # -- edits ------------------------------------------------------------------------------------
+    def apply(self, edit: dict) -> dict:
+        """Apply one edit (:mod:`.edits`), re-derive the model; an edit that fails (a bad edit,
+        or rules that no longer derive) leaves the session as it was."""
+        with self.lock:
+            before = self.tree.to_dict()
+            done = apply_edit(self.tree, edit)
+            try:
+                derived = self._derive()
+            except Exception:
+                self.tree = Shape.from_dict(before)
+                raise
+            self.derived = derived
+            self._push(before)
+            self.log.append({"edit": copy.deepcopy(dict(edit)), "result": done,
+                             "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
+            self._redo_log.clear()
+            return done
+
+    def undo(self) -> bool:
+        with self.lock:
+            if not self._undo:
+                return False
+            self._redo.append(self.tree.to_dict())
+            self._redo_log.append(self.log.pop())
+            self._restore(self._undo.pop())
+            return True
+
+    def redo(self) -> bool:
+        with self.lock:
+            if not self._redo:
+                return False
+            self._undo.append(self.tree.to_dict())
+            self.log.append(self._redo_log.pop())
+            self._restore(self._redo.pop())
+            return True
+
+    def _push(self, before: dict) -> None:
+        self._undo.append(before)
+        del self._undo[:-MAX_HISTORY]
+        self._redo.clear()
+        self.version += 1
+
+    def _restore(self, snapshot: dict) -> None:
+        self.tree = Shape.from_dict(snapshot)
+        self.derived = self._derive()
+        self.version += 1
+
+    # -- derivation -------------------------------------------------------------------------------
+    def _derive(self) -> _Derived:
+        from ..elements.library import element_model, element_spec
+        from ..engine import derive_facade
+        from ..exchange import export
+        from ..exchange.obj import export_obj
+        from ..grammar.extract import extract_rules
+        from ..reconstruction import DEFAULT_DEPTHS
+
+        t0 = time.perf_counter()
+        for name in sorted({s.tags["element"] for s in self.tree.leaves() if "element" in s.tags}):
+            target = self.work / "assets" / f"{name}.obj"
+            if not target.is_file():
+                export_obj(element_model(element_spec(name)), target)
+        rules = extract_rules(self.tree, texture="texture.jpg" if self.textured else None,
+                              depths=DEFAULT_DEPTHS)
+        (self.work / "rules.cga").write_text(rules, encoding="utf-8")
+        w, h = (float(v) for v in self.tree.scope.size[:2])
+        model = derive_facade(self.work / "rules.cga", w, h, assets=self.work, name="facade")
+        glb = self.work / "preview.glb"
+        export(model, glb)
+        return _Derived(rules, glb.read_bytes(), model, time.perf_counter() - t0)
+
+    # -- save -------------------------------------------------------------------------------------
+    def save(self) -> list[str]:
+        """Rewrite the facade's files in the OUTDIR atomically (module docstring); returns the
+        files written, relative to the OUTDIR."""
+        from PIL import Image
+
+        from ..exchange import export
+        from ..exchange.raster import label_map, write_label_png
+        from ..outdir import MARKER, write_json, write_outdir
+        from ..reconstruction import _write_gml, draw_structure
+
+        with self.lock:
+            written: list[str] = []
+            rel = Path(self.facade)
+
+            def write(stage: Path) -> None:
+                shutil.copytree(self.outdir, stage, dirs_exist_ok=True, symlinks=True,
+                                ignore=lambda d, names: [MARKER] if Path(d) == self.outdir
+                                else [])
+                dest = stage / rel
+                for name in ("model.glb", "model.obj", "model.mtl", "model.city.json"):
+                    (dest / name).unlink(missing_ok=True)
+                shutil.rmtree(dest / "textures", ignore_errors=True)
+                write_json(dest / "shape_tree.json", self.tree.to_dict(), indent=1)
+                (dest / "rules.cga").write_text(self.derived.rules, encoding="utf-8")
+                report = dict(self.report)
+                if (dest / "rules.gml").exists():
+                    _write_gml(self.tree, dest / "rules.gml", report)
+                if (self.work / "assets").is_dir():
+                    shutil.copytree(self.work / "assets", dest / "assets", dirs_exist_ok=True)
+                for suffix in ("glb", "obj", "city.json"):
+                    export(self.derived.model, dest / f"model.{suffix}")
+                if self.backdrop is not None:
+                    with Image.open(self.backdrop) as im:
+                        rgb = np.asarray(im.convert("RGB"))
+                    write_label_png(label_map(self.tree, size=rgb.shape[:2]), dest / "labels.png")
+                    if self.backdrop.name == "rectified.png" and (dest / "structure.png").exists():
+                        Image.fromarray(draw_structure(rgb, self.tree)).save(
+                            dest / "structure.png", compress_level=1)
+                report["edits"] = list(report.get("edits", [])) + self.log
+                report["rules_source"] = "facadeforge edit: extracted from the edited shape tree"
+                write_json(dest / "report.json", report)
+                written.extend(sorted(p.relative_to(stage).as_posix() for p in dest.iterdir()
+                                      if p.is_file()))
+
+            write_outdir(self.outdir, write, carry_foreign=True)
+            self.report = _read_json(self.folder / "report.json")
+            self.log = []
+            self._redo_log = []
+            self._undo.clear()
+            self._redo.clear()
+            self.saved_version = self.version
+            return written
+
+    def glb(self) -> bytes:
+        return self.derived.glb
+
+    def backdrop_png(self) -> bytes:
+        if self.backdrop is None:
+            raise EditError("this facade has no rectified photo or orthophoto")
+        return self.backdrop.read_bytes()
+
+
+def _read_json(path: Path) -> dict:
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as e:
+        raise InputError(f"edit: {path} is not readable JSON ({e}); rerun the command that "
+                         "wrote the OUTDIR") from None
+    return data if isinstance(data, dict) else {}
+
+
+def _read_tree(path: Path) -> Shape:
+    if path.stat().st_size > MAX_TREE_BYTES:
+        raise InputError(f"edit: {path} is larger than {MAX_TREE_BYTES >> 20} MiB")
+    data = _read_json(path)
+    try:
+        tree = Shape.from_dict(data)
+    except (KeyError, TypeError, ValueError) as e:
+        raise InputError(f"edit: {path} is not a facadeforge shape tree ({e!r}); rerun "
+                         "`facadeforge reconstruct` to write it again") from None
+    w, h = (float(v) for v in tree.scope.size[:2])
+    if not (np.isfinite([w, h]).all() and w > 0 and h > 0):
+        raise InputError(f"edit: {path}: the facade's size {w} x {h} m is not a rectangle")
+    return tree
+
+
+def png_bytes(rgb: np.ndarray) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(rgb).save(buf, format="PNG")
+    return buf.getvalue()
