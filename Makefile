@@ -7,7 +7,7 @@ VENV := .venv
 export UV_PROJECT_ENVIRONMENT := $(VENV)
 export UV_PYTHON_DOWNLOADS := never
 
-.PHONY: env train-env bench-env prt-env demo test lint docs bench fuzz cjval clean
+.PHONY: env train-env bench-env prt-env demo test lint docs bench fuzz cjval clean web screenshots
 
 $(UV):
 	$(PYTHON) -m venv $(TOOLS)
@@ -67,6 +67,17 @@ FUZZ_SEED ?= 20261201
 fuzz: env
 	FACADEFORGE_FUZZ=long FACADEFORGE_FUZZ_SECONDS=$(FUZZ_SECONDS) FACADEFORGE_FUZZ_SEED=$(FUZZ_SEED) \
 		$(VENV)/bin/python -m pytest tests/fuzz -q -s -p no:cacheprovider
+
+# three.js for the editor and viewer pages, from npm (web/package-lock.json), bundled by esbuild
+# into src/facadeforge/editor/static/vendor/three.bundle.js.  The bundle is committed, so the
+# package works offline and `make test` needs no npm; rerun this after changing web/.
+web:
+	cd web && npm ci --no-audit --no-fund && node build.mjs
+
+# The README's editor and viewer pictures, taken by the browser tests (tests/editor/test_browser.py)
+# in headless Chromium.
+screenshots: env
+	FACADEFORGE_SCREENSHOTS=$(CURDIR)/docs/images $(VENV)/bin/python -m pytest tests/editor/test_browser.py -q
 
 bench: env
 	$(VENV)/bin/python benchmarks/engine.py

@@ -129,7 +129,7 @@ def test_acceptance_move_floor_line_set_depth_save(browser, outdir, tmp_path, so
         assert page.js("window.facadeforge.state()")["dirty"] is False
         if SHOTS and source == "synthetic":
             page.js(f"window.facadeforge.select({window})")
-            page.page.screenshot(path=str(Path(SHOTS) / "editor.png"))
+            page.page.screenshot(path=str(Path(SHOTS) / "editor.jpg"), quality=85)
         assert page.errors == []
         # a page without the token gets nothing
         fresh = browser.new_context()
@@ -193,8 +193,29 @@ def test_viewer_draws_a_model_over_its_cloud(browser, reconstructed, tmp_path):
         info = page.js("window.facadeforge.scene()")
         assert [la["kind"] for la in info["layers"]] == ["gltf", "obj", "gltf", "points"]
         _drew(page)
+        assert page.errors == []
+    finally:
+        page.close()
+        srv.stop()
+
+
+def test_viewer_draws_a_points_model_over_the_real_scan(browser, tmp_path):
+    scan = DATA / "pointclouds" / "lille_street_small.ply"
+    if not scan.is_file():
+        pytest.skip(f"shared point clouds not found at {DATA / 'pointclouds'}")
+    from facadeforge.cli import main
+    from facadeforge.editor.scene import load_scene
+
+    assert main(["points", str(scan), "-o", str(tmp_path / "pts")]) == 0
+    scene = load_scene([tmp_path / "pts" / "model.glb", scan])
+    model, cloud = scene.layers
+    assert model.offset == [0.0, 0.0, 0.0] and cloud.info["points"] > 100_000
+    srv = start(lambda token: viewer_app(scene, token))
+    page = Page(browser, srv.url, size=(1400, 800))
+    try:
+        _drew(page)
         if SHOTS:
-            page.page.screenshot(path=str(Path(SHOTS) / "viewer.png"))
+            page.page.screenshot(path=str(Path(SHOTS) / "viewer.jpg"), quality=85)
         assert page.errors == []
     finally:
         page.close()

@@ -58,7 +58,7 @@ export class View3D {
     const c = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3());
     const r = Math.max(size.x, size.y, size.z, 1);
-    const dist = r / (2 * Math.tan((this.camera.fov * Math.PI) / 360)) * 1.25;
+    const dist = r / (2 * Math.tan((this.camera.fov * Math.PI) / 360)) * 0.95;
     this.camera.position.set(c.x + 0.35 * dist, c.y + 0.2 * dist, c.z + dist);
     this.camera.near = Math.max(0.01, dist / 1000);
     this.camera.far = dist * 20 + r * 4;

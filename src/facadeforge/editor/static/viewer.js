@@ -21,7 +21,7 @@ function points(buffer) {
   const g = new THREE.BufferGeometry();
   g.setAttribute('position', new THREE.BufferAttribute(pos, 3));
   g.setAttribute('color', new THREE.BufferAttribute(rgb, 3, true));
-  const m = new THREE.PointsMaterial({ size: 2, sizeAttenuation: false, vertexColors: true });
+  const m = new THREE.PointsMaterial({ size: 1.25, sizeAttenuation: false, vertexColors: true });
   return new THREE.Points(g, m);
 }
 
