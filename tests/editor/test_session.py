@@ -132,3 +132,36 @@ def test_facade_folders_of_a_street_photo(outdir, tmp_path):
     assert s.facades == ["facade_01"] and s.facade == "facade_01"
     with pytest.raises(InputError, match="choose one of facade_01"):
         EditSession(street, facade="facade_07")
+
+
+def test_reanalyse_replaces_only_the_inside_of_the_shape(outdir):
+    s = EditSession(outdir)
+    s.apply({"op": "move_split", "path": [], "index": 1, "delta": 0.2})   # a fix to hold
+    floors = len(s.tree.children)
+    target = max(range(floors), key=lambda i: s.tree.children[i].scope.size[1])
+    others = {i: s.tree.children[i].to_dict() for i in range(floors) if i != target}
+    box = s.tree.children[target].scope
+    o, size = box.origin.copy(), box.size.copy()
+    done = s.apply({"op": "reanalyse", "path": [target]})
+    assert done["shapes"] >= 1
+    node = s.tree.children[target]
+    assert (node.scope.origin == o).all() and (node.scope.size == size).all()
+    assert {i: s.tree.children[i].to_dict() for i in others} == others   # all else held
+    inside = [n for n in node.walk() if n is not node]
+    assert inside and all(str(n.tags.get("cluster", "R1.")).startswith("R1.") for n in inside)
+    for n in inside:   # inside the shape's rectangle
+        assert n.scope.origin[0] >= o[0] - 1e-6 and n.scope.origin[1] >= o[1] - 1e-6
+        assert n.scope.origin[0] + n.scope.size[0] <= o[0] + size[0] + 1e-6
+        assert n.scope.origin[1] + n.scope.size[1] <= o[1] + size[1] + 1e-6
+    assert s.undo() and s.tree.children[target].to_dict() != node.to_dict()
+    with pytest.raises(EditError, match="through"):
+        from facadeforge.editor.edits import apply_edit
+
+        apply_edit(s.tree, {"op": "reanalyse", "path": []})
+
+
+def test_reanalyse_refuses_a_sliver(outdir):
+    s = EditSession(outdir)
+    s.apply({"op": "move_split", "path": [], "index": 1, "delta": -100})   # floor 0 → 5 cm
+    with pytest.raises(EditError, match="at least"):
+        s.apply({"op": "reanalyse", "path": [0]})

@@ -20,6 +20,9 @@ An edit is a JSON object (what the page's ``window.facadeforge.apply(edit)`` sen
 ``add``            ``path`` of a partition child: a copy of it beside it (a floor, a column);
                    its siblings shrink to make room
 ``remove``         ``path`` of a partition child: it goes, its siblings grow into its place
+``reanalyse``      ``path``: the photo analysis run again inside that shape only, all else
+                   held as the user left it (:mod:`.reanalyse`; needs the photo, so only
+                   through :class:`~facadeforge.editor.session.EditSession`)
 =================  ==========================================================================
 
 A shape is addressed by ``path``, the child indices from the root (``[]`` is the facade,
@@ -69,7 +72,7 @@ class EditError(InputError):
 
 
 EDIT_OPS = ("move_split", "set_depth", "set_label", "set_element", "set_split",
-            "reverse_split", "add", "remove")
+            "reverse_split", "add", "remove", "reanalyse")
 
 
 # -- addressing -----------------------------------------------------------------------------------
@@ -431,6 +434,9 @@ def apply_edit(tree: Shape, edit: Mapping) -> dict:
         raise EditError(f"an edit is an object such as {{\"op\": \"set_depth\", \"path\": [0, 1], "
                         f"\"depth\": -0.3}}, not {type(edit).__name__}")
     op = edit.get("op")
+    if op == "reanalyse":
+        raise EditError("edit 'reanalyse' needs the facade's photo: apply it through "
+                        "facadeforge.editor.session.EditSession (the editor's page does)")
     if op not in _OPS:
         raise EditError(f"edit 'op' {op!r} is unknown; use one of {', '.join(EDIT_OPS)}")
     trial = copy.deepcopy(tree)

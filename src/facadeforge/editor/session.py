@@ -97,6 +97,8 @@ class EditSession:
         self._redo_log: list[dict] = []
         self.version = 0
         self.saved_version = 0
+        self._rgb: np.ndarray | None = None
+        self._reanalysed = sum(1 for s in self.tree.walk() if s.tags.get("reanalysed"))
         self.lock = threading.RLock()
         from ..scratch import scratch_dir
 
@@ -132,7 +134,10 @@ class EditSession:
         or rules that no longer derive) leaves the session as it was."""
         with self.lock:
             before = self.tree.to_dict()
-            done = apply_edit(self.tree, edit)
+            if isinstance(edit, dict) and edit.get("op") == "reanalyse":
+                done = self._reanalyse(edit)
+            else:
+                done = apply_edit(self.tree, edit)
             try:
                 derived = self._derive()
             except Exception:
@@ -144,6 +149,24 @@ class EditSession:
                              "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
             self._redo_log.clear()
             return done
+
+    def _reanalyse(self, edit: dict) -> dict:
+        """The ``reanalyse`` edit (:mod:`.reanalyse`) on a copy of the tree, kept if it works."""
+        from .reanalyse import reanalyse
+
+        if self.backdrop is None or self.backdrop.name != "rectified.png":
+            raise EditError("reanalyse needs the facade's rectified photo (rectified.png), "
+                            "which this OUTDIR does not hold")
+        if self._rgb is None:
+            from PIL import Image
+
+            with Image.open(self.backdrop) as im:
+                self._rgb = np.asarray(im.convert("RGB"))
+        trial = Shape.from_dict(self.tree.to_dict())
+        self._reanalysed += 1
+        done = reanalyse(trial, edit, self._rgb, counter=self._reanalysed)
+        self.tree = trial
+        return done
 
     def undo(self) -> bool:
         with self.lock:

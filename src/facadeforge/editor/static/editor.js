@@ -332,6 +332,12 @@ function drawInspector() {
       () => select(selected.slice(0, -1))).catch(() => {}));
     c.appendChild(r);
   }
+  if (state.backdrop === 'rectified.png' && (node.children.length || selected.length)) {
+    const r = document.createElement('div'); r.className = 'row';
+    button(r, 'Re-analyse this region', () => api.apply({ op: 'reanalyse', path: selected }).catch(() => {}),
+      'run the photo analysis again inside this shape only; everything outside stays as it is');
+    c.appendChild(r);
+  }
   const flags = state.flags || [];
   $('flags').textContent = flags.length ? 'Review: ' + flags.map((f) => (typeof f === 'string' ? f : f.message || JSON.stringify(f))).join('; ') : '';
 }
