@@ -86,6 +86,7 @@ EXAMPLES = {
     "edit": """examples:
   facadeforge edit out/                      # the OUTDIR of reconstruct or parse, in a browser
   facadeforge edit out/ --facade facade_01   # one facade of a street photo's OUTDIR
+  facadeforge edit scan-out/ --facade facade_00   # a laser scan's facade (points OUTDIR)
   facadeforge edit out/ --port 8800 --no-browser   # then open the URL it prints""",
     "view": """examples:
   facadeforge view building.glb                      # any model we write
@@ -360,10 +361,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     ed = sub.add_parser("edit", help="correct a reconstruction in the browser: drag split lines, "
                         "set depths, change elements; the 3D model follows; save rewrites OUTDIR",
                         epilog=EXAMPLES["edit"], formatter_class=argparse.RawDescriptionHelpFormatter)
-    ed.add_argument("outdir", help="OUTDIR of `facadeforge reconstruct` or `facadeforge parse`")
+    ed.add_argument("outdir", help="OUTDIR of `facadeforge reconstruct`, `parse` or `points`")
     ed.add_argument("--facade", default=None, metavar="NAME",
-                    help="which facade folder of a street photo's OUTDIR (facade_01); default "
-                         "the first")
+                    help="which facade folder of a street photo's or a scan's OUTDIR "
+                         "(facade_01); default the first")
     ed.add_argument("--port", type=int, default=0,
                     help="port on 127.0.0.1 (default: any free one)")
     ed.add_argument("--no-browser", action="store_true",

@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 
+import numpy as np
 import pytest
 
 from facadeforge.editor.edits import EditError
@@ -165,3 +166,30 @@ def test_reanalyse_refuses_a_sliver(outdir):
     s.apply({"op": "move_split", "path": [], "index": 1, "delta": -100})   # floor 0 → 5 cm
     with pytest.raises(EditError, match="at least"):
         s.apply({"op": "reanalyse", "path": [0]})
+
+
+def test_a_facade_of_a_laser_scan_is_edited_and_the_scan_model_rebuilt(tmp_path):
+    from pathlib import Path
+
+    scan = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "pointclouds" / \
+        "lille_street_small.ply"
+    if not scan.is_file():
+        pytest.skip(f"shared point clouds not found at {scan.parent}")
+    from facadeforge.cli import main
+
+    out = tmp_path / "scan-out"
+    assert main(["points", str(scan), "-o", str(out)]) == 0
+    before = load(out / "model.glb")
+    s = EditSession(out)
+    assert s.scan and s.facade == "facade_00" and s.textured
+    assert s.derived.rules == (out / "facade_00" / "rules.cga").read_text()
+    s.apply({"op": "move_split", "path": [], "index": 1, "delta": 0.3})
+    files = s.save()
+    assert {"model.glb", "report.json", "facade_00/rules.cga"} <= set(files)
+    after = load(out / "model.glb")
+    assert [m.name for m in after] == [m.name for m in before]
+    # every facade still stands where the scan has it (the edit moves a floor line only)
+    for a, b in zip(after, before):
+        assert np.allclose(a.stats()["bbox"], b.stats()["bbox"], atol=0.05)
+    report = json.loads((out / "report.json").read_text())
+    assert report["edits"][0]["facade"] == "facade_00" and "origin" in report

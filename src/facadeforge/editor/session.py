@@ -56,12 +56,14 @@ class _Derived:
 
 
 class EditSession:
-    """An OUTDIR of ``reconstruct`` or ``parse`` opened for editing.
+    """An OUTDIR of ``reconstruct``, ``parse`` or ``points`` opened for editing.
 
     Parameters
     ----------
     outdir : path
-        The OUTDIR (it holds ``shape_tree.json``, or ``facade_NN/`` folders that do).
+        The OUTDIR (it holds ``shape_tree.json``, or ``facade_NN/`` folders that do).  For a
+        ``points`` OUTDIR the facade is shown and derived on its orthophoto; a save writes the
+        facade's files and rebuilds the top ``model.*`` of every facade in the scan's frame.
     facade : str, optional
         Which facade folder (``facade_01``); the first by default.
     """
@@ -70,7 +72,7 @@ class EditSession:
         self.outdir = Path(outdir).resolve()
         if not self.outdir.is_dir():
             raise InputError(f"edit: {outdir} is not a folder; give the OUTDIR of "
-                             "`facadeforge reconstruct` or `facadeforge parse`")
+                             "`facadeforge reconstruct`, `parse` or `points`")
         self.facades = find_facades(self.outdir)
         if not self.facades:
             raise InputError(f"edit: {outdir} holds no shape_tree.json (nor facade_NN/ "
@@ -82,12 +84,11 @@ class EditSession:
                              f"one of {', '.join(self.facades)}")
         self.facade = facade
         self.folder = (self.outdir / facade).resolve()
-        if not (self.folder / "model.glb").is_file() and (self.outdir / "planes.json").is_file():
-            raise InputError(f"edit: {outdir} is a `facadeforge points` OUTDIR, whose model is "
-                             "in the scan's coordinates; the editor edits the OUTDIRs of "
-                             "`reconstruct` and `parse` for now")
+        # a `points` OUTDIR: one model of every facade in the scan's frame, at the top
+        self.scan = (self.outdir / "planes.json").is_file() and facade != "."
         self.tree = _read_tree(self.folder / "shape_tree.json")
-        self.report = _read_json(self.folder / "report.json")
+        self.report = _read_json(self.folder / "report.json") if not self.scan else \
+            _read_json(self.outdir / "report.json")
         self.backdrop = next((self.folder / n for n in _BACKDROPS
                               if (self.folder / n).is_file()), None)
         self.textured = (self.folder / "texture.jpg").is_file()
@@ -106,6 +107,9 @@ class EditSession:
         weakref.finalize(self, shutil.rmtree, self.work, True)
         if self.textured:
             shutil.copy2(self.folder / "texture.jpg", self.work / "texture.jpg")
+        elif self.scan and self.backdrop is not None:   # as `points` textured it: the ortho
+            _scan_texture(self.folder, self.tree, self.work / "texture.jpg")
+            self.textured = True
         if (self.folder / "assets").is_dir():
             shutil.copytree(self.folder / "assets", self.work / "assets", dirs_exist_ok=True)
         update_boxes(self.tree)
@@ -211,8 +215,9 @@ class EditSession:
             target = self.work / "assets" / f"{name}.obj"
             if not target.is_file():
                 export_obj(element_model(element_spec(name)), target)
+        # `points` measured its depths per element, and extracted with no class defaults
         rules = extract_rules(self.tree, texture="texture.jpg" if self.textured else None,
-                              depths=DEFAULT_DEPTHS)
+                              depths={} if self.scan else DEFAULT_DEPTHS)
         (self.work / "rules.cga").write_text(rules, encoding="utf-8")
         w, h = (float(v) for v in self.tree.scope.size[:2])
         model = derive_facade(self.work / "rules.cga", w, h, assets=self.work, name="facade")
@@ -240,18 +245,24 @@ class EditSession:
                                 ignore=lambda d, names: [MARKER] if Path(d) == self.outdir
                                 else [])
                 dest = stage / rel
+                top = stage if self.scan else dest     # where the model files live
                 for name in ("model.glb", "model.obj", "model.mtl", "model.city.json"):
-                    (dest / name).unlink(missing_ok=True)
-                shutil.rmtree(dest / "textures", ignore_errors=True)
+                    (top / name).unlink(missing_ok=True)
+                shutil.rmtree(top / "textures", ignore_errors=True)
                 write_json(dest / "shape_tree.json", self.tree.to_dict(), indent=1)
                 (dest / "rules.cga").write_text(self.derived.rules, encoding="utf-8")
                 report = dict(self.report)
                 if (dest / "rules.gml").exists():
-                    _write_gml(self.tree, dest / "rules.gml", report)
-                if (self.work / "assets").is_dir():
-                    shutil.copytree(self.work / "assets", dest / "assets", dirs_exist_ok=True)
+                    _write_gml(self.tree, dest / "rules.gml", {})
+                if self.scan:
+                    models = self._scan_models()
+                else:
+                    if (self.work / "assets").is_dir():
+                        shutil.copytree(self.work / "assets", dest / "assets",
+                                        dirs_exist_ok=True)
+                    models = self.derived.model
                 for suffix in ("glb", "obj", "city.json"):
-                    export(self.derived.model, dest / f"model.{suffix}")
+                    export(models, top / f"model.{suffix}")
                 if self.backdrop is not None:
                     with Image.open(self.backdrop) as im:
                         rgb = np.asarray(im.convert("RGB"))
@@ -259,20 +270,73 @@ class EditSession:
                     if self.backdrop.name == "rectified.png" and (dest / "structure.png").exists():
                         Image.fromarray(draw_structure(rgb, self.tree)).save(
                             dest / "structure.png", compress_level=1)
-                report["edits"] = list(report.get("edits", [])) + self.log
+                    elif self.scan:      # as `points` draws it: the ortho, leaves tinted
+                        from ..exchange.raster import PALETTE
+
+                        tint = PALETTE[label_map(self.tree, size=rgb.shape[:2])]
+                        Image.fromarray(np.clip(0.6 * rgb + 0.4 * tint, 0, 255).astype(
+                            np.uint8)).save(dest / "structure.png")
+                report["edits"] = list(report.get("edits", [])) + [
+                    {**e, "facade": self.facade} for e in self.log]
                 report["rules_source"] = "facadeforge edit: extracted from the edited shape tree"
-                write_json(dest / "report.json", report)
-                written.extend(sorted(p.relative_to(stage).as_posix() for p in dest.iterdir()
-                                      if p.is_file()))
+                write_json(top / "report.json", report)
+                for folder in {dest, top}:
+                    written.extend(p.relative_to(stage).as_posix() for p in folder.iterdir()
+                                   if p.is_file())
+                written.sort()
 
             write_outdir(self.outdir, write, carry_foreign=True)
-            self.report = _read_json(self.folder / "report.json")
+            self.report = _read_json((self.outdir if self.scan else self.folder) / "report.json")
             self.log = []
             self._redo_log = []
             self._undo.clear()
             self._redo.clear()
             self.saved_version = self.version
             return written
+
+    def _scan_models(self) -> list:
+        """Every facade of a `points` OUTDIR derived and placed in the scan's frame (CGA axes
+        relative to the report's origin) as `points` places them; this one from the edited
+        tree, the others from their own rules."""
+        from ..elements.library import element_model, element_spec
+        from ..engine import derive_facade
+        from ..exchange.obj import export_obj
+        from ..points.maps import FacadeFrame
+        from ..points.pipeline import _TO_CGA, _place
+        from ..scratch import scratch_dir
+
+        origin = np.asarray(self.report.get("origin", [0, 0, 0]), float)
+        models = []
+        for entry in self.report.get("facades", []):
+            folder = self.outdir / f"facade_{int(entry['index']):02d}"
+            if not (folder / "rules.cga").is_file():
+                continue
+            f = entry["frame"]
+            frame = FacadeFrame(np.asarray(f["origin"], float), np.asarray(f["u"], float),
+                                np.asarray(f["v"], float), np.asarray(f["n"], float),
+                                float(f["width_m"]), float(f["height_m"]))
+            if folder.resolve() == self.folder:
+                work, tree = self.work, self.tree
+            else:
+                tree = _read_tree(folder / "shape_tree.json")
+                work = scratch_dir("facadeforge-edit-scan-")
+                weakref.finalize(self, shutil.rmtree, work, True)
+                if (folder / "ortho.png").is_file():
+                    _scan_texture(folder, tree, work / "texture.jpg")
+                for name in sorted({s.tags["element"] for s in tree.leaves()
+                                    if "element" in s.tags}):
+                    export_obj(element_model(element_spec(name)),
+                               work / "assets" / f"{name}.obj")
+                shutil.copy2(folder / "rules.cga", work / "rules.cga")
+            w, h = (float(v) for v in tree.scope.size[:2])
+            m = derive_facade(work / "rules.cga", w, h, assets=work, name=folder.name)
+            m.name = folder.name
+            m = _place(m, frame, origin, 2)
+            m.attributes["_origin_offset"] = [float(v) for v in _TO_CGA @ origin]
+            if self.report.get("input", {}).get("crs"):
+                m.attributes["_crs"] = self.report["input"]["crs"]
+            models.append(m)
+        return models
 
     def glb(self) -> bytes:
         return self.derived.glb
@@ -315,3 +379,15 @@ def png_bytes(rgb: np.ndarray) -> bytes:
     buf = io.BytesIO()
     Image.fromarray(rgb).save(buf, format="PNG")
     return buf.getvalue()
+
+
+def _scan_texture(folder: Path, tree: Shape, out: Path) -> None:
+    """A `points` facade's texture as `points` made it: its orthophoto, every tile replaced by
+    its cluster's mean (:func:`facadeforge.reconstruction.cluster_averaged_texture`)."""
+    from PIL import Image
+
+    from ..reconstruction import cluster_averaged_texture
+
+    with Image.open(folder / "ortho.png") as im:
+        rgb = np.asarray(im.convert("RGB"))
+    Image.fromarray(cluster_averaged_texture(rgb, tree)).save(out, quality=90)

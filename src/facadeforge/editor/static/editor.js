@@ -342,6 +342,16 @@ function drawInspector() {
   $('flags').textContent = flags.length ? 'Review: ' + flags.map((f) => (typeof f === 'string' ? f : f.message || JSON.stringify(f))).join('; ') : '';
 }
 
+// the photo as large as its pane allows (small orthophotos scaled up, tall facades down)
+function fitImage() {
+  const pane = $('photo-scroll'), img = $('backdrop');
+  const w = pane.clientWidth - 16, h = pane.clientHeight - 16;
+  if (w <= 0 || h <= 0) return;
+  const k = Math.min(w / imageSize[0], h / imageSize[1]);
+  img.style.width = `${Math.floor(imageSize[0] * k)}px`;
+  img.style.height = `${Math.floor(imageSize[1] * k)}px`;
+}
+
 // -- the page API -----------------------------------------------------------------------------
 const api = {
   ready: null,
@@ -373,6 +383,8 @@ api.ready = (async () => {
     imageSize = [b[2], b[3]];
     img.width = imageSize[0]; img.height = imageSize[1];
   }
+  fitImage();
+  new ResizeObserver(fitImage).observe($('photo-scroll'));
   library = await call('/api/library');
   await refresh(first);
   setStatus(`ready: ${state.edits} unsaved edit(s)`);

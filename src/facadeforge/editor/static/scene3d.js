@@ -57,9 +57,12 @@ export class View3D {
     if (box.isEmpty()) return;
     const c = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3());
-    const r = Math.max(size.x, size.y, size.z, 1);
-    const dist = r / (2 * Math.tan((this.camera.fov * Math.PI) / 360)) * 0.95;
-    this.camera.position.set(c.x + 0.35 * dist, c.y + 0.2 * dist, c.z + dist);
+    const r = Math.max(size.length() / 2, 0.5);          // the bounding sphere fits the view
+    const vfov = (this.camera.fov * Math.PI) / 180;
+    const hfov = 2 * Math.atan(Math.tan(vfov / 2) * this.camera.aspect);
+    const dist = r / Math.sin(Math.min(vfov, hfov) / 2);
+    const dir = new THREE.Vector3(0.25, 0.15, 1).normalize();
+    this.camera.position.copy(c).addScaledVector(dir, dist);
     this.camera.near = Math.max(0.01, dist / 1000);
     this.camera.far = dist * 20 + r * 4;
     this.camera.updateProjectionMatrix();
