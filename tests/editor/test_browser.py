@@ -129,6 +129,9 @@ def test_acceptance_move_floor_line_set_depth_save(browser, outdir, tmp_path, so
         assert page.js("window.facadeforge.state()")["dirty"] is False
         if SHOTS and source == "synthetic":
             page.js(f"window.facadeforge.select({window})")
+            page.page.wait_for_function(
+                "() => [...document.querySelectorAll('.thumbs img')].every("
+                "i => i.complete && i.naturalWidth > 0)", timeout=120_000)
             page.page.screenshot(path=str(Path(SHOTS) / "editor.jpg"), quality=85)
         assert page.errors == []
         # a page without the token gets nothing

@@ -289,7 +289,6 @@ function drawInspector() {
       const f = document.createElement('figure');
       if (e.name === node.tags.element) f.className = 'current';
       const img = document.createElement('img');
-      img.loading = 'lazy';
       img.alt = e.name;
       img.src = `/api/thumb/${encodeURIComponent(e.name)}.png`;
       const cap = document.createElement('figcaption');
