@@ -36,7 +36,7 @@ MAX_VIEW_BYTES: int = 2**31
 #: facadeforge's model axes from a z-up cloud's (x, y, z) (as :mod:`facadeforge.points`).
 TO_CGA = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
 _CLOUD = (".ply", ".las", ".laz", ".xyz", ".txt", ".csv", ".pts")
-VIEW_SUFFIXES = (".glb", ".gltf", ".obj", ".city.json", ".city.jsonl", "tileset.json") + _CLOUD
+VIEW_SUFFIXES = (".glb", ".obj", ".city.json", ".city.jsonl", "tileset.json") + _CLOUD
 
 
 @dataclass
@@ -111,7 +111,7 @@ def load_scene(paths) -> Scene:
         if kind in _CLOUD:
             layer, centre = _cloud_layer(f, origin)
             origin = centre if origin is None else origin
-        elif kind in (".glb", ".gltf"):
+        elif kind == ".glb":
             layer = Layer(f.name, "gltf", f)
         elif kind == ".obj":
             layer = Layer(f.name, "obj", f)
