@@ -193,6 +193,25 @@ def vs_prt_table() -> str:
             + "\n".join(f"| {a} | {b} | {c} |" for a, b, c in rows))
 
 
+def editor_table() -> str:
+    """What a user of ``facadeforge edit`` waits for in headless Chromium (benchmarks/editor.py)."""
+    path = ROOT / "benchmarks" / "results" / "editor.json"
+    if not path.exists():
+        return "_no result yet: run `benchmarks/editor.py`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}), {r['browser']}; medians of {r['repeats']} edits.\n\n")
+    rows = []
+    for name, f in r["facades"].items():
+        e = f["edits"]
+        rows.append(f"| {name} ({f['leaves']} leaves) | {f['page_ready_s']:.2f} s | "
+                    f"{e['move_split']['median_s']:.2f} s | {e['set_depth']['median_s']:.2f} s | "
+                    f"{f['save_s']:.2f} s |")
+    return (head + "| facade | page ready | move a split line | set a cluster's depth | save |\n"
+            "|---|---|---|---|---|\n" + "\n".join(rows))
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -212,6 +231,7 @@ def main() -> None:
     summary = methods_table(SUMMARY_METHODS)
     repair = repair_table()
     prt = vs_prt_table()
+    editor = editor_table()
     for p in (ROOT / "README.md", ROOT / "docs" / "benchmarks.md",
               ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
@@ -221,6 +241,7 @@ def main() -> None:
         replace(p, "parsing", parsing)
         replace(p, "repair", repair)
         replace(p, "vs_prt", prt)
+        replace(p, "editor", editor)
     print(table)
     print(methods)
 
