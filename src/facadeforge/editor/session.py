@@ -173,21 +173,21 @@ class EditSession:
         return done
 
     def undo(self) -> bool:
-        with self.lock:
-            if not self._undo:
-                return False
-            self._redo.append(self.tree.to_dict())
-            self._redo_log.append(self.log.pop())
-            self._restore(self._undo.pop())
-            return True
+        """Take the last edit back; ``False`` when there is none."""
+        return self._step(self._undo, self._redo, self.log, self._redo_log)
 
     def redo(self) -> bool:
+        """Make the last undone edit again; ``False`` when there is none."""
+        return self._step(self._redo, self._undo, self._redo_log, self.log)
+
+    def _step(self, trees: list, others: list, log: list, other_log: list) -> bool:
+        """Move one snapshot (and its log entry) from ``trees`` to ``others`` and restore it."""
         with self.lock:
-            if not self._redo:
+            if not trees:
                 return False
-            self._undo.append(self.tree.to_dict())
-            self.log.append(self._redo_log.pop())
-            self._restore(self._redo.pop())
+            others.append(self.tree.to_dict())
+            other_log.append(log.pop())
+            self._restore(trees.pop())
             return True
 
     def _push(self, before: dict) -> None:
