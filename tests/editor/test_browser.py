@@ -66,12 +66,13 @@ class Page:
         self.context.close()
 
 
-def _drew(page: Page) -> None:
+def _drew(page: Page, colours: int = 50) -> None:
     """The canvas drew a model: the page's own count of non-background pixels, and the
-    screenshot's pixels (many colours, not one flat fill)."""
+    screenshot's pixels (many colours, not one flat fill: a textured model has hundreds, a
+    coloured one's shading a dozen or more)."""
     assert page.js("window.facadeforge.drawnFraction()") > 0.05
     px = page.canvas_pixels()
-    assert len(np.unique(px.reshape(-1, 3) // 8, axis=0)) > 50
+    assert len(np.unique(px.reshape(-1, 3) // 8, axis=0)) > colours
 
 
 def _digest(p: Path) -> str:
@@ -219,6 +220,61 @@ def test_viewer_draws_a_points_model_over_the_real_scan(browser, tmp_path):
         _drew(page)
         if SHOTS:
             page.page.screenshot(path=str(Path(SHOTS) / "viewer.jpg"), quality=85)
+        assert page.errors == []
+    finally:
+        page.close()
+        srv.stop()
+
+
+def test_editor_on_a_parse_outdir(browser, reconstructed, tmp_path):
+    """`parse` writes no texture and no pixel boxes: the page maps the scopes onto the photo."""
+    from facadeforge.cli import main
+
+    photo = next((reconstructed.parent / "photo").glob("*.jpg"))
+    out = tmp_path / "parsed"
+    assert main(["parse", str(photo), "--rectified", "--budget", "300", "-o", str(out)]) == 0
+    session = EditSession(out)
+    srv = start(lambda token: editor_app(session, token))
+    page = Page(browser, srv.url)
+    try:
+        _drew(page, colours=10)            # parse's models are coloured, not textured
+        assert page.page.locator("#overlay rect.shape").count() >= 3
+        split = page.js("""(() => {
+            const queue = [[[], window.facadeforge.tree()]];
+            while (queue.length) {
+              const [p, n] = queue.shift();
+              if (n.children.filter((c) => c.operator !== 'insert').length >= 2) return p;
+              n.children.forEach((c, i) => queue.push([p.concat([i]), c]));
+            }
+            return null; })()""")
+        assert split is not None
+        done = page.js(f"window.facadeforge.apply({{op: 'move_split', path: {split}, index: 1, "
+                       "delta: 0.2})")
+        assert done["applied_delta"] != 0
+        assert "rules.cga" in page.js("window.facadeforge.save()")
+        assert page.errors == []
+    finally:
+        page.close()
+        srv.stop()
+
+
+def test_viewer_draws_a_tileset(browser, reconstructed, tmp_path):
+    from facadeforge.city.tileset import ContentTile, write_tileset
+    from facadeforge.editor.scene import load_scene
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for k in range(3):
+        shutil.copy(reconstructed / "model.glb", tiles / f"{k:05d}.glb")
+    write_tileset(tiles / "tileset.json", [
+        ContentTile(f"{k:05d}.glb", [0, 0, -1], [20, 30, 1], offset=(25.0 * k, 0.0, 0.0))
+        for k in range(3)])
+    scene = load_scene([tiles / "tileset.json"])
+    srv = start(lambda token: viewer_app(scene, token))
+    page = Page(browser, srv.url, size=(1000, 700))
+    try:
+        assert page.js("window.facadeforge.scene()")["layers"][0]["info"]["tiles"] == 3
+        _drew(page)
         assert page.errors == []
     finally:
         page.close()
