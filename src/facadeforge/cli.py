@@ -75,6 +75,9 @@ EXAMPLES = {
   facadeforge repair-model out/model.obj -o repaired/model.obj   # + model.mtl, textures/
   facadeforge repair-model city.glb -o city_repaired.glb --report repair.json
   facadeforge repair-model tiles.obj --up z -o fixed.glb          # a z-up OBJ""",
+    "enhance": """examples:
+  facadeforge enhance mass.glb -o enhanced/          # every textured facade made procedural
+  facadeforge enhance city.obj --px-per-m 60 -o enhanced/   # aerial textures upsampled more""",
     "points": """examples:
   facadeforge points scan.ply -o out/                  # planes, depth maps, elements, model
   facadeforge points street.laz --resolution 0.1 -o out/
@@ -281,6 +284,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     rm.add_argument("--seed", type=int, default=0)
     rm.add_argument("-o", "--output", required=True,
                     help="output model, .obj (+ .mtl, textures/) or .glb")
+
+    en = sub.add_parser("enhance", help="textured mass model → every textured facade "
+                        "reconstructed and replaced by its procedural facade (Müller 2007 §1)",
+                        epilog=EXAMPLES["enhance"],
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    en.add_argument("model", help="textured mass model: .obj (with its .mtl and textures) or "
+                                  ".glb (y up, metres)")
+    en.add_argument("--px-per-m", type=_positive, default=40.0,
+                    help="resolution of the unwrapped facade images, pixels per metre "
+                         "(default 40; coarser textures are upsampled)")
+    en.add_argument("--seed", type=int, default=0)
+    en.add_argument("-o", "--output", required=True, help="output folder")
 
     pt = sub.add_parser("points", help="laser scan → facade planes, depth maps, windows and "
                         "doors, CGA rules and a 3D model in the scan's coordinates (CityFit)",
@@ -774,6 +789,18 @@ def cmd_repair_model(args) -> int:
     return 0
 
 
+def cmd_enhance(args) -> int:
+    from .city.enhance import enhance
+
+    r = enhance(args.model, args.output, px_per_m=args.px_per_m, seed=args.seed)
+    s = r.report["summary"]
+    print(f"{args.model}: {s['facades']} {_plural('facade', s['facades'])} reconstructed "
+          f"({s['windows']} {_plural('window', s['windows'])}), {s['skipped']} "
+          f"{_plural('wall', s['skipped'])} skipped, {s['kept_faces']} faces kept; "
+          f"{s['seconds']['total']:.1f} s → {args.output}")
+    return 0
+
+
 def cmd_points(args) -> int:
     from .points.pipeline import points
 
@@ -802,7 +829,7 @@ COMMANDS = {"derive": cmd_derive, "batch": cmd_batch, "render": cmd_render, "dem
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
             "synthesize": cmd_synthesize, "repair-model": cmd_repair_model,
-            "points": cmd_points, "edit": cmd_edit, "view": cmd_view}
+            "points": cmd_points, "edit": cmd_edit, "view": cmd_view, "enhance": cmd_enhance}
 
 
 def main(argv: list[str] | None = None) -> int:

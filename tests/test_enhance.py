@@ -1,0 +1,218 @@
+"""facadeforge.city.enhance / ``facadeforge enhance``: a textured mass model made procedural
+(Müller et al. 2007 §1, Fig. 2, Fig. 16)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from facadeforge.city.enhance import enhance
+from facadeforge.cli import main
+from facadeforge.datasets.synthetic import generate
+from facadeforge.errors import InputError
+from facadeforge.exchange import export, load
+from facadeforge.geometry.mesh import Mesh
+from facadeforge.model.model import Material, Model, Part
+
+WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
+TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
+LOW_PPM = 8                               # the aerial-like low-resolution variant
+
+
+def _walls() -> list[tuple[np.ndarray, float]]:
+    """The box's 4 walls: corners (bottom-left, bottom-right, top-right, top-left seen from
+    outside, counter-clockwise around the outward normal) and width."""
+    W, D, H = WIDTH, DEPTH, HEIGHT
+    quads = [
+        [(0, 0, D), (W, 0, D), (W, H, D), (0, H, D)],      # faces +z
+        [(W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D)],      # faces +x
+        [(W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0)],      # faces -z
+        [(0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0)],      # faces -x
+    ]
+    return [(np.array(q, float), W if i % 2 == 0 else D) for i, q in enumerate(quads)]
+
+
+def _truth_windows(photo: Path, scale: float = 1.0) -> int:
+    """Windows of a synthetic texture large enough to be seen (slivers of windows hidden
+    behind a neighbour's edge are left out)."""
+    objects = json.loads(photo.with_suffix(".objects.json").read_text())
+    boxes = [o["box"] for o in objects if o["label"] == "window"]
+    return sum(1 for x0, y0, x1, y1 in boxes if min(x1 - x0, y1 - y0) >= 6)
+
+
+def _build(folder: Path, *, walls=(0, 1, 2, 3), ppm: float = TEXTURE_PPM, seed: int = 21
+           ) -> tuple[Path, list[int]]:
+    """A box building whose walls ``walls`` are textured with synthetic Haussmann photos (one
+    image each, UVs 0–1), the others and the flat roof untextured; written as GLB.  Returns
+    the path and the truth window count per textured wall."""
+    folder.mkdir(parents=True, exist_ok=True)
+    parts, truth = [], []
+    for i, (quad, width) in enumerate(_walls()):
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+        if i in walls:
+            size = (round(width * TEXTURE_PPM), round(HEIGHT * TEXTURE_PPM))
+            photo = generate(1, seed=seed, out_dir=folder / "synth", size=size,
+                             styles=["haussmann"], start=i)[0]
+            truth.append(_truth_windows(photo))
+            texture = photo
+            if ppm != TEXTURE_PPM:
+                texture = folder / f"low_{i}.png"
+                Image.open(photo).resize((round(width * ppm), round(HEIGHT * ppm)),
+                                         Image.LANCZOS).save(texture)
+            mat = Material(name=f"facade{i}", texture=str(texture))
+        else:
+            mat = Material(name="plaster", color=(0.8, 0.75, 0.7))
+        parts.append(Part(Mesh(quad, faces=[np.arange(4)], uvs=[uv]), label="wall",
+                          material=mat, symbol="Wall"))
+    W, D, H = WIDTH, DEPTH, HEIGHT
+    roof = np.array([(0, H, D), (W, H, D), (W, H, 0), (0, H, 0)], float)
+    parts.append(Part(Mesh(roof, faces=[np.arange(4)]), label="roof",
+                      material=Material(name="roof", color=(0.5, 0.2, 0.2)), symbol="Roof"))
+    path = folder / "mass.glb"
+    export([Model(parts=parts, name="block")], path)
+    return path, truth
+
+
+@pytest.fixture(scope="module")
+def full(tmp_path_factory):
+    d = tmp_path_factory.mktemp("enhance_full")
+    path, truth = _build(d / "in")
+    out = d / "out"
+    return enhance(path, out), out, truth
+
+
+@pytest.fixture(scope="module")
+def low(tmp_path_factory):
+    d = tmp_path_factory.mktemp("enhance_low")
+    path, truth = _build(d / "in", walls=(0,), ppm=LOW_PPM)
+    out = d / "out"
+    return enhance(path, out), out, truth
+
+
+def test_windows_found_within_a_quarter_of_the_truth(full):
+    result, out, truth = full
+    found = [f.record["windows"] for f in result.facades]
+    print("windows found", found, "truth", truth)
+    assert len(result.facades) == 4 and not result.skipped
+    assert abs(sum(found) - sum(truth)) <= 0.25 * sum(truth)
+    report = json.loads((out / "report.json").read_text())
+    assert [r["windows"] for r in report["facades"]] == found
+    for r in report["facades"]:
+        assert r["building"] == "block" and r["floors"] >= 3 and isinstance(r["flags"], list)
+        assert r["px_per_m"] == pytest.approx(TEXTURE_PPM, rel=0.02)
+        assert {r["width_m"], r["height_m"]} <= {WIDTH, DEPTH, HEIGHT}
+
+
+def test_outdir_files(full):
+    result, out, _ = full
+    for name in ("model.glb", "model.city.json", "report.json"):
+        assert (out / name).is_file(), name
+    for f in result.facades:
+        for name in ("rules.cga", "shape_tree.json", "texture.png"):
+            assert (out / f.folder / name).is_file(), (f.folder, name)
+        img = Image.open(out / f.folder / "texture.png")
+        w_m, h_m = f.frame.size_m
+        assert img.size == (round(w_m * 40), round(h_m * 40))
+    models = load(out / "model.glb", texture_dir=out.parent / "reread")
+    labels = {p.label for m in models for p in m.parts}
+    assert {"window", "roof"} <= labels
+
+
+def test_roof_kept_and_walls_replaced(full):
+    result, _, _ = full
+    (model,) = result.models
+    roofs = [p for p in model.parts if p.label == "roof"]
+    assert len(roofs) == 1 and roofs[0].mesh.n_faces == 2      # GLB triangles: the same quad
+    b = roofs[0].mesh.bounds()
+    assert np.allclose(b, [[0, HEIGHT, 0], [WIDTH, HEIGHT, DEPTH]], atol=1e-4)
+    # no original wall face is left: every wall was textured and replaced
+    assert not [p for p in model.parts if p.symbol == "Wall"]
+    assert result.report["summary"]["kept_faces"] == 2
+
+
+def test_facades_lie_on_their_walls(full):
+    result, _, _ = full
+    for f in result.facades:
+        fr = f.frame
+        pts = np.concatenate([p.mesh.vertices[p.mesh.corners] for p in f.parts])
+        rel = pts - fr.origin
+        along_n, along_u, along_v = rel @ fr.n, rel @ fr.u, rel @ fr.v
+        w_m, h_m = fr.size_m
+        assert np.abs(along_n).max() <= 1.5, f.folder
+        assert along_u.min() >= -0.05 and along_u.max() <= w_m + 0.05, f.folder
+        assert along_v.min() >= -0.05 and along_v.max() <= h_m + 0.05, f.folder
+        # the wall's outward normal: the box's centre is behind it
+        centre = np.array([WIDTH / 2, HEIGHT / 2, DEPTH / 2])
+        assert (centre - fr.origin) @ fr.n < 0
+        assert np.allclose(fr.v, [0, 1, 0]) and np.allclose(np.cross(fr.v, fr.n), fr.u)
+
+
+def test_low_resolution_texture(low):
+    result, out, truth = low
+    (f,) = result.facades
+    print("low-res windows found", f.record["windows"], "truth", truth)
+    assert f.record["px_per_m"] == pytest.approx(LOW_PPM, rel=0.05)
+    assert f.record["resampled_px_per_m"] == 40 and f.record["upsampled"] == pytest.approx(
+        40 / LOW_PPM, rel=0.05)
+    assert any("upsampled" in n for n in f.record["notes"])
+    assert f.image.shape[:2] == (round(HEIGHT * 40), round(WIDTH * 40))
+    # the untextured walls and the roof are kept as they were
+    (model,) = result.models
+    assert len([p for p in model.parts if p.symbol == "Wall"]) == 3
+    report = json.loads((out / "report.json").read_text())
+    assert report["facades"][0]["px_per_m"] == pytest.approx(LOW_PPM, rel=0.05)
+
+
+def test_model_without_textures_is_refused(tmp_path):
+    path, _ = _build(tmp_path / "in", walls=())
+    with pytest.raises(InputError, match="no textured faces"):
+        enhance(path, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_small_and_missing_walls_are_skipped(tmp_path):
+    from facadeforge.city.enhance import _group_walls
+
+    quad = np.array([(0, 0, 0), (1.5, 0, 0), (1.5, 3, 0), (0, 3, 0)], float)
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    tex = tmp_path / "t.png"
+    Image.fromarray(np.full((120, 60, 3), 128, np.uint8)).save(tex)
+    parts = [Part(Mesh(quad, faces=[np.arange(4)], uvs=[uv]),
+                  material=Material(texture=str(tex)))]
+    roof = Part(Mesh(quad[:, [0, 2, 1]], faces=[np.arange(4)], uvs=[uv]),
+                material=Material(texture=str(tex)))
+    assert len(_group_walls(parts + [roof])) == 1          # the horizontal face is no wall
+    path = tmp_path / "small.glb"
+    export([Model(parts=parts, name="shed")], path)
+    result = enhance(path)
+    assert not result.facades and "smaller than 2 m" in result.skipped[0]["reason"]
+    assert result.models[0].parts[0].mesh.n_faces == 2      # kept as it was
+
+
+@pytest.mark.parametrize("name, match", [("missing.glb", "no such file"),
+                                         ("model.ply", "reads a textured .obj")])
+def test_bad_input(tmp_path, name, match):
+    path = tmp_path / name
+    if path.suffix == ".ply":
+        path.write_text("ply\n")
+    with pytest.raises(InputError, match=match):
+        enhance(path)
+    with pytest.raises(InputError, match="px-per-m"):
+        enhance(Path(__file__), px_per_m=0)
+
+
+def test_cli(tmp_path, capsys):
+    path, _ = _build(tmp_path / "in", walls=(1,))
+    out = tmp_path / "out"
+    assert main(["enhance", str(path), "-o", str(out), "--px-per-m", "30"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1 and "1 facade" in lines[0] and str(out) in lines[0]
+    assert (out / "facade_00" / "rules.cga").is_file()
+    assert main(["enhance", str(tmp_path / "nope.glb"), "-o", str(tmp_path / "o2")]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "no such file" in err[0] and not captured.out
