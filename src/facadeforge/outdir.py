@@ -90,7 +90,8 @@ def _foreign(folder: Path) -> tuple[list[str], bool]:
     return ([e for e in entries if listed is None or e not in listed]), listed is not None
 
 
-def check_outdir(out: str | os.PathLike, inputs: Inputs = None) -> Path:
+def check_outdir(out: str | os.PathLike, inputs: Inputs = None, *,
+                 foreign_ok: bool = False) -> Path:
     """Refuse an output folder a run may not replace (module docstring); returns its resolved
     path.  Cheap: commands call it before their work so a bad ``-o`` fails at once.
 
@@ -122,7 +123,7 @@ def check_outdir(out: str | os.PathLike, inputs: Inputs = None) -> Path:
             raise InputError(f"{what} {path} is inside the output folder {given}, which the run "
                              "replaces (an output could overwrite it); choose another output "
                              f"folder, e.g. -o {given.parent / (given.name + '-out')}")
-    if real.is_dir():
+    if real.is_dir() and not foreign_ok:
         foreign, marked = _foreign(real)
         if foreign:
             shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3
@@ -175,12 +176,8 @@ def write_outdir(out: str | os.PathLike, write: Callable[[Path], None],
         As :func:`check_outdir`.
     """
     given = Path(out)
-    foreign_before: set[str] = set()
-    if carry_foreign and given.is_dir():
-        foreign_before = set(_foreign(given.resolve())[0])
-        real = given.resolve()
-    else:
-        real = check_outdir(given, inputs)
+    real = check_outdir(given, inputs, foreign_ok=carry_foreign)
+    foreign_before = set(_foreign(real)[0]) if carry_foreign and real.is_dir() else set()
     real.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(real.parent, f".{real.name}.old-")
     stage = scratch_dir(f".{real.name}.staging-", real.parent)

@@ -137,6 +137,7 @@ def test_set_depth_sets_the_leaf_cluster():
     ({"op": "move_split", "path": [], "index": 0, "delta": 1}, "boundary 1..2"),
     ({"op": "move_split", "path": [], "index": 1, "delta": float("inf")}, "number of metres"),
     ({"op": "move_split", "path": [], "index": 1, "delta": 1e6}, "beyond"),
+    ({"op": "move_split", "path": [], "index": 1, "delta": 10 ** 400}, "number of metres"),
     ({"op": "move_split", "path": [0, 0], "index": 1, "delta": 1}, "no split line"),
     ({"op": "set_depth", "path": [1], "depth": -0.3}, "not an element"),
     ({"op": "set_depth", "path": [1, 0, 1], "depth": "deep"}, "number of metres"),

@@ -107,3 +107,12 @@ def test_a_json_that_is_no_tileset_is_refused(tmp_path):
     (tmp_path / "tileset.json").write_text('{"asset": {}}')
     with pytest.raises(InputError, match="not a 3D Tiles tileset"):
         load_scene([tmp_path / "tileset.json"])
+
+
+@pytest.mark.parametrize("up", [0, 1, 2])
+def test_clouds_of_any_up_axis_are_rotated_not_mirrored(up):
+    from facadeforge.editor.scene import view_axes
+
+    m = view_axes(up)
+    assert np.isclose(np.linalg.det(m), 1.0)
+    assert np.allclose(m @ np.eye(3)[up], [0, 1, 0])     # the cloud's up is the scene's y

@@ -96,6 +96,25 @@ def test_apply_undo_save_and_errors_over_http(running, outdir):
     assert status == 400
 
 
+def test_the_cookie_alone_cannot_edit_and_other_origins_are_refused(running):
+    srv, session = running
+    base = f"http://127.0.0.1:{srv.port}"
+    _, _, headers = _get(srv.url)
+    cookie = headers.get("set-cookie", "").split(";")[0]
+    assert cookie.startswith(f"facadeforge_token_{srv.port}=")     # one cookie per server
+    edit = {"op": "move_split", "path": [], "index": 1, "delta": 0.1}
+    status, _, _ = _get(base + "/api/apply", data=edit, headers={"Cookie": cookie})
+    assert status == 403                 # what a page on another local port could send
+    status, body, _ = _get(base + "/api/apply", srv.token, edit,
+                           headers={"Origin": "http://127.0.0.1:8888"})
+    assert status == 403 and b"8888" in body
+    assert session.version == 0
+    status, _, _ = _get(base + "/api/apply", srv.token, edit, headers={"Origin": base})
+    assert status == 200 and session.version == 1
+    status, _, _ = _get(base + "/api/state", headers={"Cookie": cookie})   # reading: fine
+    assert status == 200
+
+
 def test_a_huge_body_is_refused(running):
     srv, _ = running
     status, body, _ = _get(f"http://127.0.0.1:{srv.port}/api/apply", srv.token,
@@ -116,6 +135,7 @@ def test_the_viewer_serves_only_files_beside_its_layers(reconstructed, tmp_path)
 
     secret = tmp_path / "secret.txt"
     secret.write_text("no")
+    (reconstructed / "page.html").write_text("<script>alert(1)</script>")
     scene = load_scene([reconstructed / "model.obj"])
     srv = start(lambda token: viewer_app(scene, token))
     try:
@@ -124,9 +144,13 @@ def test_the_viewer_serves_only_files_beside_its_layers(reconstructed, tmp_path)
         assert json.loads(body)["layers"][0]["kind"] == "obj"
         status, body, _ = _get(base + "/api/file/0/model.mtl", srv.token)
         assert status == 200 and b"newmtl" in body
-        for bad in ("../secret.txt", "..%2Fsecret.txt", "/etc/passwd", "%2Fetc%2Fpasswd"):
+        for bad in ("../secret.txt", "..%2Fsecret.txt", "/etc/passwd", "%2Fetc%2Fpasswd",
+                    "page.html", "shape_tree.json.bak"):
             status, _, _ = _get(base + "/api/file/0/" + bad, srv.token)
             assert status == 404, bad
+        status, _, headers = _get(base + "/api/file/0/model.mtl", srv.token)
+        assert headers.get("x-content-type-options") == "nosniff"
+        assert headers.get("content-security-policy") == "sandbox"
     finally:
         srv.stop()
 

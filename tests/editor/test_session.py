@@ -193,3 +193,44 @@ def test_a_facade_of_a_laser_scan_is_edited_and_the_scan_model_rebuilt(tmp_path)
         assert np.allclose(a.stats()["bbox"], b.stats()["bbox"], atol=0.05)
     report = json.loads((out / "report.json").read_text())
     assert report["edits"][0]["facade"] == "facade_00" and "origin" in report
+
+
+def test_undo_restores_every_value_an_edit_changed(outdir):
+    """Snapshots share nothing with the live tree: tags, params and pixel boxes come back."""
+    s = EditSession(outdir)
+    tree0 = s.tree_dict()
+    path, _ = _window(s)
+    from facadeforge.editor.edits import node_at, partition
+
+    split_path = next(p for p, n in _paths(s.tree) if len(partition(n)[0]) == 3)
+    dual = "dual-" + partition(node_at(s.tree, split_path))[1]
+    for edit in ({"op": "set_depth", "path": path, "depth": -1.5},
+                 {"op": "move_split", "path": [], "index": 1, "delta": 0.4},
+                 {"op": "reverse_split", "path": split_path},
+                 {"op": "set_split", "path": split_path, "split": dual}):
+        s.apply(edit)
+    assert s.tree_dict() != tree0
+    while s.undo():
+        pass
+    assert s.tree_dict() == tree0
+    assert s.derived.rules == (outdir / "rules.cga").read_text()
+
+
+def test_saving_from_inside_the_outdir_is_refused(outdir, monkeypatch):
+    s = EditSession(outdir)
+    s.apply({"op": "move_split", "path": [], "index": 1, "delta": 0.2})
+    monkeypatch.chdir(outdir)
+    with pytest.raises(InputError, match="current folder"):
+        s.save()
+    assert (outdir / "rules.cga").is_file()
+
+
+def test_reanalysed_regions_never_reuse_a_prefix():
+    from facadeforge.editor.session import _next_region
+    from facadeforge.model.shape import Shape
+
+    t = Shape("Facade")
+    assert _next_region(t) == 1
+    t.add(Shape("Floor", tags={"cluster": "R1.F0"}))
+    t.add(Shape("Floor", tags={"cluster": "R3.T2.1"}))
+    assert _next_region(t) == 4

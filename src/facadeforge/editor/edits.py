@@ -226,8 +226,12 @@ def _relabel_indices(node: Shape) -> None:
 
 def _number(edit: Mapping, key: str, limit: float) -> float:
     v = edit.get(key)
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-        raise EditError(f"edit {key!r} must be a number of metres, not {v!r}")
+    try:
+        ok = not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+    except OverflowError:         # an integer of hundreds of digits
+        ok = False
+    if not ok:
+        raise EditError(f"edit {key!r} must be a number of metres, not {str(v)[:40]!r}")
     if abs(v) > limit:
         raise EditError(f"edit {key!r} = {v} m is beyond ±{limit:g} m")
     return float(v)

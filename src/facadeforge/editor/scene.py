@@ -65,6 +65,12 @@ class Scene:
                 "origin": self.origin}
 
 
+def view_axes(up: int = 2) -> np.ndarray:
+    """Cloud axes → the scene's (y up), as :func:`facadeforge.points.pipeline._place` turns a
+    cloud whose vertical axis is ``up`` (a y- or x-up cloud is rotated, never mirrored)."""
+    return TO_CGA @ np.roll(np.eye(3), 2 - up, axis=0)
+
+
 def _suffix(path: Path) -> str:
     name = path.name.lower()
     for s in (".city.jsonl", ".city.json"):
@@ -76,7 +82,8 @@ def _suffix(path: Path) -> str:
 
 
 def _points_origin(path: Path) -> np.ndarray | None:
-    """The cloud origin of a ``facadeforge points`` OUTDIR holding ``path``."""
+    """The cloud origin of a ``facadeforge points`` OUTDIR holding ``path`` (its cloud's
+    coordinates)."""
     rep = path.parent / "report.json"
     if not (rep.is_file() and (path.parent / "planes.json").is_file()):
         return None
@@ -86,6 +93,17 @@ def _points_origin(path: Path) -> np.ndarray | None:
     except (OSError, ValueError, TypeError, AttributeError):
         return None
     return o if np.isfinite(o).all() else None
+
+
+def _points_up(path: Path) -> int | None:
+    """The vertical axis of the cloud of a ``facadeforge points`` OUTDIR holding ``path``."""
+    if _points_origin(path) is None:
+        return None
+    try:
+        up = json.loads((path.parent / "report.json").read_text(encoding="utf-8"))["input"]["up"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return up if up in (0, 1, 2) else None
 
 
 def load_scene(paths) -> Scene:
@@ -120,12 +138,13 @@ def load_scene(paths) -> Scene:
         else:
             layer = _cityjson_layer(f, kind)
         layers.append(layer)
-    world = None if origin is None else TO_CGA @ origin
+    axes = view_axes(next((u for u in map(_points_up, files) if u is not None), 2))
+    world = None if origin is None else axes @ origin
     for la in layers:
         if la.kind in ("gltf", "obj") and world is not None:
             own = _points_origin(la.path)     # a points model: relative to its cloud origin
             if own is not None:
-                la.offset = [float(v) for v in TO_CGA @ own - world]
+                la.offset = [float(v) for v in axes @ own - world]
         elif la.kind == "cityjson-gltf":
             la.kind = "gltf"
             if world is not None:       # world coordinates in CGA axes
@@ -148,9 +167,7 @@ def _cloud_layer(path: Path, origin: np.ndarray | None) -> tuple[Layer, np.ndarr
         keep = np.sort(np.random.default_rng(0).choice(n, MAX_VIEW_POINTS, replace=False))
     centre = (xyz.min(0) + xyz.max(0)) / 2 if n else np.zeros(3)
     base = origin if origin is not None else centre
-    up = int(getattr(cloud, "up", 2))
-    order = [0, 1, 2] if up == 2 else ([0, 2, 1] if up == 1 else [1, 2, 0])
-    p = (xyz[keep][:, order] - base[order]) @ TO_CGA.T
+    p = (xyz[keep] - base) @ view_axes(int(getattr(cloud, "up", 2))).T
     if cloud.rgb is not None:
         rgb, colour = cloud.rgb[keep], "rgb"
     elif cloud.labels is not None:

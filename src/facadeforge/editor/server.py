@@ -5,11 +5,19 @@ Safety, as SECURITY.md asks of every server we run:
 - it binds to ``127.0.0.1`` only, and answers only clients on the loopback address;
 - every request needs the session's random token (:func:`secrets.token_urlsafe`, 32 bytes):
   in the URL printed on the first line (``?token=…``), after which the page holds it in an
-  ``HttpOnly``, ``SameSite=Strict`` cookie and sends it in the ``X-Facadeforge-Token`` header;
-  a request without it, or with another ``Host`` than ``127.0.0.1:PORT`` / ``localhost:PORT``
-  (DNS rebinding), gets ``403``;
-- files are served only from the package's ``static/`` folder and, for ``view``, from the
-  folder of each file viewed (paths resolved and held inside it);
+  ``HttpOnly``, ``SameSite=Strict`` cookie named after the port and sends it in the
+  ``X-Facadeforge-Token`` header; a request without it, or with another ``Host`` than
+  ``127.0.0.1:PORT`` / ``localhost:PORT`` (DNS rebinding), gets ``403``;
+- the cookie alone opens only ``GET`` (pages, scripts, images: what the browser fetches by
+  itself, and none of it changes anything).  A ``POST`` (an edit, a save) needs the token in
+  the header or the query — which another site cannot send without a CORS pre-flight this
+  server never grants — and, when the browser names an ``Origin``, this server's own: a page
+  on another local port cannot edit through the user's cookie (cookies are per host, not per
+  port);
+- files are served only from the package's ``static/`` folder and, for ``view``, the kinds a
+  model refers to (materials, textures, glTF buffers, tileset contents) from the folder of
+  each file viewed (paths resolved and held inside it), with ``nosniff`` and a sandboxing
+  ``Content-Security-Policy``;
 - request bodies are at most :data:`MAX_BODY` bytes; edits are JSON checked by
   :mod:`.edits`, never code.
 
@@ -35,7 +43,7 @@ __all__ = ["MAX_BODY", "STATIC", "Running", "editor_app", "serve", "start", "vie
 STATIC = Path(__file__).parent / "static"
 #: Largest request body (an edit is a few hundred bytes).
 MAX_BODY: int = 2**20
-_COOKIE = "facadeforge_token"
+_COOKIE = "facadeforge_token_"     # + the port: two servers never overwrite each other's
 _HEADER = "x-facadeforge-token"
 _LOOPBACK = ("127.0.0.1", "::1")
 
@@ -59,10 +67,15 @@ class _Guard:
             return await _refuse(send, "only clients on this machine")
         if headers.get("host") not in (f"127.0.0.1:{port}", f"localhost:{port}"):
             return await _refuse(send, "wrong Host")
-        given = _query_token(scope.get("query_string", b"")) or headers.get(_HEADER) \
-            or _cookie(headers.get("cookie", ""))
+        given = _query_token(scope.get("query_string", b"")) or headers.get(_HEADER)
+        if not given and scope.get("method") in ("GET", "HEAD"):
+            given = _cookie(headers.get("cookie", ""), port)
         if not given or not hmac.compare_digest(given.encode(), self.token.encode()):
             return await _refuse(send, "this server needs the token of the URL it printed")
+        origin = headers.get("origin")
+        if scope.get("method") not in ("GET", "HEAD") and origin is not None and origin not in (
+                f"http://127.0.0.1:{port}", f"http://localhost:{port}"):
+            return await _refuse(send, f"requests from {origin[:80]}")
         return await self.app(scope, receive, send)
 
 
@@ -81,10 +94,10 @@ def _query_token(qs: bytes) -> str | None:
     return v[0] if v else None
 
 
-def _cookie(header: str) -> str | None:
+def _cookie(header: str, port: int) -> str | None:
     for part in header.split(";"):
         k, _, v = part.strip().partition("=")
-        if k == _COOKIE:
+        if k == f"{_COOKIE}{port}":
             return v
     return None
 
@@ -116,7 +129,7 @@ async def _json_body(request) -> object:
         raise InputError(f"request body is not JSON ({e})") from None
 
 
-def _page(name: str, token: str):
+def _page(name: str, token: str, port: int):
     from starlette.responses import HTMLResponse
 
     html = (STATIC / name).read_text(encoding="utf-8")
@@ -125,7 +138,7 @@ def _page(name: str, token: str):
                                        "default-src 'self'; img-src 'self' data: blob:; "
                                        "style-src 'self' 'unsafe-inline'; "
                                        "connect-src 'self' data: blob:"})
-    resp.set_cookie(_COOKIE, token, httponly=True, samesite="strict", path="/")
+    resp.set_cookie(f"{_COOKIE}{port}", token, httponly=True, samesite="strict", path="/")
     return resp
 
 
@@ -135,7 +148,7 @@ def _base_routes(page: str, token: str) -> list:
     from starlette.staticfiles import StaticFiles
 
     async def index(request):
-        return _page(page, token)
+        return _page(page, token, request.url.port or 0)
 
     async def favicon(request):
         return Response(status_code=204)
@@ -166,28 +179,27 @@ def editor_app(session, token: str):
                 return _error(e)
         return endpoint
 
-    def payload() -> dict:
-        return {"state": session.state(), "tree": session.tree_dict()}
+    def then_payload(fn, key: str, *args):
+        """``fn(*args)`` and the state right after it, under the session's lock: the reply
+        shows this request's result, never another one's half-done edit."""
+        with session.lock:
+            return {key: fn(*args), **session.payload()}
 
     async def state(request):
-        return JSONResponse(await run_in_threadpool(payload))
+        return JSONResponse(await run_in_threadpool(session.payload))
 
     async def apply(request):
         edit = await _json_body(request)
-        done = await run_in_threadpool(session.apply, edit)
-        return JSONResponse({"result": done, **await run_in_threadpool(payload)})
+        return JSONResponse(await run_in_threadpool(then_payload, session.apply, "result", edit))
 
     async def undo(request):
-        ok = await run_in_threadpool(session.undo)
-        return JSONResponse({"result": ok, **await run_in_threadpool(payload)})
+        return JSONResponse(await run_in_threadpool(then_payload, session.undo, "result"))
 
     async def redo(request):
-        ok = await run_in_threadpool(session.redo)
-        return JSONResponse({"result": ok, **await run_in_threadpool(payload)})
+        return JSONResponse(await run_in_threadpool(then_payload, session.redo, "result"))
 
     async def save(request):
-        files = await run_in_threadpool(session.save)
-        return JSONResponse({"files": files, **await run_in_threadpool(payload)})
+        return JSONResponse(await run_in_threadpool(then_payload, session.save, "files"))
 
     async def model(request):
         return Response(session.glb(), media_type="model/gltf-binary",
@@ -270,9 +282,11 @@ def viewer_app(scene, token: str):
             return JSONResponse({"error": "no such layer"}, status_code=404)
         root = la.path.parent.resolve()
         target = (root / request.path_params["rest"]).resolve()
-        if root not in target.parents or not target.is_file():
+        if root not in target.parents or not target.is_file() or \
+                target.suffix.lower() not in _BESIDE:
             return JSONResponse({"error": "not a file of this layer"}, status_code=404)
-        return FileResponse(target)
+        return FileResponse(target, headers={"X-Content-Type-Options": "nosniff",
+                                             "Content-Security-Policy": "sandbox"})
 
     routes = _base_routes("viewer.html", token) + [
         Route("/api/scene", info),
@@ -280,6 +294,11 @@ def viewer_app(scene, token: str):
         Route("/api/file/{index}/{rest:path}", file),
     ]
     return Starlette(routes=routes)
+
+
+#: What a model refers to beside itself: materials, textures, glTF buffers, tileset contents.
+_BESIDE = frozenset({".mtl", ".png", ".jpg", ".jpeg", ".webp", ".bmp", ".tga", ".tif", ".tiff",
+                     ".ktx2", ".bin", ".glb", ".gltf", ".json"})
 
 
 # -- running --------------------------------------------------------------------------------------

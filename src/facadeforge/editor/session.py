@@ -99,7 +99,6 @@ class EditSession:
         self.version = 0
         self.saved_version = 0
         self._rgb: np.ndarray | None = None
-        self._reanalysed = sum(1 for s in self.tree.walk() if s.tags.get("reanalysed"))
         self.lock = threading.RLock()
         from ..scratch import scratch_dir
 
@@ -130,14 +129,25 @@ class EditSession:
                 "rules": self.derived.rules}
 
     def tree_dict(self) -> dict:
-        return self.tree.to_dict()
+        """A copy of the tree as ``shape_tree.json`` holds it (nothing shared with the live
+        tree: ``Shape.to_dict`` hands out the shapes' own tag dicts)."""
+        with self.lock:
+            return self._snapshot()
+
+    def payload(self) -> dict:
+        """``{"state", "tree"}`` of one moment (taken under the lock)."""
+        with self.lock:
+            return {"state": self.state(), "tree": self._snapshot()}
+
+    def _snapshot(self) -> dict:
+        return copy.deepcopy(self.tree.to_dict())
 
     # -- edits ------------------------------------------------------------------------------------
     def apply(self, edit: dict) -> dict:
         """Apply one edit (:mod:`.edits`), re-derive the model; an edit that fails (a bad edit,
         or rules that no longer derive) leaves the session as it was."""
         with self.lock:
-            before = self.tree.to_dict()
+            before = self._snapshot()
             if isinstance(edit, dict) and edit.get("op") == "reanalyse":
                 done = self._reanalyse(edit)
             else:
@@ -166,9 +176,8 @@ class EditSession:
 
             with Image.open(self.backdrop) as im:
                 self._rgb = np.asarray(im.convert("RGB"))
-        trial = Shape.from_dict(self.tree.to_dict())
-        self._reanalysed += 1
-        done = reanalyse(trial, edit, self._rgb, counter=self._reanalysed)
+        trial = Shape.from_dict(self._snapshot())
+        done = reanalyse(trial, edit, self._rgb, counter=_next_region(self.tree))
         self.tree = trial
         return done
 
@@ -185,9 +194,14 @@ class EditSession:
         with self.lock:
             if not trees:
                 return False
-            others.append(self.tree.to_dict())
+            tree = Shape.from_dict(copy.deepcopy(trees[-1]))
+            update_boxes(tree)
+            derived = self._derive(tree)        # a failure here changes nothing
+            others.append(self._snapshot())
             other_log.append(log.pop())
-            self._restore(trees.pop())
+            trees.pop()
+            self.tree, self.derived = tree, derived
+            self.version += 1
             return True
 
     def _push(self, before: dict) -> None:
@@ -196,13 +210,8 @@ class EditSession:
         self._redo.clear()
         self.version += 1
 
-    def _restore(self, snapshot: dict) -> None:
-        self.tree = Shape.from_dict(snapshot)
-        self.derived = self._derive()
-        self.version += 1
-
     # -- derivation -------------------------------------------------------------------------------
-    def _derive(self) -> _Derived:
+    def _derive(self, tree: Shape | None = None) -> _Derived:
         from ..elements.library import element_model, element_spec
         from ..engine import derive_facade
         from ..exchange import export
@@ -210,16 +219,17 @@ class EditSession:
         from ..grammar.extract import extract_rules
         from ..reconstruction import DEFAULT_DEPTHS
 
+        tree = self.tree if tree is None else tree
         t0 = time.perf_counter()
-        for name in sorted({s.tags["element"] for s in self.tree.leaves() if "element" in s.tags}):
+        for name in sorted({s.tags["element"] for s in tree.leaves() if "element" in s.tags}):
             target = self.work / "assets" / f"{name}.obj"
             if not target.is_file():
                 export_obj(element_model(element_spec(name)), target)
         # `points` measured its depths per element, and extracted with no class defaults
-        rules = extract_rules(self.tree, texture="texture.jpg" if self.textured else None,
+        rules = extract_rules(tree, texture="texture.jpg" if self.textured else None,
                               depths={} if self.scan else DEFAULT_DEPTHS)
         (self.work / "rules.cga").write_text(rules, encoding="utf-8")
-        w, h = (float(v) for v in self.tree.scope.size[:2])
+        w, h = (float(v) for v in tree.scope.size[:2])
         model = derive_facade(self.work / "rules.cga", w, h, assets=self.work, name="facade")
         glb = self.work / "preview.glb"
         export(model, glb)
@@ -315,8 +325,9 @@ class EditSession:
             frame = FacadeFrame(np.asarray(f["origin"], float), np.asarray(f["u"], float),
                                 np.asarray(f["v"], float), np.asarray(f["n"], float),
                                 float(f["width_m"]), float(f["height_m"]))
-            if folder.resolve() == self.folder:
+            if folder.resolve() == self.folder:     # the rules the page shows
                 work, tree = self.work, self.tree
+                (work / "rules.cga").write_text(self.derived.rules, encoding="utf-8")
             else:
                 tree = _read_tree(folder / "shape_tree.json")
                 work = scratch_dir("facadeforge-edit-scan-")
@@ -331,7 +342,7 @@ class EditSession:
             w, h = (float(v) for v in tree.scope.size[:2])
             m = derive_facade(work / "rules.cga", w, h, assets=work, name=folder.name)
             m.name = folder.name
-            m = _place(m, frame, origin, 2)
+            m = _place(m, frame, origin, int(self.report.get("input", {}).get("up", 2)))
             m.attributes["_origin_offset"] = [float(v) for v in _TO_CGA @ origin]
             if self.report.get("input", {}).get("crs"):
                 m.attributes["_crs"] = self.report["input"]["crs"]
@@ -391,3 +402,12 @@ def _scan_texture(folder: Path, tree: Shape, out: Path) -> None:
     with Image.open(folder / "ortho.png") as im:
         rgb = np.asarray(im.convert("RGB"))
     Image.fromarray(cluster_averaged_texture(rgb, tree)).save(out, quality=90)
+
+
+def _next_region(tree: Shape) -> int:
+    """The next free ``R<n>.`` prefix of re-analysed cluster ids (:mod:`.reanalyse`)."""
+    import re
+
+    used = [int(m.group(1)) for s in tree.walk()
+            if (m := re.match(r"R(\d+)\.", str(s.tags.get("cluster", ""))))]
+    return max(used, default=0) + 1

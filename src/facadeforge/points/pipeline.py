@@ -610,7 +610,7 @@ def _report(r: PointsResult, timings: dict) -> dict:
             "elements": dict(Counter(e.label for e in els)),
             **f.report})
     return {
-        "input": {"cloud": c.source, "points": len(c), "crs": c.crs,
+        "input": {"cloud": c.source, "points": len(c), "crs": c.crs, "up": int(c.up),
                   "bounds": [[round(float(v), 4) for v in lo], [round(float(v), 4) for v in hi]],
                   "attributes": [n for n in ("intensity", "rgb", "normals", "labels")
                                  if getattr(c, n) is not None]},

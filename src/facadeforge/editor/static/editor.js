@@ -92,12 +92,17 @@ function partition(n) {
   kids.sort((a, b) => a[0].scope.origin[k] - b[0].scope.origin[k]);
   return { kids, axis };
 }
+// the shapes an edit of `node` changes, as the server's cluster_of finds them
 function clusterMembers(node) {
   const cid = node.tags && node.tags.cluster;
   if (cid === undefined) return [node];
+  const { kids, axis } = partition(node);
   const out = [];
   (function walk(n) {
-    if (n.symbol === node.symbol && n.tags && n.tags.cluster === cid) out.push(n);
+    if (n.symbol === node.symbol && n.tags && n.tags.cluster === cid) {
+      const p = partition(n);
+      if (!node.children.length || (p.kids.length === kids.length && p.axis === axis)) out.push(n);
+    }
     n.children.forEach(walk);
   })(tree);
   return out;
@@ -198,9 +203,16 @@ function drawHandles(svg, node, path) {
           else { l.setAttribute('y1', at + d); l.setAttribute('y2', at + d); }
         }
       };
+      const cancel = () => {
+        handle.removeEventListener('pointermove', move);
+        handle.removeEventListener('pointerup', up);
+        handle.removeEventListener('pointercancel', cancel);
+        drawOverlay();
+      };
       const up = (e) => {
         handle.removeEventListener('pointermove', move);
         handle.removeEventListener('pointerup', up);
+        handle.removeEventListener('pointercancel', cancel);
         const p = pt(e);
         const dpx = axis === 'x' ? p.x - start.x : p.y - start.y;
         const delta = axis === 'x' ? dpx / ppx : -dpx / ppy;   // metres, y up
@@ -210,6 +222,7 @@ function drawHandles(svg, node, path) {
       };
       handle.addEventListener('pointermove', move);
       handle.addEventListener('pointerup', up);
+      handle.addEventListener('pointercancel', cancel);
     });
   }
 }
