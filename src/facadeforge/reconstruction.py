@@ -58,8 +58,9 @@ from .model.shape import INSERT, Shape
 from .photo import MAX_ANALYSIS_SIDE, MIN_SIDE, analysis_copy, as_rgb, check_facade_size, check_size
 
 __all__ = ["DEFAULT_DEPTHS", "FACADE_MODES", "MAX_ANALYSIS_SIDE", "MIN_ELEMENTS", "MIN_SIDE",
-           "PhotoReconstruction", "Reconstruction", "draw_structure", "load_depths", "reconstruct",
-           "reconstruct_facades", "review_flags", "structure_image"]
+           "PhotoReconstruction", "Reconstruction", "draw_structure", "load_depths",
+           "reconstruct", "reconstruct_facades", "review_flags", "structure_image",
+           "write_element_assets"]
 
 #: Default depth per class in metres: negative = recessed behind the wall plane (§5 rule 15).
 DEFAULT_DEPTHS: dict[str, float] = {"window": -0.25, "door": -0.35, "shop": -0.3,
@@ -1008,13 +1009,21 @@ def _write_workdir(rec: Reconstruction, work: Path) -> None:
     """``texture.jpg``, ``rules.cga`` and the matched library elements as ``assets/*.obj``."""
     from PIL import Image
 
+    Image.fromarray(rec.texture).save(work / "texture.jpg", quality=90)
+    (work / "rules.cga").write_text(rec.rules)
+    write_element_assets(rec.tree, work)
+
+
+def write_element_assets(tree: Shape, folder: Path) -> None:
+    """``folder/assets/NAME.obj`` for every library element a leaf of ``tree`` names (those
+    already there are kept: the rules' ``i("assets/NAME.obj")`` finds them)."""
     from .elements.library import element_model, element_spec
     from .exchange.obj import export_obj
 
-    Image.fromarray(rec.texture).save(work / "texture.jpg", quality=90)
-    (work / "rules.cga").write_text(rec.rules)
-    for name in sorted({s.tags["element"] for s in rec.tree.leaves() if "element" in s.tags}):
-        export_obj(element_model(element_spec(name)), work / "assets" / f"{name}.obj")
+    for name in sorted({s.tags["element"] for s in tree.leaves() if "element" in s.tags}):
+        target = folder / "assets" / f"{name}.obj"
+        if not target.is_file():
+            export_obj(element_model(element_spec(name)), target)
 
 
 def _derive_model(rec: Reconstruction, frame) -> tuple[Model, Path]:

@@ -97,17 +97,6 @@ def node_at(tree: Shape, path: list[int]) -> Shape:
     return node
 
 
-def path_of(tree: Shape, target: Shape) -> list[int]:
-    """The path of ``target`` in ``tree`` (``[]`` for the root)."""
-    stack: list[tuple[Shape, list[int]]] = [(tree, [])]
-    while stack:
-        node, p = stack.pop()
-        if node is target:
-            return p
-        stack.extend((c, p + [i]) for i, c in enumerate(node.children))
-    raise EditError("shape is not in the tree")
-
-
 def partition(node: Shape) -> tuple[list[Shape], str | None]:
     """The children of ``node``'s split (not those inserted in front), in increasing coordinate
     along the split axis, and that axis (``None`` for a leaf)."""

@@ -81,29 +81,19 @@ def _suffix(path: Path) -> str:
     return path.suffix.lower()
 
 
-def _points_origin(path: Path) -> np.ndarray | None:
-    """The cloud origin of a ``facadeforge points`` OUTDIR holding ``path`` (its cloud's
-    coordinates)."""
+def _points_frame(path: Path) -> tuple[np.ndarray, int] | None:
+    """``(origin, up)`` of the ``facadeforge points`` OUTDIR holding ``path``: its cloud origin
+    (the cloud's coordinates) and vertical axis; ``None`` for any other file."""
     rep = path.parent / "report.json"
     if not (rep.is_file() and (path.parent / "planes.json").is_file()):
         return None
     try:
-        origin = json.loads(rep.read_text(encoding="utf-8")).get("origin")
-        o = np.asarray(origin, float).reshape(3)
+        doc = json.loads(rep.read_text(encoding="utf-8"))
+        o = np.asarray(doc.get("origin"), float).reshape(3)
+        up = (doc.get("input") or {}).get("up", 2)
     except (OSError, ValueError, TypeError, AttributeError):
         return None
-    return o if np.isfinite(o).all() else None
-
-
-def _points_up(path: Path) -> int | None:
-    """The vertical axis of the cloud of a ``facadeforge points`` OUTDIR holding ``path``."""
-    if _points_origin(path) is None:
-        return None
-    try:
-        up = json.loads((path.parent / "report.json").read_text(encoding="utf-8"))["input"]["up"]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-    return up if up in (0, 1, 2) else None
+    return (o, up if up in (0, 1, 2) else 2) if np.isfinite(o).all() else None
 
 
 def load_scene(paths) -> Scene:
@@ -122,7 +112,9 @@ def load_scene(paths) -> Scene:
                              f"{', '.join(VIEW_SUFFIXES)}")
         if f.stat().st_size > MAX_VIEW_BYTES:
             raise InputError(f"view: {f} is larger than {MAX_VIEW_BYTES >> 30} GiB")
-    origin = next((o for o in map(_points_origin, files) if o is not None), None)
+    frames = {f: _points_frame(f) for f in files}
+    first = next((fr for fr in frames.values() if fr is not None), None)
+    origin = None if first is None else first[0]
     layers: list[Layer] = []
     for f in files:
         kind = _suffix(f)
@@ -138,13 +130,13 @@ def load_scene(paths) -> Scene:
         else:
             layer = _cityjson_layer(f, kind)
         layers.append(layer)
-    axes = view_axes(next((u for u in map(_points_up, files) if u is not None), 2))
+    axes = view_axes(2 if first is None else first[1])
     world = None if origin is None else axes @ origin
     for la in layers:
         if la.kind in ("gltf", "obj") and world is not None:
-            own = _points_origin(la.path)     # a points model: relative to its cloud origin
+            own = frames.get(la.path)     # a points model: relative to its cloud origin
             if own is not None:
-                la.offset = [float(v) for v in axes @ own - world]
+                la.offset = [float(v) for v in axes @ own[0] - world]
         elif la.kind == "cityjson-gltf":
             la.kind = "gltf"
             if world is not None:       # world coordinates in CGA axes

@@ -157,11 +157,6 @@ def _base_routes(page: str, token: str) -> list:
             Mount("/static", StaticFiles(directory=STATIC), name="static")]
 
 
-def _wrap(app, token: str) -> tuple[object, list[int]]:
-    port_ref = [0]
-    return _Guard(app, token, port_ref), port_ref
-
-
 # -- the editor -----------------------------------------------------------------------------------
 
 def editor_app(session, token: str):
@@ -334,7 +329,8 @@ def _server(make_app: Callable[[str], object], port: int):
     import uvicorn
 
     token = secrets.token_urlsafe(32)
-    app, port_ref = _wrap(make_app(token), token)
+    port_ref = [0]                   # the guard learns the port once the socket is bound
+    app = _Guard(make_app(token), token, port_ref)
     sock = _bind(port)
     port_ref[0] = sock.getsockname()[1]
     config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off")

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import io
-import json
 import shutil
 import threading
 import time
@@ -212,19 +211,14 @@ class EditSession:
 
     # -- derivation -------------------------------------------------------------------------------
     def _derive(self, tree: Shape | None = None) -> _Derived:
-        from ..elements.library import element_model, element_spec
         from ..engine import derive_facade
         from ..exchange import export
-        from ..exchange.obj import export_obj
         from ..grammar.extract import extract_rules
-        from ..reconstruction import DEFAULT_DEPTHS
+        from ..reconstruction import DEFAULT_DEPTHS, write_element_assets
 
         tree = self.tree if tree is None else tree
         t0 = time.perf_counter()
-        for name in sorted({s.tags["element"] for s in tree.leaves() if "element" in s.tags}):
-            target = self.work / "assets" / f"{name}.obj"
-            if not target.is_file():
-                export_obj(element_model(element_spec(name)), target)
+        write_element_assets(tree, self.work)
         # `points` measured its depths per element, and extracted with no class defaults
         rules = extract_rules(tree, texture="texture.jpg" if self.textured else None,
                               depths={} if self.scan else DEFAULT_DEPTHS)
@@ -308,11 +302,10 @@ class EditSession:
         """Every facade of a `points` OUTDIR derived and placed in the scan's frame (CGA axes
         relative to the report's origin) as `points` places them; this one from the edited
         tree, the others from their own rules."""
-        from ..elements.library import element_model, element_spec
         from ..engine import derive_facade
-        from ..exchange.obj import export_obj
         from ..points.maps import FacadeFrame
         from ..points.pipeline import _TO_CGA, _place
+        from ..reconstruction import write_element_assets
         from ..scratch import scratch_dir
 
         origin = np.asarray(self.report.get("origin", [0, 0, 0]), float)
@@ -334,10 +327,7 @@ class EditSession:
                 weakref.finalize(self, shutil.rmtree, work, True)
                 if (folder / "ortho.png").is_file():
                     _scan_texture(folder, tree, work / "texture.jpg")
-                for name in sorted({s.tags["element"] for s in tree.leaves()
-                                    if "element" in s.tags}):
-                    export_obj(element_model(element_spec(name)),
-                               work / "assets" / f"{name}.obj")
+                write_element_assets(tree, work)
                 shutil.copy2(folder / "rules.cga", work / "rules.cga")
             w, h = (float(v) for v in tree.scope.size[:2])
             m = derive_facade(work / "rules.cga", w, h, assets=work, name=folder.name)
@@ -358,21 +348,23 @@ class EditSession:
         return self.backdrop.read_bytes()
 
 
-def _read_json(path: Path) -> dict:
+_FIX = "rerun the command that wrote the OUTDIR"
+
+
+def _read_json(path: Path, max_bytes: int | None = None) -> dict:
+    """An OUTDIR's JSON file through the project's reader (:func:`facadeforge.jsonfile.
+    read_json`: size cap, BOM, nesting); ``{}`` when it is missing or not an object."""
+    from ..jsonfile import MAX_JSON_BYTES, read_json
+
     if not path.is_file():
         return {}
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as e:
-        raise InputError(f"edit: {path} is not readable JSON ({e}); rerun the command that "
-                         "wrote the OUTDIR") from None
+    data = read_json(path, f"edit: {path.name}", fix=_FIX,
+                     max_bytes=max_bytes or MAX_JSON_BYTES)
     return data if isinstance(data, dict) else {}
 
 
 def _read_tree(path: Path) -> Shape:
-    if path.stat().st_size > MAX_TREE_BYTES:
-        raise InputError(f"edit: {path} is larger than {MAX_TREE_BYTES >> 20} MiB")
-    data = _read_json(path)
+    data = _read_json(path, MAX_TREE_BYTES)
     try:
         tree = Shape.from_dict(data)
     except (KeyError, TypeError, ValueError) as e:
