@@ -12,69 +12,14 @@ from PIL import Image
 
 from facadeforge.city.enhance import enhance
 from facadeforge.cli import main
-from facadeforge.datasets.synthetic import generate
+from facadeforge.datasets.mass_models import DEPTH, HEIGHT, TEXTURE_PPM, WIDTH
+from facadeforge.datasets.mass_models import box_mass_model as _build
 from facadeforge.errors import InputError
 from facadeforge.exchange import export, load
 from facadeforge.geometry.mesh import Mesh
 from facadeforge.model.model import Material, Model, Part
 
-WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
-TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
 LOW_PPM = 8                               # the aerial-like low-resolution variant
-
-
-def _walls() -> list[tuple[np.ndarray, float]]:
-    """The box's 4 walls: corners (bottom-left, bottom-right, top-right, top-left seen from
-    outside, counter-clockwise around the outward normal) and width."""
-    W, D, H = WIDTH, DEPTH, HEIGHT
-    quads = [
-        [(0, 0, D), (W, 0, D), (W, H, D), (0, H, D)],      # faces +z
-        [(W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D)],      # faces +x
-        [(W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0)],      # faces -z
-        [(0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0)],      # faces -x
-    ]
-    return [(np.array(q, float), W if i % 2 == 0 else D) for i, q in enumerate(quads)]
-
-
-def _truth_windows(photo: Path, scale: float = 1.0) -> int:
-    """Windows of a synthetic texture large enough to be seen (slivers of windows hidden
-    behind a neighbour's edge are left out)."""
-    objects = json.loads(photo.with_suffix(".objects.json").read_text())
-    boxes = [o["box"] for o in objects if o["label"] == "window"]
-    return sum(1 for x0, y0, x1, y1 in boxes if min(x1 - x0, y1 - y0) >= 6)
-
-
-def _build(folder: Path, *, walls=(0, 1, 2, 3), ppm: float = TEXTURE_PPM, seed: int = 21
-           ) -> tuple[Path, list[int]]:
-    """A box building whose walls ``walls`` are textured with synthetic Haussmann photos (one
-    image each, UVs 0–1), the others and the flat roof untextured; written as GLB.  Returns
-    the path and the truth window count per textured wall."""
-    folder.mkdir(parents=True, exist_ok=True)
-    parts, truth = [], []
-    for i, (quad, width) in enumerate(_walls()):
-        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
-        if i in walls:
-            size = (round(width * TEXTURE_PPM), round(HEIGHT * TEXTURE_PPM))
-            photo = generate(1, seed=seed, out_dir=folder / "synth", size=size,
-                             styles=["haussmann"], start=i)[0]
-            truth.append(_truth_windows(photo))
-            texture = photo
-            if ppm != TEXTURE_PPM:
-                texture = folder / f"low_{i}.png"
-                Image.open(photo).resize((round(width * ppm), round(HEIGHT * ppm)),
-                                         Image.LANCZOS).save(texture)
-            mat = Material(name=f"facade{i}", texture=str(texture))
-        else:
-            mat = Material(name="plaster", color=(0.8, 0.75, 0.7))
-        parts.append(Part(Mesh(quad, faces=[np.arange(4)], uvs=[uv]), label="wall",
-                          material=mat, symbol="Wall"))
-    W, D, H = WIDTH, DEPTH, HEIGHT
-    roof = np.array([(0, H, D), (W, H, D), (W, H, 0), (0, H, 0)], float)
-    parts.append(Part(Mesh(roof, faces=[np.arange(4)]), label="roof",
-                      material=Material(name="roof", color=(0.5, 0.2, 0.2)), symbol="Roof"))
-    path = folder / "mass.glb"
-    export([Model(parts=parts, name="block")], path)
-    return path, truth
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +33,7 @@ def full(tmp_path_factory):
 @pytest.fixture(scope="module")
 def low(tmp_path_factory):
     d = tmp_path_factory.mktemp("enhance_low")
-    path, truth = _build(d / "in", walls=(0,), ppm=LOW_PPM)
+    path, truth = _build(d / "in", textured=(0,), ppm=LOW_PPM)
     out = d / "out"
     return enhance(path, out), out, truth
 
@@ -168,7 +113,7 @@ def test_low_resolution_texture(low):
 
 
 def test_model_without_textures_is_refused(tmp_path):
-    path, _ = _build(tmp_path / "in", walls=())
+    path, _ = _build(tmp_path / "in", textured=())
     with pytest.raises(InputError, match="no textured faces"):
         enhance(path, tmp_path / "out")
     assert not (tmp_path / "out").exists()
@@ -206,7 +151,7 @@ def test_bad_input(tmp_path, name, match):
 
 
 def test_cli(tmp_path, capsys):
-    path, _ = _build(tmp_path / "in", walls=(1,))
+    path, _ = _build(tmp_path / "in", textured=(1,))
     out = tmp_path / "out"
     assert main(["enhance", str(path), "-o", str(out), "--px-per-m", "30"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()

@@ -1,0 +1,76 @@
+"""A synthetic textured mass model with exact truth: a box building whose walls carry
+synthetic facade photos (:mod:`facadeforge.datasets.synthetic`), one texture image each, and a
+flat untextured roof, as GLB — the input of ``facadeforge enhance`` (Müller et al. 2007 §1,
+Fig. 16) in its tests and in ``benchmarks/enhance.py``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from ..exchange import export
+from ..geometry.mesh import Mesh
+from ..model.model import Material, Model, Part
+from .synthetic import generate
+
+__all__ = ["DEPTH", "HEIGHT", "TEXTURE_PPM", "WIDTH", "box_mass_model", "truth_windows"]
+
+WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
+TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
+
+
+def walls() -> list[tuple[np.ndarray, float]]:
+    """The box's 4 walls: corners (bottom-left, bottom-right, top-right, top-left seen from
+    outside, counter-clockwise around the outward normal) and width."""
+    W, D, H = WIDTH, DEPTH, HEIGHT
+    quads = [
+        [(0, 0, D), (W, 0, D), (W, H, D), (0, H, D)],      # faces +z
+        [(W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D)],      # faces +x
+        [(W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0)],      # faces -z
+        [(0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0)],      # faces -x
+    ]
+    return [(np.array(q, float), W if i % 2 == 0 else D) for i, q in enumerate(quads)]
+
+
+def truth_windows(photo: Path, scale: float = 1.0) -> int:
+    """Windows of a synthetic texture large enough to be seen (slivers of windows hidden
+    behind a neighbour's edge are left out)."""
+    objects = json.loads(photo.with_suffix(".objects.json").read_text())
+    boxes = [o["box"] for o in objects if o["label"] == "window"]
+    return sum(1 for x0, y0, x1, y1 in boxes if min(x1 - x0, y1 - y0) >= 6)
+
+
+def box_mass_model(folder: Path, *, textured=(0, 1, 2, 3), ppm: float = TEXTURE_PPM, seed: int = 21
+           ) -> tuple[Path, list[int]]:
+    """A box building whose walls ``textured`` are textured with synthetic Haussmann photos (one
+    image each, UVs 0–1), the others and the flat roof untextured; written as GLB.  Returns
+    the path and the truth window count per textured wall."""
+    folder.mkdir(parents=True, exist_ok=True)
+    parts, truth = [], []
+    for i, (quad, width) in enumerate(walls()):
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+        if i in textured:
+            size = (round(width * TEXTURE_PPM), round(HEIGHT * TEXTURE_PPM))
+            photo = generate(1, seed=seed, out_dir=folder / "synth", size=size,
+                             styles=["haussmann"], start=i)[0]
+            truth.append(truth_windows(photo))
+            texture = photo
+            if ppm != TEXTURE_PPM:
+                texture = folder / f"low_{i}.png"
+                Image.open(photo).resize((round(width * ppm), round(HEIGHT * ppm)),
+                                         Image.LANCZOS).save(texture)
+            mat = Material(name=f"facade{i}", texture=str(texture))
+        else:
+            mat = Material(name="plaster", color=(0.8, 0.75, 0.7))
+        parts.append(Part(Mesh(quad, faces=[np.arange(4)], uvs=[uv]), label="wall",
+                          material=mat, symbol="Wall"))
+    W, D, H = WIDTH, DEPTH, HEIGHT
+    roof = np.array([(0, H, D), (W, H, D), (W, H, 0), (0, H, 0)], float)
+    parts.append(Part(Mesh(roof, faces=[np.arange(4)]), label="roof",
+                      material=Material(name="roof", color=(0.5, 0.2, 0.2)), symbol="Roof"))
+    path = folder / "mass.glb"
+    export([Model(parts=parts, name="block")], path)
+    return path, truth
