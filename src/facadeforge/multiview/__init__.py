@@ -1,1 +1,1 @@
-"""Calibrated photo sets: dense multi-view stereo, the reconstruction frame, appearance and labels seen from each view."""
+"""Calibrated photo sets: dense stereo, the reconstruction frame, per-view appearance, labels."""
