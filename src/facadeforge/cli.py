@@ -25,6 +25,7 @@ TOP_EXAMPLES = """examples:
   facadeforge reconstruct photo.jpg -o out/                     # photo → procedural facade
   facadeforge parse photo.jpg -o parsed/                        # photo → parse grammar fit
   facadeforge points scan.ply -o scan-out/                      # laser scan → facades
+  facadeforge multiview photos/ --cameras cameras_v2.txt -o mv/ # calibrated photos → 3D
   facadeforge repair photo.jpg -o clean/                        # trees and cars removed
 
   facadeforge COMMAND --help shows every option of a command, with examples."""
@@ -78,6 +79,12 @@ EXAMPLES = {
     "enhance": """examples:
   facadeforge enhance mass.glb -o enhanced/          # every textured facade made procedural
   facadeforge enhance city.obj --px-per-m 60 -o enhanced/   # aerial textures upsampled more""",
+    "multiview": """examples:
+  facadeforge multiview photos/ --cameras cameras_v2.txt -o out/   # VisualSFM cameras
+  facadeforge multiview photos/ --cameras sparse/0/ -o out/        # a COLMAP text model
+  facadeforge multiview photos/ --cameras bundle.out -o out/       # Bundler (+ list.txt)
+  facadeforge multiview photos/ --cameras cameras.txt --cloud dense.ply -o out/  # own cloud
+  facadeforge multiview photos/ --cameras cameras.txt --scale 2.9 -o out/  # metres per unit""",
     "points": """examples:
   facadeforge points scan.ply -o out/                  # planes, depth maps, elements, model
   facadeforge points street.laz --resolution 0.1 -o out/
@@ -319,6 +326,25 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                     help="find planes, maps and elements only; no rules or 3D model")
     pt.add_argument("--seed", type=int, default=0)
     pt.add_argument("-o", "--output", required=True, help="output folder")
+
+    mv = sub.add_parser("multiview", help="calibrated photos of a building → its facades fitted "
+                        "in 3D with appearance and depth energies (Simon 2011 ch. 5)",
+                        epilog=EXAMPLES["multiview"],
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
+    mv.add_argument("photos", help="folder of the photos (named by the cameras' ids or files)")
+    mv.add_argument("--cameras", required=True,
+                    help="their calibrated cameras: VisualSFM cameras_v2.txt, Bundler bundle.out "
+                         "or a COLMAP text model (folder or images.txt)")
+    mv.add_argument("--cloud", help="a point cloud in the cameras' frame to use instead of the "
+                                    "stereo (PLY, LAS/LAZ, XYZ)")
+    mv.add_argument("--footprint", help="GeoJSON footprint (not supported yet)")
+    mv.add_argument("--scale", type=_positive, default=None,
+                    help="metres per camera unit (default: from the cameras' eye height above "
+                         "the ground)")
+    mv.add_argument("--budget", type=int, default=1500,
+                    help="derivations of the grammar search per facade (default 1500)")
+    mv.add_argument("--seed", type=int, default=0)
+    mv.add_argument("-o", "--output", required=True, help="output folder")
 
     y = sub.add_parser("synthesize", help="a facade texture from a label map in the style of a "
                        "photo (Shang 2023 §3.3: the missing-texture case)",
@@ -819,6 +845,25 @@ def cmd_points(args) -> int:
     return 0
 
 
+def cmd_multiview(args) -> int:
+    from .multiview.pipeline import multiview
+
+    r = multiview(args.photos, args.cameras, cloud=args.cloud, footprint=args.footprint,
+                  metres_per_unit=args.scale, budget=args.budget, seed=args.seed,
+                  out_dir=args.output)
+    n = sum(1 for f in r.facades if f.model is not None)
+    els = Counter()
+    for f in r.facades:
+        els.update(f.report.get("elements", {}))
+    found = ", ".join(f"{v} {_plural(k, v)}" for k, v in sorted(els.items()) if v) or "no elements"
+    print(f"{args.photos}: {len(r.views)} photos, {len(r.cloud):,} points, {n} "
+          f"{_plural('facade', n)} modelled ({found}); {r.report['timings']['total']:.1f} s → "
+          f"{args.output}")
+    for note in r.report.get("notes", []):
+        print(f"note: {note}", file=sys.stderr)
+    return 0
+
+
 def cmd_train_classifier(args) -> int:
     from .classify.train import cmd_train_classifier as run
 
@@ -829,7 +874,8 @@ COMMANDS = {"derive": cmd_derive, "batch": cmd_batch, "render": cmd_render, "dem
             "synth": cmd_synth, "reconstruct": cmd_reconstruct,
             "train-classifier": cmd_train_classifier, "parse": cmd_parse, "repair": cmd_repair,
             "synthesize": cmd_synthesize, "repair-model": cmd_repair_model,
-            "points": cmd_points, "edit": cmd_edit, "view": cmd_view, "enhance": cmd_enhance}
+            "points": cmd_points, "edit": cmd_edit, "view": cmd_view, "enhance": cmd_enhance,
+            "multiview": cmd_multiview}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -41,7 +41,7 @@ from ..errors import InputError
 from ..parsing import DEFAULT_BUDGET
 
 __all__ = ["LABEL_SPACES", "METHODS", "ClassifierMethod", "Method", "Prediction", "PriorBaseline",
-           "GrammarMethod", "RowColPrior", "StructureMethod", "get_method",
+           "GrammarMethod", "MultiviewMethod", "RowColPrior", "StructureMethod", "get_method",
            "is_rectified", "register_method"]
 
 #: Label spaces a method may predict in (see the module docstring).
@@ -94,6 +94,11 @@ class Method:
         What ``Prediction.labels`` holds.
     fit : callable or None
         ``fit(train_samples, label_set) -> None`` for methods that learn from data.
+    prepare : callable or None
+        ``prepare(scored_samples, label_set) -> None`` for methods that see several photos at
+        once (``multiview``: the calibrated photos of one building): called with the photos to
+        be scored before the first ``predict``; it may read their photos and cameras, never
+        their truth.
     description : str
         One line for listings and reports.
     """
@@ -103,6 +108,7 @@ class Method:
     label_space: str = "label_set"
     fit: Callable[[Sequence[FacadeSample], LabelSet], Any] | None = None
     description: str = ""
+    prepare: Callable[[Sequence[FacadeSample], LabelSet], Any] | None = None
 
 
 #: Datasets whose photos are rectified already (methods skip rectification, as ``--rectified``).
@@ -166,9 +172,11 @@ def register_method(name: str, label_space: str = "label_set", *, description: s
             raise InputError(f"method {name!r} is already registered; pick another name or "
                              "pass replace=True")
         fit = getattr(fn, "fit", None)
+        prepare = getattr(fn, "prepare", None)
         doc = (getattr(fn, "__doc__", None) or "").strip()
         METHODS[name] = Method(name=name, predict=fn, label_space=label_space,
                                fit=fit if callable(fit) else None,
+                               prepare=prepare if callable(prepare) else None,
                                description=description or (doc.splitlines()[0] if doc else ""))
         return fn
 
@@ -416,3 +424,35 @@ register_method("grammar-evo", "canonical",
 register_method("grammar", "canonical",
                 description="grammar parsing, best default = grammar-evo: evolutionary search, "
                             f"{DEFAULT_BUDGET} derivations")(GrammarMethod("evolution"))
+
+
+class MultiviewMethod:
+    """``simon2011`` ch. 5: the photos to score, with their calibrated cameras (``cameras.txt``
+    beside the split's ``img/`` folder), cut into runs of neighbouring views along the street
+    (:data:`MULTIVIEW_GROUP` photos each, by camera position); each run reconstructed in 3D by
+    :func:`facadeforge.multiview.multiview` (stereo, planes, the grid grammar fitted over all
+    its views with E_a and E_d); each photo's labels are the 3D model's seen from its camera
+    (the classifier's outside the model, as ``grammar`` does outside its facade)."""
+
+    def __init__(self, budget: int | None = None) -> None:
+        self.budget = budget
+        self._labels: dict[str, np.ndarray] = {}
+        self.reports: list[dict] = []
+
+    def prepare(self, samples: Sequence[FacadeSample], label_set: LabelSet) -> None:
+        from ..multiview.bench import reconstruct_groups
+
+        self._labels, self.reports = reconstruct_groups(samples, budget=self.budget)
+
+    def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
+        if sample.id not in self._labels:
+            raise InputError(f"multiview: photo {sample.id} has no calibrated camera in its "
+                             "split's cameras.txt, or was not prepared; give the split's "
+                             "cameras beside its img/ folder")
+        return Prediction(labels=self._labels[sample.id])
+
+
+register_method("multiview", "canonical",
+                description="simon2011 ch. 5: calibrated views → stereo cloud, planes, grid "
+                            "grammar fitted in 3D over all views (E_a, E_d, SPEA-II)"
+                )(MultiviewMethod())
