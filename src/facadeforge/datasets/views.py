@@ -133,12 +133,14 @@ class FacadeTexture:
 @dataclass
 class View:
     """One rendered photo: colour, exact depth along the viewing axis (``inf`` where nothing is
-    hit), ``ecp7`` class index per pixel (:data:`IGNORE` on the street), its camera."""
+    hit), ``ecp7`` class index per pixel (:data:`IGNORE` on the street), its camera, and the
+    unit normal (world frame, towards the camera; 0 where nothing is hit) of the face seen."""
 
     rgb: np.ndarray        # (h, w, 3) uint8
     depth: np.ndarray      # (h, w) float32
     labels: np.ndarray     # (h, w) uint8
     camera: Camera
+    normals: np.ndarray | None = None   # (h, w, 3) float32 world unit normals, facing the camera
 
     @property
     def id(self) -> str:
@@ -438,7 +440,10 @@ def render_view(models: Model | Sequence[Model], camera: Camera, size: tuple[int
         col[plain] = np.clip(base * (1 + 0.14 * noise[:, None]), 0, 1) * light[plain, None]
     rgb[hit] = col
     out = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8).reshape(h, w, 3)
-    return View(out, depth.astype(np.float32).reshape(h, w), labels.reshape(h, w), camera)
+    normals = np.zeros((w * h, 3), np.float32)
+    normals[hit] = facing
+    return View(out, depth.astype(np.float32).reshape(h, w), labels.reshape(h, w), camera,
+                normals.reshape(h, w, 3))
 
 
 # ================================================================================ view sets
