@@ -299,7 +299,7 @@ def _scene(models: Sequence[Model], textured: Sequence[bool]) -> _Tris:
 @cache
 def _noise_tile() -> np.ndarray:
     """A fixed-seed, tileable value-noise texture (512², values about 0 ± 1): three octaves of
-    bicubic-free bilinear value noise on periodic lattices."""
+    value noise (smoothstep interpolation) on periodic lattices."""
     rng = np.random.default_rng(0x7E57)
     n = _NOISE_TILE
     out = np.zeros((n, n), np.float32)
@@ -645,7 +645,7 @@ def _camera_block(cam: Camera) -> list[str]:
     T = -R @ C
 
     def row(v) -> str:
-        return " ".join(f"{float(x):.17g}" for x in v)
+        return " ".join(f"{float(x) + 0.0:.17g}" for x in v)
 
     return [cam.file, cam.file, f"{cam.focal:.17g}", row(cam.principal), row(T), row(C),
             row(Rotation.from_matrix(R).as_rotvec()), row(_quaternion(R)),
