@@ -77,7 +77,7 @@ class FacadeEvidence:
     views: np.ndarray                  # (h, w) number of photos that see the cell
     rgb: np.ndarray                    # (h, w, 3) uint8 texture from the best photo
     best: np.ndarray                   # (h, w) index of that photo, −1 where none sees it
-    occluded: np.ndarray               # (h, w) cells some photo sees but for an occluder
+    occluded: np.ndarray               # (h, w) cells every photo looking there sees an occluder in front of
 
 
 def cell_centres(frame: FacadeFrame, shape: tuple[int, int], resolution: float) -> np.ndarray:
@@ -91,15 +91,22 @@ def cell_centres(frame: FacadeFrame, shape: tuple[int, int], resolution: float) 
 
 
 def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray, interp=cv2.INTER_LINEAR) -> np.ndarray:
-    """Values of ``img`` at float pixel coordinates (pixel centres at integers)."""
-    mx = x.astype(np.float32).reshape(1, -1)
-    my = y.astype(np.float32).reshape(1, -1)
+    """Values of ``img`` at continuous pixel coordinates (pixel ``(c, r)`` covers
+    ``[c, c + 1) × [r, r + 1)``, :meth:`Camera.project`'s convention): ``(N,)`` or ``(N, C)``."""
+    n = int(np.size(x))
     src = img if img.dtype != np.float64 else img.astype(np.float32)
     if src.ndim == 3 and src.shape[2] > 4:      # remap takes at most 4 channels at once
-        return np.concatenate([_sample(src[..., k:k + 4], x, y, interp)
-                               for k in range(0, src.shape[2], 4)], axis=-1)
-    out = cv2.remap(src, mx, my, interp, borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(x.size, -1) if out.ndim == 3 else out.reshape(x.size)
+        return np.concatenate([_sample(np.ascontiguousarray(src[..., k:k + 4]), x, y, interp)
+                               .reshape(n, -1) for k in range(0, src.shape[2], 4)], axis=-1)
+    cols = 4096                                  # remap's maps must stay under 32767 a side
+    rows = max(1, -(-n // cols))
+    mx = np.full(rows * cols, -1e6, np.float32)
+    my = np.full(rows * cols, -1e6, np.float32)
+    mx[:n] = np.ravel(x) - 0.5
+    my[:n] = np.ravel(y) - 0.5
+    out = cv2.remap(src, mx.reshape(rows, cols), my.reshape(rows, cols), interp,
+                    borderMode=cv2.BORDER_REPLICATE)
+    return out.reshape(rows * cols, -1)[:n] if out.ndim == 3 else out.reshape(-1)[:n]
 
 
 def fuse(frame: FacadeFrame, shape: tuple[int, int], resolution: float,
@@ -130,8 +137,7 @@ def fuse(frame: FacadeFrame, shape: tuple[int, int], resolution: float,
             continue
         xy = np.full((h * w, 2), -1.0)
         xy[front] = cam.project(pts[front], (ph, pw))
-        inside = front & (xy[:, 0] >= 0) & (xy[:, 0] <= pw - 1) & (xy[:, 1] >= 0) \
-            & (xy[:, 1] <= ph - 1)
+        inside = front & (xy[:, 0] >= 0) & (xy[:, 0] < pw) & (xy[:, 1] >= 0) & (xy[:, 1] < ph)
         idx = np.flatnonzero(inside)
         if not len(idx):
             continue
@@ -148,8 +154,7 @@ def fuse(frame: FacadeFrame, shape: tuple[int, int], resolution: float,
                 continue
         a = (cam.focal * resolution / (z[idx] * world.scale)) ** 2 * cos[idx]
         qh, qw = view.prob.shape[:2]
-        p = _sample(view.prob.astype(np.float32), (xy[idx, 0] + 0.5) * qw / pw - 0.5,
-                    (xy[idx, 1] + 0.5) * qh / ph - 0.5)
+        p = _sample(view.prob.astype(np.float32), xy[idx, 0] * qw / pw, xy[idx, 1] * qh / ph)
         logsum[idx] += a[:, None] * np.log(np.maximum(p.reshape(len(idx), k), 1e-4))
         cover[idx] += a
         nviews[idx] += 1

@@ -6,11 +6,12 @@ The thesis registers its SfM frame to a cadastral map by a few hand-picked corre
 (``simon2011`` §5.1); here the frame is found from the photos themselves, so a photo set and
 its cameras are enough:
 
-- **up** — the mean, over the photos, of the direction that points up in the photo as it is
-  stored (street photos are taken upright; the quarter turn of RueMonge's portrait photos
-  against their calibrated images is :class:`~facadeforge.datasets.cameras.Camera`'s), then,
-  once a dense cloud exists, the normal of its ground plane when one lies within 20° of it
-  (:meth:`BuildingFrame.refine`);
+- **up** — street photos are taken upright, without roll: each photo's right axis (as it is
+  stored; the quarter turn of RueMonge's portrait photos against their calibrated images is
+  :class:`~facadeforge.datasets.cameras.Camera`'s) is horizontal, and so are the normals of the
+  walls; up is the direction most nearly perpendicular to all of them (:func:`vertical`; the
+  photos' own up leans back by their pitch), then the normal of the ground plane when one lies
+  within 20° of it (:meth:`BuildingFrame.refine`);
 - **scale** — street photos are taken at eye height: the median height of the camera centres
   above the ground plane is :data:`EYE_HEIGHT` metres (or ``metres_per_unit`` given);
 - **axes** — x along the camera path (its principal horizontal direction), z up, y = z × x;
@@ -30,7 +31,7 @@ import numpy as np
 from ..datasets.cameras import Camera
 from ..errors import InputError
 
-__all__ = ["EYE_HEIGHT", "BuildingFrame", "photo_up", "initial_frame"]
+__all__ = ["EYE_HEIGHT", "BuildingFrame", "initial_frame", "photo_right", "photo_up", "vertical"]
 
 #: Height (m) of a hand-held street camera above the pavement.
 EYE_HEIGHT = 1.6
@@ -40,9 +41,47 @@ GROUND_TOL_DEG = 20.0
 
 def photo_up(camera: Camera, photo_shape: tuple[int, int]) -> np.ndarray:
     """The world direction of "up" in a photo as stored: the image column through the centre,
-    one pixel up, mapped back through the camera (unit vector)."""
+    one pixel up, mapped back through the camera (unit vector).  It leans back by the
+    camera's pitch: :func:`vertical` finds the true vertical."""
+    return _photo_direction(camera, photo_shape, (0.0, -1.0))
+
+
+def photo_right(camera: Camera, photo_shape: tuple[int, int]) -> np.ndarray:
+    """The world direction of "right" in a photo as stored (unit vector): horizontal for a
+    photo taken without roll, whatever its pitch."""
+    return _photo_direction(camera, photo_shape, (1.0, 0.0))
+
+
+def vertical(cameras: dict[str, Camera], shapes: dict[str, tuple[int, int]],
+             facade_normals: np.ndarray | None = None) -> np.ndarray:
+    """The world's up: the direction most nearly perpendicular to every photo's right axis
+    (photos taken upright, without roll) and to the normals of the facade planes (vertical
+    walls), signed like the photos' up.  With no facade normal the photos' right axes alone
+    leave the pitch open if they are all parallel: then the mean photo up stands in."""
+    ups = np.array([photo_up(cameras[k], shapes[k]) for k in cameras])
+    mean_up = ups.sum(0)
+    mean_up /= np.linalg.norm(mean_up)
+    rows = [photo_right(cameras[k], shapes[k]) for k in cameras]
+    if facade_normals is not None and len(facade_normals):
+        nn = np.asarray(facade_normals, float).reshape(-1, 3)
+        rows += list(nn * np.sqrt(len(rows) / len(nn)))
+    M = np.array(rows)
+    _, s, vt = np.linalg.svd(M, full_matrices=True)
+    s3 = np.r_[s, np.zeros(3 - len(s))]
+    # one direction is pinned down when the rows span a plane: σ₂ clearly above σ₃
+    if s3[1] < 0.15 * s3[0] or s3[2] > 0.5 * s3[1]:
+        # the rows do not pin one direction down (all right axes parallel, no wall): take the
+        # mean photo up made perpendicular to the right axes
+        r = M[: len(cameras)].mean(0)
+        up = mean_up - (mean_up @ r) / max(r @ r, 1e-12) * r
+        return up / np.linalg.norm(up)
+    up = vt[-1]
+    return up if up @ mean_up > 0 else -up
+
+
+def _photo_direction(camera: Camera, photo_shape: tuple[int, int], step) -> np.ndarray:
     h, w = photo_shape[:2]
-    xy = np.array([[w / 2.0, h / 2.0], [w / 2.0, h / 2.0 - 1.0]])
+    xy = np.array([[w / 2.0, h / 2.0], [w / 2.0 + step[0], h / 2.0 + step[1]]])
     uv = camera.from_photo(xy, (h, w))
     d = uv[1] - uv[0]
     v = camera.R.T @ np.array([d[0], d[1], 0.0])
@@ -134,17 +173,18 @@ def _axes(centres: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 
 def initial_frame(cameras: dict[str, Camera], shapes: dict[str, tuple[int, int]], *,
-                  metres_per_unit: float | None = None) -> BuildingFrame:
-    """The frame from the cameras alone: up from the photos, x along the camera path, the
-    scale ``metres_per_unit`` or, until the ground is found, 1."""
+                  metres_per_unit: float | None = None, facade_normals: np.ndarray | None = None
+                  ) -> BuildingFrame:
+    """The frame from the cameras (and the facade normals when known): up from
+    :func:`vertical`, x along the camera path, the scale ``metres_per_unit`` or, until the
+    ground is found, 1."""
     if not cameras:
         raise InputError("no camera: give the photos' calibrated cameras")
     ups = np.array([photo_up(cameras[k], shapes[k]) for k in cameras])
-    up = ups.sum(0)
-    if np.linalg.norm(up) < 0.5 * len(ups):
+    if np.linalg.norm(ups.sum(0)) < 0.5 * len(ups):
         raise InputError("the photos do not agree on which way is up (their cameras point "
                          "every way); give photos of one street taken upright")
-    up /= np.linalg.norm(up)
+    up = vertical(cameras, shapes, facade_normals)
     centres = np.array([cameras[k].C for k in cameras])
     scale = float(metres_per_unit) if metres_per_unit is not None else 1.0
     rot = _axes(centres, up)

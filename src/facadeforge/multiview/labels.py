@@ -40,7 +40,8 @@ def render_labels(triangles: np.ndarray, labels: np.ndarray, camera: Camera,
         keep = (z > NEAR).all(1)
         tri, z, lab = tri[keep], z[keep], lab[keep]
     if len(tri):
-        xy = camera.project(tri.reshape(-1, 3), (h, w)).reshape(-1, 3, 2) + 0.5
+        # Camera.project's pixel (c, r) covers [c, c + 1) × [r, r + 1), as rasterize takes it
+        xy = camera.project(tri.reshape(-1, 3), (h, w)).reshape(-1, 3, 2)
         # triangles wholly outside the photo need no rasterising
         lo, hi = xy.min(1), xy.max(1)
         on = (hi[:, 0] >= 0) & (lo[:, 0] <= w) & (hi[:, 1] >= 0) & (lo[:, 1] <= h)

@@ -67,6 +67,8 @@ _STOREYS = ("groundTop", "nFloors", "roofLine", "atticFrac", "roofFrac", "balcon
 #: Guess of the median distance (m) from a street photo to what it sees, used only until the
 #: ground plane gives the scale.
 _STREET_DEPTH_M = 9.0
+#: RANSAC inlier distance (m): stereo points scatter more than a laser's.
+_PLANE_THRESHOLD = 0.08
 
 
 @dataclass
@@ -111,10 +113,14 @@ def load_photo_set(photos, cameras, *, max_photos: int = 400
                    ) -> tuple[dict[str, np.ndarray], dict[str, Camera]]:
     """Photos (a folder, or a mapping id → path or array) and cameras (a file or a mapping id
     → :class:`Camera`) paired by id: the camera's id, or its file name's stem."""
-    from ..datasets.cameras import read_cameras
     from ..datasets.folder import read_image
 
-    cams = read_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else dict(cameras)
+    if isinstance(cameras, (str, os.PathLike)):
+        from ..datasets.cameras import read_cameras
+
+        cams = read_cameras(cameras)
+    else:
+        cams = dict(cameras)
     if isinstance(photos, (str, os.PathLike)):
         folder = Path(photos)
         if not folder.is_dir():
@@ -146,16 +152,26 @@ def load_photo_set(photos, cameras, *, max_photos: int = 400
     return images, {k: cams[k] for k in images}
 
 
-def classify_views(images: dict[str, np.ndarray], cameras: dict[str, Camera], classifier=None
-                   ) -> list[ViewEvidence]:
-    """Each photo's ``ecp7`` class probabilities at the classifier's own scale."""
-    from ..classify import resolve_classifier
-
-    clf = resolve_classifier(classifier, "ecp7")
-    ls = get_label_set(clf.label_set)
+def classify_views(images: dict[str, np.ndarray], cameras: dict[str, Camera], classifier=None,
+                   probabilities: dict[str, np.ndarray] | None = None) -> list[ViewEvidence]:
+    """Each photo's ``ecp7`` class probabilities: given (``probabilities``, id → ``(h, w, 7)``
+    at any resolution of the photo's aspect) or from the classifier at its own scale."""
+    ls = get_label_set("ecp7")
     out = []
+    clf = None
     for cid, img in images.items():
-        prob = ls.project_proba(clf.predict_proba_coarse(img), clf.classes)
+        if probabilities is not None and cid in probabilities:
+            prob = np.asarray(probabilities[cid], np.float32)
+            if prob.ndim != 3 or prob.shape[2] != ls.num_classes:
+                raise InputError(f"probabilities of photo {cid}: expected (h, w, "
+                                 f"{ls.num_classes}) ecp7 probabilities, got {prob.shape}")
+        else:
+            if clf is None:
+                from ..classify import resolve_classifier
+
+                clf = resolve_classifier(classifier, "ecp7")
+            prob = get_label_set(clf.label_set).project_proba(clf.predict_proba_coarse(img),
+                                                              clf.classes)
         out.append(ViewEvidence(cid, cameras[cid], img, prob.astype(np.float32)))
     return out
 
@@ -169,33 +185,41 @@ def _local_cloud(cloud: PointCloud, frame: BuildingFrame) -> PointCloud:
 
 def _find_frame(cloud: PointCloud, cameras: dict[str, Camera], shapes, metres_per_unit,
                 seed: int) -> tuple[BuildingFrame, PointCloud, list]:
-    """The local frame (module docstring, stage 4) and the planes found in it."""
+    """The local frame (module docstring, stage 4) and the planes found in it: a provisional
+    frame from the photos; its steep planes (walls) pin the vertical down (:func:`.vertical`);
+    then the ground plane gives the scale and the final up."""
     from ..points.planes import detect_planes
     from .frame import initial_frame
 
-    frame = initial_frame(cameras, shapes, metres_per_unit=metres_per_unit)
     centres = np.array([c.C for c in cameras.values()])
+    frame = initial_frame(cameras, shapes, metres_per_unit=metres_per_unit)
     if metres_per_unit is None:          # a provisional scale: the median depth of the points
-        d = np.concatenate([cameras[k].depth(cloud.xyz[:: max(1, len(cloud) // 20000)])
-                            for k in list(cameras)[:8]])
+        sample = cloud.xyz[:: max(1, len(cloud) // 20000)]
+        d = np.concatenate([cameras[k].depth(sample) for k in list(cameras)[:8]])
         d = d[d > 0]
         if len(d):
             frame.scale = _STREET_DEPTH_M / float(np.median(d))
             frame.scale_source = "typical street depth (no ground plane found)"
-    local = _local_cloud(cloud, frame)
-    planes = detect_planes(local, seed=seed, threshold=0.08)
+    scale, source = frame.scale, frame.scale_source
+
+    def planes_in(fr: BuildingFrame):
+        loc = _local_cloud(cloud, fr)
+        return loc, detect_planes(loc, seed=seed, threshold=_PLANE_THRESHOLD)
+
+    local, planes = planes_in(frame)
+    steep = [p for p in planes[:12] if abs(p.normal[2]) < 0.7]
+    if steep:
+        normals = np.array([p.normal @ frame.rotation for p in steep[:4]])
+        frame = initial_frame(cameras, shapes, metres_per_unit=metres_per_unit,
+                              facade_normals=normals)
+        frame.scale, frame.scale_source = scale, source
+        local, planes = planes_in(frame)
     ground = [p for p in planes if p.kind == "ground"]
-    if ground:
-        g = max(ground, key=lambda p: len(p.inliers))
-        n_world = g.normal @ frame.rotation
-        pt_world = frame.to_world(local.xyz[g.inliers].mean(0, keepdims=True))[0]
-        frame = frame.refine(n_world, pt_world, centres, metres_per_unit=metres_per_unit)
-        local = _local_cloud(cloud, frame)
-        planes = detect_planes(local, seed=seed, threshold=0.08)
-    else:
-        frame = frame.refine(None, None, centres, metres_per_unit=metres_per_unit)
-        local = _local_cloud(cloud, frame)
-        planes = detect_planes(local, seed=seed, threshold=0.08)
+    g = max(ground, key=lambda p: len(p.inliers)) if ground else None
+    n_world = None if g is None else g.normal @ frame.rotation
+    pt_world = None if g is None else frame.to_world(local.xyz[g.inliers].mean(0))[0]
+    frame = frame.refine(n_world, pt_world, centres, metres_per_unit=metres_per_unit)
+    local, planes = planes_in(frame)
     return frame, local, planes
 
 
@@ -312,8 +336,8 @@ def _r(v, nd: int = 6):
 def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: float | None
               = None, classifier=None, budget: int = BUDGET, resolution: float = RESOLUTION,
               max_facades: int = MAX_FACADES, seed: int = 0,
-              out_dir: str | os.PathLike | None = None, stereo_options: dict | None = None
-              ) -> MultiviewResult:
+              out_dir: str | os.PathLike | None = None, stereo_options: dict | None = None,
+              probabilities: dict[str, np.ndarray] | None = None) -> MultiviewResult:
     """Reconstruct the building a calibrated photo set shows (module docstring).
 
     Parameters
@@ -327,6 +351,9 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
         Not used yet (the facades come from the cloud's planes).
     metres_per_unit : float, optional
         The cameras' scale; by default from their eye height above the ground plane.
+    probabilities : mapping id → (h, w, 7), optional
+        The photos' ``ecp7`` class probabilities from elsewhere (another segmentation, or the
+        perfect cues of the thesis's artificial experiments, §5.4.2) instead of the classifier.
     """
     from ..parsing.fit import grammar_path
     from ..parsing.parse import _load_grammar, _stamp
@@ -353,7 +380,7 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
     timings["load"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    views = classify_views(images, cams, classifier)
+    views = classify_views(images, cams, classifier, probabilities)
     timings["classify"] = time.perf_counter() - t
 
     t = time.perf_counter()
