@@ -343,6 +343,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                          "the ground)")
     mv.add_argument("--budget", type=int, default=1500,
                     help="derivations of the grammar search per facade (default 1500)")
+    mv.add_argument("--no-depth-energy", action="store_true",
+                    help="fit with the appearance energy alone (no E_d against the cloud)")
     mv.add_argument("--seed", type=int, default=0)
     mv.add_argument("-o", "--output", required=True, help="output folder")
 
@@ -850,7 +852,7 @@ def cmd_multiview(args) -> int:
 
     r = multiview(args.photos, args.cameras, cloud=args.cloud, footprint=args.footprint,
                   metres_per_unit=args.scale, budget=args.budget, seed=args.seed,
-                  out_dir=args.output)
+                  depth_energy=not args.no_depth_energy, out_dir=args.output)
     n = sum(1 for f in r.facades if f.model is not None)
     els = Counter()
     for f in r.facades:

@@ -434,15 +434,17 @@ class MultiviewMethod:
     its views with E_a and E_d); each photo's labels are the 3D model's seen from its camera
     (the classifier's outside the model, as ``grammar`` does outside its facade)."""
 
-    def __init__(self, budget: int | None = None) -> None:
+    def __init__(self, budget: int | None = None, depth_energy: bool = True) -> None:
         self.budget = budget
+        self.depth_energy = depth_energy
         self._labels: dict[str, np.ndarray] = {}
         self.reports: list[dict] = []
 
     def prepare(self, samples: Sequence[FacadeSample], label_set: LabelSet) -> None:
         from ..multiview.bench import reconstruct_groups
 
-        self._labels, self.reports = reconstruct_groups(samples, budget=self.budget)
+        self._labels, self.reports = reconstruct_groups(samples, budget=self.budget,
+                                                        depth_energy=self.depth_energy)
 
     def __call__(self, sample: FacadeSample, label_set: LabelSet) -> Prediction:
         if sample.id not in self._labels:
@@ -456,3 +458,6 @@ register_method("multiview", "canonical",
                 description="simon2011 ch. 5: calibrated views → stereo cloud, planes, grid "
                             "grammar fitted in 3D over all views (E_a, E_d, SPEA-II)"
                 )(MultiviewMethod())
+register_method("multiview-appearance", "canonical",
+                description="multiview with the appearance energy alone (the E_d ablation)"
+                )(MultiviewMethod(depth_energy=False))

@@ -63,8 +63,8 @@ def groups(ids: Sequence[str], cameras: dict, size: int = MULTIVIEW_GROUP) -> li
     return out
 
 
-def reconstruct_groups(samples, *, budget: int | None = None, progress: bool = True
-                       ) -> tuple[dict[str, np.ndarray], list[dict]]:
+def reconstruct_groups(samples, *, budget: int | None = None, progress: bool = True,
+                       depth_energy: bool = True) -> tuple[dict[str, np.ndarray], list[dict]]:
     """Canonical labels of every sample that has a camera, and one report per group."""
     from ..datasets.cameras import read_cameras
     from .pipeline import BUDGET, multiview
@@ -83,7 +83,8 @@ def reconstruct_groups(samples, *, budget: int | None = None, progress: bool = T
                 if len(g) < 2:
                     raise InputError("one view of its stretch: no stereo")
                 r = multiview(photos, {i: cams[i] for i in g},
-                              budget=BUDGET if budget is None else budget)
+                              budget=BUDGET if budget is None else budget,
+                              depth_energy=depth_energy)
             except InputError as e:     # scored on the classifier alone, and said so
                 reports.append({"photos": g, "error": str(e), "labels": "classifier"})
                 if progress:

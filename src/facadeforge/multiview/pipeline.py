@@ -60,6 +60,8 @@ MAX_FACADES = 8
 RESOLUTION = 0.1
 #: Derivations of the grammar search per facade (the thesis allows 20,000 per facade, §5.4.3).
 BUDGET = 1500
+#: Offset (m) within which parallel facade planes are pieces of one wall.
+MERGE_OFFSET = 0.6
 #: Distance (m) between the ends of two facades that meet at a corner of one building.
 CORNER_GAP = 2.5
 #: Storey attributes of the ``grid`` grammar shared by the facades of one building.
@@ -218,9 +220,60 @@ def _find_frame(cloud: PointCloud, cameras: dict[str, Camera], shapes, metres_pe
     g = max(ground, key=lambda p: len(p.inliers)) if ground else None
     n_world = None if g is None else g.normal @ frame.rotation
     pt_world = None if g is None else frame.to_world(local.xyz[g.inliers].mean(0))[0]
+    walls = [p for p in planes if p.kind == "facade"]
+    if g is None and walls:
+        # no pavement in the cloud: the foot of the largest wall stands on the ground
+        foot = np.percentile(local.xyz[walls[0].inliers, 2], 1)
+        pt_world = frame.to_world(np.array([0.0, 0.0, foot]))[0]
     frame = frame.refine(n_world, pt_world, centres, metres_per_unit=metres_per_unit)
+    if g is None and walls and metres_per_unit is None:
+        frame.scale_source = "eye height above the foot of the largest wall (no ground plane)"
     local, planes = planes_in(frame)
     return frame, local, planes
+
+
+def _facing(planes: list, local: PointCloud, centres_local: np.ndarray) -> None:
+    """Turn every facade plane's normal towards the cameras: a photo sees a wall's front."""
+    from ..points.planes import _flip
+
+    c = centres_local.mean(0)
+    for p in planes:
+        if p.kind == "facade" and (c @ p.normal + p.offset) < 0:
+            _flip(p)
+
+
+def _merged_facades(planes: list, local: PointCloud) -> list:
+    """The facade planes with the pieces of one wall joined: RANSAC returns a facade whose
+    shop fronts or upper floors stand a few centimetres apart as several parallel planes; planes
+    within :data:`MERGE_OFFSET` m of each other, parallel to 10° and overlapping or touching
+    along the wall, become one — the largest one's plane, all their points."""
+    from dataclasses import replace
+
+    idx = [i for i, p in enumerate(planes) if p.kind == "facade"]
+    groups: list[list[int]] = []
+    for i in idx:                               # largest first (RANSAC's order)
+        p = planes[i]
+        u = np.cross([0.0, 0.0, 1.0], p.normal)
+        u /= max(np.linalg.norm(u), 1e-12)
+        span = np.percentile(local.xyz[p.inliers] @ u, [1, 99])
+        for g in groups:
+            q = planes[g[0]]
+            if abs(p.normal @ q.normal) < np.cos(np.radians(10)):
+                continue
+            off = abs(float(np.median(local.xyz[p.inliers] @ q.normal)) + q.offset)
+            gspan = np.percentile(local.xyz[np.concatenate([planes[j].inliers for j in g])] @ u,
+                                  [1, 99])
+            if off <= MERGE_OFFSET and span[0] <= gspan[1] + 1.0 and gspan[0] <= span[1] + 1.0:
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    out = []
+    for g in groups:
+        main = planes[g[0]]
+        inl = np.unique(np.concatenate([planes[j].inliers for j in g]))
+        out.append((g[0], replace(main, inliers=inl, area=sum(planes[j].area for j in g))))
+    return out
 
 
 def _buildings(frames: list[FacadeFrame]) -> list[int]:
@@ -281,7 +334,8 @@ def _shared_storeys(attrs: dict, height_from: float, height_to: float) -> dict:
     return out
 
 
-def _fit(f: FacadeFit, *, rules, text: str, budget: int, seed: int, fixed: dict) -> None:
+def _fit(f: FacadeFit, *, rules, text: str, budget: int, seed: int, fixed: dict,
+         use_depth: bool = True) -> None:
     from ..engine import derive_facade, load_rules
     from ..parsing.fit import fit_grammar
     from ..parsing.init import initialiser_for, pinned_for
@@ -296,7 +350,7 @@ def _fit(f: FacadeFit, *, rules, text: str, budget: int, seed: int, fixed: dict)
     t = time.perf_counter()
     fit = fit_grammar(f.evidence.prob, ls, rules, method="evolution", budget=budget, seed=seed,
                       fixed=pins, initialiser=initialiser_for(rules, one_facade=True),
-                      depth=rel, depths=depths)
+                      depth=rel if use_depth else None, depths=depths)
     seconds = time.perf_counter() - t
     s = fit.search
     from ..parsing.energy import DepthEnergy, SegmentationEnergy
@@ -337,7 +391,8 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
               = None, classifier=None, budget: int = BUDGET, resolution: float = RESOLUTION,
               max_facades: int = MAX_FACADES, seed: int = 0,
               out_dir: str | os.PathLike | None = None, stereo_options: dict | None = None,
-              probabilities: dict[str, np.ndarray] | None = None) -> MultiviewResult:
+              probabilities: dict[str, np.ndarray] | None = None, depth_energy: bool = True
+              ) -> MultiviewResult:
     """Reconstruct the building a calibrated photo set shows (module docstring).
 
     Parameters
@@ -413,15 +468,16 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
     t = time.perf_counter()
     ground = [p for p in planes if p.kind == "ground"]
     ground_level = float(np.median(local.xyz[ground[0].inliers, 2])) if ground else None
-    facade_ids = [i for i, p in enumerate(planes) if p.kind == "facade"][:max_facades]
+    _facing(planes, local, frame.to_local(np.array([c.C for c in cams.values()])))
+    walls = _merged_facades(planes, local)[:max_facades]
     on_ground = np.zeros(len(local), bool)
     for g in ground:
         on_ground[g.inliers] = True
     from ..points.maps import facade_points
 
     facades: list[FacadeFit] = []
-    for pi in facade_ids:
-        fr = facade_frame(local, planes[pi], ground_level=ground_level)
+    for pi, wall in walls:
+        fr = facade_frame(local, wall, ground_level=ground_level)
         idx, uvd = facade_points(local, fr, exclude=on_ground)
         maps = rasterize(local, fr, resolution=resolution, index=idx, uvd=uvd)
         ev = _fuse(fr, maps, views, frame)
@@ -441,7 +497,8 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
         if lead is not None and lead.fit is not None:
             fixed = _shared_storeys(lead.fit.attrs, lead.maps.shape[0], f.maps.shape[0])
         try:
-            _fit(f, rules=rules, text=text, budget=budget, seed=seed, fixed=fixed)
+            _fit(f, rules=rules, text=text, budget=budget, seed=seed, fixed=fixed,
+                 use_depth=depth_energy)
         except InputError as e:
             f.report["fit"] = f"not modelled: {e}"
             continue
