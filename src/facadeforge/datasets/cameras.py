@@ -36,7 +36,7 @@ rotation and hundreds for none; ``tests/datasets/test_cameras.py`` repeats the c
   looks down −z with y up and its image coordinates are centred with y up, so ours is
   ``R_ours = diag(1, −1, −1) R``, ``C = −Rᵀ t``, principal point the image centre; cameras with
   ``f = 0`` were not registered and are skipped; names are the first tokens of ``list.txt``
-  beside the file (or one folder up, Bundler's own layout), else ``camera_NNNN``;
+  beside the file (or beside Bundler's own ``bundle/`` folder), else ``camera_NNNN``;
 - COLMAP text models (COLMAP documentation, "Output format",
   https://colmap.github.io/format.html): ``cameras.txt`` (``CAMERA_ID MODEL WIDTH HEIGHT
   PARAMS[]``; models SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV) and
@@ -367,8 +367,12 @@ def _add(cameras: dict[str, Camera], cam: Camera, where: str, path: Path) -> Non
 
 
 def _bundler_list(path: Path, count: int) -> tuple[Path, list[str]] | None:
-    """The image names of a Bundler file from ``list.txt`` beside it or one folder up."""
-    for lst in (path.parent / "list.txt", path.parent.parent / "list.txt"):
+    """The image names of a Bundler file from ``list.txt`` beside it, or one folder up when it
+    lies in Bundler's own ``bundle/`` folder."""
+    places = [path.parent / "list.txt"]
+    if path.parent.name == "bundle":
+        places.append(path.parent.parent / "list.txt")
+    for lst in places:
         if lst.is_file():
             names = [line.split()[0] for line in _read_lines(lst, "Bundler image list")
                      if line.strip()]
@@ -383,8 +387,8 @@ def read_bundler(path: str | Path, *, image_size: ImageSize = None) -> dict[str,
     """Read a Bundler ``bundle.out`` (v0.3; Bundler user manual, "Output format").
 
     Cameras with focal length 0 (photos Bundler did not register) are skipped.  Ids are the
-    stems of the names in ``list.txt`` (beside the file or one folder up; image paths in it are
-    relative to its folder), else ``camera_NNNN`` (the camera's index).  Image sizes: see the
+    stems of the names in ``list.txt`` (beside the file, or one folder up from Bundler's
+    ``bundle/`` folder; image paths in it are relative to its folder), else ``camera_NNNN`` (the camera's index).  Image sizes: see the
     module docstring.  Points are not read.
     """
     path = Path(path)
