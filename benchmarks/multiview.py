@@ -6,8 +6,9 @@
   exact depth as the cloud (the fit's own error) and once with the stereo's cloud (``--stereo``;
   the whole pipeline).  Eq. 5.11 per class and eq. 5.10 (cm) against the truth models, window
   and door detection (IoU ≥ 0.5), seconds, beside the thesis's Table 5.1;
-- **ruemonge** (``--data DIR``): ``bench --method multiview`` and ``bench --method grammar`` on
-  the same split in the same run (the development val split: stretches of the street no
+- **ruemonge** (``--data DIR``): ``bench --method multiview``, its appearance-only ablation
+  ``multiview-appearance`` and the single-view ``bench --method grammar`` on the same split in
+  the same run (the development val split: stretches of the street no
   training photo sees), class-average accuracy and mIoU of both.
 """
 
@@ -60,7 +61,7 @@ def run_synthetic(n: int, seed: int, budget: int, stereo: bool) -> dict:
 
 def run_ruemonge(data: Path, split: str, tmp: Path) -> dict:
     out = {}
-    for method in ("grammar", "multiview"):
+    for method in ("grammar", "multiview", "multiview-appearance"):
         t = time.perf_counter()
         res = tmp / f"{method}.json"
         run = subprocess.run([CLI, "bench", "--method", method, "--dataset", "ruemonge",
