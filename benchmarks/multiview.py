@@ -59,7 +59,11 @@ def run_synthetic(n: int, seed: int, budget: int, stereo: bool) -> dict:
             "buildings": rows}
 
 
-def run_ruemonge(data: Path, split: str, tmp: Path) -> dict:
+def run_ruemonge(data: Path, split: str, tmp: Path, keep: Path | None) -> dict:
+    """The three methods' bench runs; with ``keep``, their RESULT.json / .md kept there as
+    ``bench_METHOD_ruemonge.*`` (the README's labelling table reads them)."""
+    import shutil
+
     out = {}
     for method in ("grammar", "multiview", "multiview-appearance"):
         t = time.perf_counter()
@@ -70,6 +74,9 @@ def run_ruemonge(data: Path, split: str, tmp: Path) -> dict:
         if run.returncode:
             raise SystemExit(run.stderr.strip()[-600:])
         d = json.loads(res.read_text())
+        if keep is not None:
+            for suffix in (".json", ".md"):
+                shutil.copyfile(res.with_suffix(suffix), keep / f"bench_{method}_ruemonge{suffix}")
         out[method] = {"class_avg_accuracy": d["class_avg_accuracy"], "miou": d["miou"],
                        "pixel_accuracy": d["pixel_accuracy"], "n_images": d["n_images"],
                        "per_class": d["per_class"], "seconds_per_image": d["seconds_per_image"],
@@ -86,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stereo", action="store_true", help="also the synthetic set with stereo")
     ap.add_argument("--data", type=Path, default=None, help="RueMonge folder (with train/)")
     ap.add_argument("--split", default="val")
+    ap.add_argument("--no-keep", action="store_true",
+                    help="do not keep the bench results as results/bench_METHOD_ruemonge.*")
     ap.add_argument("-o", "--output",
                     default=str(ROOT / "benchmarks" / "results" / "multiview.json"))
     args = ap.parse_args(argv)
@@ -99,7 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.data is not None:
         with tempfile.TemporaryDirectory() as tmp:
             result["ruemonge"] = {"split": args.split,
-                                  **run_ruemonge(args.data, args.split, Path(tmp))}
+                                  **run_ruemonge(args.data, args.split, Path(tmp),
+                                                 None if args.no_keep else
+                                                 Path(args.output).parent)}
     save_result(result, args.output)
     return 0
 

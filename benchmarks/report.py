@@ -49,7 +49,7 @@ def engine_table() -> str:
 
 
 #: The methods of the README's summary table (docs/benchmarks.md has them all).
-SUMMARY_METHODS = ("classifier", "grammar", "structure")
+SUMMARY_METHODS = ("classifier", "grammar", "multiview", "structure")
 
 
 def methods_table(only: tuple[str, ...] | None = None) -> str:
@@ -121,7 +121,7 @@ def parsing_table() -> str:
                 rows.append(f"| forest §4.3.1, ours ({dataset} val, {f['val_images']}) | "
                             + " | ".join(f"{100 * acc[c]:.0f}" for c in classes)
                             + f" | {100 * r['class_avg_accuracy']:.1f} |")
-        for method in ("classifier", "mrf", "grammar-hill", "grammar"):
+        for method in ("classifier", "mrf", "grammar-hill", "grammar", "multiview"):
             path = res / f"bench_{method}_{dataset}.json"
             if not path.exists():
                 continue

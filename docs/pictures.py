@@ -12,7 +12,11 @@ classifiers have not seen them):
   the elements found in yellow and the labelled ones in magenta, ``structure.png``, the model)
   and on the Lille street scan (the planes from above, coloured by kind; a facade's depth map).
 
-    .venv/bin/python docs/pictures.py [points]     # only the points picture with "points"
+- ``docs/images/multiview.jpg``: ``facadeforge multiview`` on five neighbouring RueMonge val
+  photos with their cameras (:data:`MULTIVIEW`): one photo, the stereo cloud from above, one
+  facade's fused evidence and fitted structure, the model's labels seen from the photo.
+
+    .venv/bin/python docs/pictures.py [points|multiview]   # only that picture
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ DATA = ROOT.parent / "shared" / "data"
 PHOTOS = (("cmp", "cmp_b0187", True), ("ruemonge", "IMG_5778", False))
 CORNER = "IMG_5901"
 ROW_HEIGHT = 420
+MULTIVIEW = ("IMG_5771", "IMG_5772", "IMG_5773", "IMG_5774", "IMG_5775")
 
 
 def _fit(img: np.ndarray, height: int = ROW_HEIGHT) -> np.ndarray:
@@ -161,8 +166,46 @@ def points_rows() -> np.ndarray:
     return _join(rows, axis=0)
 
 
+def multiview_row() -> np.ndarray:
+    import tempfile
+
+    from PIL import Image
+
+    from facadeforge.datasets.cameras import read_cameras
+    from facadeforge.multiview.pipeline import multiview
+
+    folder = DATA / "ruemonge" / "train"
+    cams = read_cameras(folder / "cameras.txt")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "mv"
+        r = multiview({i: folder / "img" / f"{i}.jpg" for i in MULTIVIEW},
+                      {i: cams[i] for i in MULTIVIEW}, out_dir=out)
+        ref = MULTIVIEW[2]
+        photo = np.asarray(Image.open(folder / "img" / f"{ref}.jpg").convert("RGB"))
+        labels = np.asarray(Image.open(out / "labels_color" / f"{ref}.png").convert("RGB"))
+        big = max(r.facades, key=lambda f: f.frame.width * f.frame.height)
+        d = out / f"facade_{big.index:02d}"
+        ev = np.asarray(Image.open(d / "evidence.png").convert("RGB"))
+        st = np.asarray(Image.open(d / "structure.png").convert("RGB"))
+    xy = r.cloud.xyz[:, :2]
+    lo, hi = xy.min(0), xy.max(0)
+    size = 400
+    s = (size - 1) / max(float((hi - lo).max()), 1e-6)
+    top = np.full((size, size, 3), 255, np.uint8)
+    ij = ((xy - lo) * s).astype(int)
+    top[size - 1 - ij[:, 1], ij[:, 0]] = r.cloud.rgb if r.cloud.rgb is not None else 0
+    return _join([_fit(photo), _fit(top), _fit(ev), _fit(st), _fit(labels)], axis=1)
+
+
 def main() -> int:
     from PIL import Image
+
+    if "multiview" in sys.argv[1:]:
+        if (DATA / "ruemonge").is_dir():
+            out = ROOT / "docs" / "images" / "multiview.jpg"
+            Image.fromarray(multiview_row()).save(out, quality=85)
+            print(f"wrote {out}")
+        return 0
 
     if sys.argv[1:] == ["points"] or "points" in sys.argv[1:]:
         if (DATA / "pointclouds").is_dir():

@@ -314,7 +314,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                     help="cell size of the depth maps and orthophotos, metres (default: from "
                          "each facade's point spacing, 0.05 m or coarser)")
     pt.add_argument("--photos", help="folder of photos to colour the points from (with --cameras)")
-    pt.add_argument("--cameras", help="cameras of the photos: VisualSFM cameras_v2.txt")
+    pt.add_argument("--cameras", help="cameras of the photos: VisualSFM cameras_v2.txt, Bundler "
+                                      "bundle.out or a COLMAP text model")
     pt.add_argument("--fit", choices=("elements", "grammar"), default="elements",
                     help="elements (default): the facade's structure laid around the detected "
                          "windows and doors; grammar: also fit the grid parse grammar with "

@@ -476,11 +476,11 @@ class _Ground:
 def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:
     if photos is None or cameras is None:
         raise InputError("--photos and --cameras go together: give the photo folder and its "
-                         "cameras file (VisualSFM cameras_v2.txt)")
-    from ..datasets.cameras import read_visualsfm
+                         "cameras (VisualSFM cameras_v2.txt, Bundler bundle.out, COLMAP model)")
+    from ..datasets.cameras import read_cameras
     from .colour import colour_from_photos
 
-    cams = read_visualsfm(cameras)
+    cams = read_cameras(cameras)
     if isinstance(photos, (str, os.PathLike)):
         folder = Path(photos)
         if not folder.is_dir():
