@@ -71,6 +71,8 @@ _STOREYS = ("groundTop", "nFloors", "roofLine", "atticFrac", "roofFrac", "balcon
 _STREET_DEPTH_M = 9.0
 #: RANSAC inlier distance (m): stereo points scatter more than a laser's.
 _PLANE_THRESHOLD = 0.08
+#: Rounds of frame estimation (planes → up and scale → planes) at most.
+_FRAME_ROUNDS = 4
 
 
 @dataclass
@@ -188,8 +190,10 @@ def _local_cloud(cloud: PointCloud, frame: BuildingFrame) -> PointCloud:
 def _find_frame(cloud: PointCloud, cameras: dict[str, Camera], shapes, metres_per_unit,
                 seed: int) -> tuple[BuildingFrame, PointCloud, list]:
     """The local frame (module docstring, stage 4) and the planes found in it: a provisional
-    frame from the photos; its steep planes (walls) pin the vertical down (:func:`.vertical`);
-    then the ground plane gives the scale and the final up."""
+    frame from the photos, then rounds of planes → up (the walls pin the vertical down,
+    :func:`.vertical`; then the ground plane's normal) and scale (eye height above the ground,
+    or the largest wall's foot) → planes again, until up turns by less than 0.5° and the scale
+    changes by less than 1 %."""
     from ..points.planes import detect_planes
     from .frame import initial_frame
 
@@ -202,33 +206,37 @@ def _find_frame(cloud: PointCloud, cameras: dict[str, Camera], shapes, metres_pe
         if len(d):
             frame.scale = _STREET_DEPTH_M / float(np.median(d))
             frame.scale_source = "typical street depth (no ground plane found)"
-    scale, source = frame.scale, frame.scale_source
 
     def planes_in(fr: BuildingFrame):
         loc = _local_cloud(cloud, fr)
         return loc, detect_planes(loc, seed=seed, threshold=_PLANE_THRESHOLD)
 
     local, planes = planes_in(frame)
-    steep = [p for p in planes[:12] if abs(p.normal[2]) < 0.7]
-    if steep:
-        normals = np.array([p.normal @ frame.rotation for p in steep[:4]])
-        frame = initial_frame(cameras, shapes, metres_per_unit=metres_per_unit,
-                              facade_normals=normals)
-        frame.scale, frame.scale_source = scale, source
+    for _ in range(_FRAME_ROUNDS):     # until up and scale settle
+        steep = [p for p in planes[:12] if abs(p.normal[2]) < 0.5 and len(p.inliers) >= 0.2
+                 * max(len(q.inliers) for q in planes[:12])]
+        normals = np.array([p.normal @ frame.rotation for p in steep[:3]]) if steep else None
+        new = initial_frame(cameras, shapes, metres_per_unit=metres_per_unit,
+                            facade_normals=normals)
+        new.scale, new.scale_source = frame.scale, frame.scale_source
+        ground = [p for p in planes if p.kind == "ground"]
+        g = max(ground, key=lambda p: len(p.inliers)) if ground else None
+        n_world = None if g is None else g.normal @ frame.rotation
+        pt_world = None if g is None else frame.to_world(local.xyz[g.inliers].mean(0))[0]
+        walls = [p for p in planes if p.kind == "facade"]
+        if g is None and walls:
+            # no pavement in the cloud: the foot of the largest wall stands on the ground
+            foot = np.percentile(local.xyz[walls[0].inliers, 2], 1)
+            pt_world = frame.to_world(np.array([0.0, 0.0, foot]))[0]
+        new = new.refine(n_world, pt_world, centres, metres_per_unit=metres_per_unit)
+        if g is None and walls and metres_per_unit is None:
+            new.scale_source = "eye height above the foot of the largest wall (no ground plane)"
+        turn = np.degrees(np.arccos(np.clip(new.up_world @ frame.up_world, -1, 1)))
+        settled = turn < 0.5 and abs(new.scale / frame.scale - 1) < 0.01
+        frame = new
         local, planes = planes_in(frame)
-    ground = [p for p in planes if p.kind == "ground"]
-    g = max(ground, key=lambda p: len(p.inliers)) if ground else None
-    n_world = None if g is None else g.normal @ frame.rotation
-    pt_world = None if g is None else frame.to_world(local.xyz[g.inliers].mean(0))[0]
-    walls = [p for p in planes if p.kind == "facade"]
-    if g is None and walls:
-        # no pavement in the cloud: the foot of the largest wall stands on the ground
-        foot = np.percentile(local.xyz[walls[0].inliers, 2], 1)
-        pt_world = frame.to_world(np.array([0.0, 0.0, foot]))[0]
-    frame = frame.refine(n_world, pt_world, centres, metres_per_unit=metres_per_unit)
-    if g is None and walls and metres_per_unit is None:
-        frame.scale_source = "eye height above the foot of the largest wall (no ground plane)"
-    local, planes = planes_in(frame)
+        if settled:
+            break
     return frame, local, planes
 
 
