@@ -188,12 +188,16 @@ def multiview_row() -> np.ndarray:
         ev = np.asarray(Image.open(d / "evidence.png").convert("RGB"))
         st = np.asarray(Image.open(d / "structure.png").convert("RGB"))
     xy = r.cloud.xyz[:, :2]
-    lo, hi = xy.min(0), xy.max(0)
+    lo, hi = np.percentile(xy, 2, axis=0), np.percentile(xy, 98, axis=0)
+    keep = ((xy >= lo) & (xy <= hi)).all(1)
     size = 400
-    s = (size - 1) / max(float((hi - lo).max()), 1e-6)
+    s = (size - 3) / max(float((hi - lo).max()), 1e-6)
     top = np.full((size, size, 3), 255, np.uint8)
-    ij = ((xy - lo) * s).astype(int)
-    top[size - 1 - ij[:, 1], ij[:, 0]] = r.cloud.rgb if r.cloud.rgb is not None else 0
+    ij = ((xy[keep] - lo) * s).astype(int) + 1
+    rgb = r.cloud.rgb[keep] if r.cloud.rgb is not None else 0
+    for dy in (-1, 0, 1):                       # 3 × 3 splats: a thin facade band shows
+        for dx in (-1, 0, 1):
+            top[size - 1 - ij[:, 1] + dy, ij[:, 0] + dx] = rgb
     return _join([_fit(photo), _fit(top), _fit(ev), _fit(st), _fit(labels)], axis=1)
 
 

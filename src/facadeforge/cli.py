@@ -338,7 +338,6 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                          "or a COLMAP text model (folder or images.txt)")
     mv.add_argument("--cloud", help="a point cloud in the cameras' frame to use instead of the "
                                     "stereo (PLY, LAS/LAZ, XYZ)")
-    mv.add_argument("--footprint", help="GeoJSON footprint (not supported yet)")
     mv.add_argument("--scale", type=_positive, default=None,
                     help="metres per camera unit (default: from the cameras' eye height above "
                          "the ground)")
@@ -851,8 +850,7 @@ def cmd_points(args) -> int:
 def cmd_multiview(args) -> int:
     from .multiview.pipeline import multiview
 
-    r = multiview(args.photos, args.cameras, cloud=args.cloud, footprint=args.footprint,
-                  metres_per_unit=args.scale, budget=args.budget, seed=args.seed,
+    r = multiview(args.photos, args.cameras, cloud=args.cloud, metres_per_unit=args.scale, budget=args.budget, seed=args.seed,
                   depth_energy=not args.no_depth_energy, out_dir=args.output)
     n = sum(1 for f in r.facades if f.model is not None)
     els = Counter()

@@ -49,7 +49,7 @@ from ..datasets.cameras import Camera
 from ..errors import InputError
 from ..points.cloud import PointCloud
 from ..points.maps import FacadeFrame, FacadeMaps
-from .appearance import FacadeEvidence, ViewEvidence
+from .appearance import FacadeEvidence, ViewEvidence, fuse
 from .frame import BuildingFrame
 
 __all__ = ["MultiviewResult", "multiview", "load_photo_set"]
@@ -395,8 +395,7 @@ def _r(v, nd: int = 6):
 
 # ------------------------------------------------------------------------------ pipeline
 
-def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: float | None
-              = None, classifier=None, budget: int = BUDGET, resolution: float = RESOLUTION,
+def multiview(photos, cameras, *, cloud=None, metres_per_unit: float | None = None, classifier=None, budget: int = BUDGET, resolution: float = RESOLUTION,
               max_facades: int = MAX_FACADES, seed: int = 0,
               out_dir: str | os.PathLike | None = None, stereo_options: dict | None = None,
               probabilities: dict[str, np.ndarray] | None = None, depth_energy: bool = True
@@ -410,8 +409,6 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
         model) or mapping id → :class:`~facadeforge.datasets.cameras.Camera`
     cloud : path or PointCloud, optional
         A cloud in the cameras' frame to use instead of the stereo.
-    footprint : path, optional
-        Not used yet (the facades come from the cloud's planes).
     metres_per_unit : float, optional
         The cameras' scale; by default from their eye height above the ground plane.
     probabilities : mapping id → (h, w, 7), optional
@@ -420,8 +417,7 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
     """
     from ..parsing.fit import grammar_path
     from ..parsing.parse import _load_grammar, _stamp
-    from ..points.elements import wall_depth  # noqa: F401  (import cost paid up front)
-    from ..points.maps import facade_frame, rasterize
+    from ..points.maps import facade_frame, facade_points, rasterize
 
     timings: dict[str, float] = {}
     inputs = {"photos": photos, "--cameras": cameras, "--cloud": cloud}
@@ -430,9 +426,6 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
 
         check_outdir(out_dir, {k: v for k, v in inputs.items()
                                if isinstance(v, (str, os.PathLike))})
-    if footprint is not None:
-        raise InputError("--footprint is not supported yet: the facades come from the planes "
-                         "of the photos' cloud; leave it out")
     if not isinstance(budget, int) or budget < 1:
         raise InputError(f"--budget {budget}: give a positive number of derivations")
     if metres_per_unit is not None and not (0 < metres_per_unit < 1e6):
@@ -481,14 +474,12 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
     on_ground = np.zeros(len(local), bool)
     for g in ground:
         on_ground[g.inliers] = True
-    from ..points.maps import facade_points
-
     facades: list[FacadeFit] = []
     for pi, wall in walls:
         fr = facade_frame(local, wall, ground_level=ground_level)
         idx, uvd = facade_points(local, fr, exclude=on_ground)
         maps = rasterize(local, fr, resolution=resolution, index=idx, uvd=uvd)
-        ev = _fuse(fr, maps, views, frame)
+        ev = fuse(fr, maps.shape, maps.resolution, views, frame)
         facades.append(FacadeFit(len(facades), pi, 0, fr, maps, ev))
     for f, b in zip(facades, _buildings([f.frame for f in facades])):
         f.building = b
@@ -541,12 +532,6 @@ def multiview(photos, cameras, *, cloud=None, footprint=None, metres_per_unit: f
     timings["total"] = sum(v for k, v in timings.items() if k != "total")
     result.report["timings"] = {k: round(v, 3) for k, v in timings.items()}
     return result
-
-
-def _fuse(fr: FacadeFrame, maps: FacadeMaps, views, frame: BuildingFrame) -> FacadeEvidence:
-    from .appearance import fuse
-
-    return fuse(fr, maps.shape, maps.resolution, views, frame)
 
 
 def model_triangles_local(models) -> tuple[np.ndarray, list[str]]:
