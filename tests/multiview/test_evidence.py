@@ -136,3 +136,14 @@ def test_labels_rendered_from_the_model():
     out = blend(lab, window_prob(cam), LS, 0.25)
     assert out[px[1], px[0]] == CANONICAL_INDEX["window"]
     assert out[5, 5] == CANONICAL_INDEX["wall"]
+
+
+def test_bench_groups_cut_at_jumps_and_cap_the_size():
+    from facadeforge.multiview.bench import groups
+
+    xs = [0, 1, 2, 3, 4, 5, 6, 7, 30, 31, 32]           # a cross street after the 8th photo
+    cams = {f"IMG_{k:04d}": camera(float(x), f"IMG_{k:04d}") for k, x in enumerate(xs)}
+    g = groups(list(cams), cams, size=6)
+    assert [len(x) for x in g] == [4, 4, 3]
+    assert g[2] == ["IMG_0008", "IMG_0009", "IMG_0010"]
+    assert sorted(i for x in g for i in x) == sorted(cams)

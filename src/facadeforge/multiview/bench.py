@@ -1,9 +1,9 @@
 """``bench --method multiview``: the photos to score reconstructed in 3D, a few neighbouring
 views at a time, and each photo's labels rendered from its model.
 
-The photos of a split are a stretch of a street, not one building.  They are ordered by their
-camera's place along the street (:func:`~facadeforge.datasets.cameras.street_positions`), cut
-where two consecutive cameras stand more than :data:`BREAK_FACTOR` times the median step apart
+The photos of a split are a stretch of a street, not one building.  They are taken in order
+(sorted ids: ``IMG_`` numbers follow the camera along the street), cut where two consecutive
+camera centres stand more than :data:`BREAK_FACTOR` times the median step apart
 (a cross street, a part of the sequence that is not in the folder), and each run is cut again
 into groups of at most :data:`MULTIVIEW_GROUP` consecutive views of about equal size — the
 views that see the same one or two buildings.  Each group is one :func:`~.pipeline.multiview`
@@ -40,13 +40,11 @@ def camera_file_of(sample) -> Path:
 
 def groups(ids: Sequence[str], cameras: dict, size: int = MULTIVIEW_GROUP) -> list[list[str]]:
     """Groups of neighbouring views (module docstring), in street order."""
-    from ..datasets.cameras import street_positions
-
     ids = sorted(ids)
     if len(ids) <= 1:
         return [list(ids)] if ids else []
-    s, _, _ = street_positions([cameras[i] for i in ids])
-    step = np.abs(np.diff(s))
+    centres = np.array([cameras[i].C for i in ids], float)
+    step = np.linalg.norm(np.diff(centres, axis=0), axis=1)
     med = float(np.median(step)) if len(step) else 0.0
     runs, cur = [], [ids[0]]
     for k in range(1, len(ids)):
@@ -98,12 +96,10 @@ def reconstruct_groups(samples, *, budget: int | None = None, progress: bool = T
 
 
 def _classifier_labels(sample) -> np.ndarray:
-    """The shipped street classifier's canonical labels of one photo."""
-    from ..classify import default_classifier
+    """The shipped street classifier's canonical labels of one photo (the ``classifier``
+    method's)."""
     from ..datasets import get_label_set
+    from ..evaluation.methods import ClassifierMethod
 
-    clf = default_classifier("ecp7")
-    ls = get_label_set(clf.label_set)
-    img = sample.image()
-    prob = ls.project_proba(clf.predict_proba(img), clf.classes)
-    return ls.to_canonical(np.argmax(prob, axis=2).astype(np.uint8))
+    ls = get_label_set("ecp7")
+    return ls.to_canonical(ClassifierMethod()(sample, ls).labels)
