@@ -147,3 +147,16 @@ def test_bench_groups_cut_at_jumps_and_cap_the_size():
     assert [len(x) for x in g] == [4, 4, 3]
     assert g[2] == ["IMG_0008", "IMG_0009", "IMG_0010"]
     assert sorted(i for x in g for i in x) == sorted(cams)
+
+
+def test_facades_meeting_at_a_corner_are_one_building():
+    from facadeforge.multiview.pipeline import _buildings
+
+    front = FacadeFrame(np.zeros(3), np.array([1.0, 0, 0]), np.array([0, 0, 1.0]),
+                        np.array([0, -1.0, 0]), 10.0, 8.0)
+    side = FacadeFrame(np.array([10.0, 0, 0]), np.array([0, 1.0, 0]), np.array([0, 0, 1.0]),
+                       np.array([1.0, 0, 0]), 6.0, 8.0)
+    far = FacadeFrame(np.array([40.0, 0, 0]), np.array([1.0, 0, 0]), np.array([0, 0, 1.0]),
+                      np.array([0, -1.0, 0]), 10.0, 8.0)
+    assert _buildings([front, far, side]) == [0, 1, 0]
+    assert _buildings([]) == []

@@ -70,7 +70,9 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = [
+    "PHOTO_SUFFIXES",
     "Camera",
+    "photo_files",
     "read_bundler",
     "read_cameras",
     "read_colmap",
@@ -852,3 +854,29 @@ def seen_intervals(cameras: list[Camera], depth: float) -> np.ndarray:
                         else np.copysign(np.inf, along))
         out[i] = min(ends), max(ends)
     return out
+
+
+#: Photo suffixes :func:`photo_files` looks at.
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+
+
+def photo_files(folder: str | Path, cameras: dict[str, Camera], what: str = "photos"
+                ) -> dict[str, Path]:
+    """The photos of ``folder`` paired with ``cameras``: the file named like the camera's id,
+    or like its file (VisualSFM's undistorted name), case aside.  ``what`` names the option in
+    messages."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{what} {folder}: not a folder; give the folder of the photos the "
+                         "cameras file calibrates")
+    files = {p.stem.upper(): p for p in sorted(folder.iterdir())
+             if p.suffix.lower() in PHOTO_SUFFIXES and p.is_file()}
+    pairs = {}
+    for cid, cam in cameras.items():
+        hit = files.get(cid.upper()) or files.get(Path(cam.file).stem.upper())
+        if hit is not None:
+            pairs[cid] = hit
+    if not pairs:
+        raise InputError(f"{what} {folder}: none of the {len(cameras)} photos the cameras name "
+                         f"(e.g. {next(iter(cameras), '?')}) is in it")
+    return pairs

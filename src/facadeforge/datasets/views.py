@@ -71,6 +71,7 @@ import numpy as np
 from PIL import Image
 
 from ..errors import InputError
+from ..exchange._common import jsonable
 from ..geometry.mesh import Mesh
 from ..model.model import Model, Part
 from .cameras import Camera
@@ -698,22 +699,6 @@ def write_view_set(view_set: ViewSet, folder: str | Path) -> Path:
                               "R": np.asarray(c.R).tolist(), "C": np.asarray(c.C).tolist()}
                         for cid, c in view_set.cameras.items()}
     truth["meta"] = view_set.meta
-    (folder / "truth.json").write_text(json.dumps(_jsonable(truth), indent=1), encoding="utf-8")
+    (folder / "truth.json").write_text(json.dumps(jsonable(truth), indent=1), encoding="utf-8")
     return folder
 
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else str(v)
-    if isinstance(obj, (np.bool_,)):
-        return bool(obj)
-    return obj

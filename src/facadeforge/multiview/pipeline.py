@@ -126,21 +126,9 @@ def load_photo_set(photos, cameras, *, max_photos: int = 400
     else:
         cams = dict(cameras)
     if isinstance(photos, (str, os.PathLike)):
-        folder = Path(photos)
-        if not folder.is_dir():
-            raise InputError(f"photos {folder}: not a folder; give the folder of the photos the "
-                             "cameras file calibrates")
-        files = {p.stem.upper(): p for p in sorted(folder.iterdir())
-                 if p.suffix.lower() in (".jpg", ".jpeg", ".png", ".tif", ".tiff")}
-        pairs = {}
-        for cid, cam in cams.items():
-            hit = files.get(cid.upper()) or files.get(Path(cam.file).stem.upper())
-            if hit is not None:
-                pairs[cid] = hit
-        if not pairs:
-            raise InputError(f"photos {folder}: none of the {len(cams)} photos the cameras name "
-                             f"(e.g. {next(iter(cams), '?')}) is in it")
-        photos = pairs
+        from ..datasets.cameras import photo_files
+
+        photos = photo_files(photos, cams)
     images: dict[str, np.ndarray] = {}
     for cid in sorted(photos):
         if cid not in cams:
@@ -286,26 +274,23 @@ def _merged_facades(planes: list, local: PointCloud) -> list:
 
 def _buildings(frames: list[FacadeFrame]) -> list[int]:
     """A building id per facade: facades whose ends meet at a corner (within
-    :data:`CORNER_GAP`, not parallel) share one."""
-    parent = list(range(len(frames)))
-
-    def root(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
+    :data:`CORNER_GAP`, not parallel) share one (connected components of that relation)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
 
     ends = [(f.origin, f.origin + f.width * f.u) for f in frames]
-    for i in range(len(frames)):
-        for j in range(i + 1, len(frames)):
-            if abs(frames[i].n @ frames[j].n) > 0.7:
-                continue
-            gap = min(np.linalg.norm((a - b)[:2]) for a in ends[i] for b in ends[j])
-            if gap <= CORNER_GAP:
-                parent[root(i)] = root(j)
-    roots = [root(i) for i in range(len(frames))]
-    ids = {r: k for k, r in enumerate(dict.fromkeys(roots))}
-    return [ids[r] for r in roots]
+    pairs = [(i, j) for i in range(len(frames)) for j in range(i + 1, len(frames))
+             if abs(frames[i].n @ frames[j].n) <= 0.7
+             and min(np.linalg.norm((a - b)[:2]) for a in ends[i] for b in ends[j]) <= CORNER_GAP]
+    n = len(frames)
+    if not n:
+        return []
+    r = [i for i, _ in pairs]
+    c = [j for _, j in pairs]
+    _, ids = connected_components(coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)),
+                                  directed=False)
+    order = {b: k for k, b in enumerate(dict.fromkeys(ids.tolist()))}
+    return [order[b] for b in ids.tolist()]
 
 
 # ------------------------------------------------------------------------------ fitting
@@ -447,11 +432,11 @@ def multiview(photos, cameras, *, cloud=None, metres_per_unit: float | None = No
         mvs = dense_cloud(images, cams, seed=seed, **(stereo_options or {}))
         world_cloud = mvs.cloud
         for v in views:
-            dm = mvs.depths.get(v.id) if hasattr(mvs, "depths") else None
+            dm = mvs.depths.get(v.id)
             if dm is not None:
                 v.depth = dm
                 v.depth_scale = (dm.shape[1] / v.shape[1], dm.shape[0] / v.shape[0])
-        stereo_report = getattr(mvs, "report", {}) or {}
+        stereo_report = mvs.report
     else:
         from ..points.io import read_cloud
 
@@ -570,10 +555,7 @@ def _report(r: MultiviewResult, timings: dict, stereo: dict) -> dict:
                     "seen_share": round(float((f.evidence.views > 0).mean()), 4),
                     "views_per_cell": round(float(f.evidence.views.mean()), 3),
                     **f.report})
-    planes = []
-    for p in r.planes:
-        d = p.to_dict()
-        planes.append(d)
+    planes = [p.to_dict() for p in r.planes]
     return {"input": {"photos": [v.id for v in r.views], "points": len(r.cloud)},
             "frame": r.frame.to_dict(), "stereo": stereo, "planes": planes, "facades": fac,
             "axes": "model.*: local frame (metres, z up; glTF y up), report.frame.local_to_world "

@@ -482,19 +482,9 @@ def _colour(cloud: PointCloud, photos, cameras) -> PointCloud:
 
     cams = read_cameras(cameras)
     if isinstance(photos, (str, os.PathLike)):
-        folder = Path(photos)
-        if not folder.is_dir():
-            raise InputError(f"--photos {folder}: not a folder of photos")
-        photos = {}
-        for cid, cam in cams.items():          # the undistorted file, or a photo named by id
-            hits = [folder / cam.file] + sorted(p for p in folder.iterdir()
-                                                if p.stem.upper() == cid.upper())
-            hit = next((p for p in hits if p.is_file()), None)
-            if hit is not None:
-                photos[cid] = hit
-        if not photos:
-            raise InputError(f"--photos {folder}: none of the {len(cams)} photos the cameras "
-                             "file names is in it")
+        from ..datasets.cameras import photo_files
+
+        photos = photo_files(photos, cams, "--photos")
     return colour_from_photos(cloud, photos, {k: cams[k] for k in photos if k in cams})
 
 
