@@ -74,6 +74,12 @@ TRIM_OPS = {"i", "trim", "primitiveCube", "primitiveQuad", "primitiveCylinder", 
 IN_SCOPE_OPS = {"split", "comp", "setback", "setbackPerEdge", "setbackToArea", "shapeL",
                 "shapeU", "shapeO", "splitArea", "color", "report", "print", "label", "texture",
                 "setupProjection", "projectUV", "deleteUV", "set", "NIL"} | (UV_OPS - {"insertAlongUV"})
+# operations that put new geometry in the scope, whatever the shape's was, and operations that
+# read nothing of it but its scope (when their arguments read none of it either)
+REPLACING_OPS = {"i", "insert", "primitiveCube", "primitiveQuad", "primitiveCylinder",
+                 "primitiveCone", "primitiveDisk", "primitiveSphere"}
+SCOPE_ONLY_OPS = {"s", "t", "r", "center", "rotateScope", "color", "texture", "set",
+                  "setupProjection", "label"}
 UV_NAMES = {"geometry.uMin", "geometry.uMax", "geometry.vMin", "geometry.vMax", "geometry.du",
             "geometry.dv"}
 
@@ -113,6 +119,9 @@ class RuleInfo:
     # while they came from a projectUV of its own: their use of UVs counts for this rule
     uv_calls: set = field(default_factory=set)
     projected_calls: set = field(default_factory=set)
+    sets: set = field(default_factory=set)  # attributes set (``set(name, …)``) here or below
+    # replaces its shape's geometry before reading it (``Purity._fresh_first``); None: unknown
+    fresh: bool | None = None
 
 
 class Purity:
@@ -137,22 +146,23 @@ class Purity:
         self.queries_neighbours = False
         self._uv = "inherited"  # where the UVs come from, for the expression being looked at
         self._params: set[str] = set()  # parameters of the rule being looked at
+        # while a rule is specialised: (its parameter values, constant) and the calls whose
+        # arguments follow from them (:meth:`specialised`)
+        self._bound = None
+        self._spec: list | None = None
         for m in self.modules.values():
             for name, overloads in m.rules.items():
                 info = RuleInfo()
                 for rdef in overloads.values():
-                    self._params = {p.name for p in rdef.params}
-                    self._ops(m, rdef.body, info)
+                    self._rule(m, rdef, info)
                 self.info[(id(m), name)] = info
             for name, redefined in m.rule_overrides.items():  # an importer's version wins
                 info = RuleInfo()
                 for owner, rdef in redefined.values():
-                    self._params = {p.name for p in rdef.params}
-                    self._ops(owner, rdef.body, info)
+                    self._rule(owner, rdef, info)
                 for arity, rdef in m.rules.get(name, {}).items():  # and the rest stay
                     if arity not in redefined:
-                        self._params = {p.name for p in rdef.params}
-                        self._ops(m, rdef.body, info)
+                        self._rule(m, rdef, info)
                 self.info[(id(m), name)] = info
             for name, (owner, target) in m.rule_forwards.items():
                 # calls inside the file run the importer's rule, imp.Ext the file's own:
@@ -176,29 +186,8 @@ class Purity:
             for info in self.info.values():
                 for callee in list(info.calls):
                     other = self.info.get(callee)
-                    if other is None:
-                        continue
-                    before = (info.pure, len(info.reads), info.projects, info.uses_uv,
-                              info.uv_projected, info.trims, len(info.assets), info.far,
-                              info.chance, info.yawed)
-                    info.pure &= other.pure
-                    info.yawed |= other.yawed
-                    info.chance |= other.chance
-                    info.reads |= other.reads
-                    info.projects |= other.projects
-                    # a callee's center() aligns to the scope its caller had when calling it
-                    # (every successor's pivot), which the caller's key fixes: not propagated
-                    if callee in info.uv_calls:
-                        info.uses_uv |= other.uses_uv
-                    if callee in info.projected_calls:
-                        info.uv_projected |= other.uses_uv
-                    info.uv_projected |= other.uv_projected
-                    info.trims |= other.trims
-                    info.assets |= other.assets
-                    info.far |= other.far
-                    if (info.pure, len(info.reads), info.projects, info.uses_uv,
-                            info.uv_projected, info.trims, len(info.assets), info.far,
-                            info.chance, info.yawed) != before:
+                    if other is not None and _absorb(info, other, callee in info.uv_calls,
+                                                     callee in info.projected_calls):
                         changed = True
 
     def rule(self, module: Module, name: str) -> RuleInfo | None:
@@ -207,7 +196,88 @@ class Purity:
             return None
         return self.info.get((id(found[0]), found[1]))
 
+    def specialised(self, mod: Module, rdef: A.RuleDef, args, constant, memo: dict,
+                    context=(), depth: int = 0) -> RuleInfo | None:
+        """The analysis of one rule called with these argument values: a case whose conditions
+        read only its parameters (and attributes no rule sets) is decided, and a call whose
+        arguments follow from them is looked at for its own values, down the subtree.
+        ``Tile(n) --> … SubTile(n)``, ``SubTile(n) --> case n > 0 : Windows(n) else :
+        GroundSubTile(n)`` (Esri's Candler): the rule as a whole edits inherited texture
+        coordinates (the ground-floor branch), ``Tile(1)`` does not, and can be instanced.
+
+        ``constant(module, expr, bound)`` gives an expression's value when it depends on
+        nothing but the ``bound`` parameter values, literals and attributes, else
+        :data:`UNKNOWN` (the derivation's: it knows the attribute values where the rule is
+        called; ``context`` is a key of them).  ``memo`` (the derivation's) keeps the answers;
+        ``None`` while one is being worked out (a rule that calls itself with the same values:
+        the caller takes the rule's general analysis), and for more than
+        :data:`SPECIAL_DEPTH` nested values or :data:`SPECIAL_RULES` in all."""
+        key = (id(mod), id(rdef), tuple(_hashable(a) for a in args), context)
+        if key in memo:
+            return memo[key]
+        if depth > SPECIAL_DEPTH or len(memo) >= SPECIAL_RULES:
+            return None
+        memo[key] = None
+        bound = {p.name: v for p, v in zip(rdef.params, args)}
+        saved = (self.fold, self._params, self._spec, self._bound)
+        info = RuleInfo()
+        self.fold = lambda m, cond, params: _truth(constant(m, cond, bound))
+        self._bound, self._spec = (bound, constant), []
+        try:
+            self._rule(mod, rdef, info)
+            calls = self._spec
+        finally:
+            self.fold, self._params, self._spec, self._bound = saved
+        for callee in list(info.calls):
+            other = self.info.get(callee)
+            if other is not None:
+                _absorb(info, other, callee in info.uv_calls, callee in info.projected_calls)
+        for m, name, values, uv in calls:
+            found = m.rule(name, len(values))
+            if found is None:
+                continue  # no such rule: the shape is left as it is (a warning, when derived)
+            other = self.specialised(found[0], found[1], values, constant, memo, context,
+                                     depth + 1)
+            if other is None:
+                other = self.rule(m, name)
+            if other is not None:
+                _absorb(info, other, uv == "inherited", uv == "projected")
+        memo[key] = info
+        return info
+
     # -- local analysis -------------------------------------------------------------------------
+    def _rule(self, m: Module, rdef: A.RuleDef, info: RuleInfo) -> None:
+        """Note one rule definition (an overload) in ``info``."""
+        self._params = {p.name for p in rdef.params}
+        self._ops(m, rdef.body, info)
+        info.fresh = info.fresh is not False and self._fresh_first(m, rdef.body)
+
+    def _fresh_first(self, m: Module, ops) -> bool:
+        """Whether ``ops`` replace the shape's geometry (an insert, a primitive) before anything
+        reads it, on every path: then which geometry the shape had does not matter, only its
+        scope (a window asset inserted on a quad whose corners start anywhere)."""
+        for op in ops:
+            t = type(op)
+            if t is A.CaseOps:
+                branches, taken = op.branches, None
+                if self.fold is not None:
+                    branches, taken = self._fold_case(m, op)
+                if taken is not None:
+                    return self._fresh_first(m, taken)
+                return (all(_geometry_free(m, c) and self._fresh_first(m, b)
+                            for c, b in branches) and self._fresh_first(m, op.otherwise))
+            if t is not A.Successor:
+                return False
+            from .ops import operation_of
+
+            if operation_of(op, m) is None or not all(_geometry_free(m, a) for a in op.args):
+                return False
+            if op.name in REPLACING_OPS:
+                return True
+            if op.name not in SCOPE_ONLY_OPS:
+                return False
+        return False
+
     def _callee(self, m: Module, name: str, prefix: str = ""):
         found = m.resolve(name) if "." in name else (m, name)
         return None if found is None else (id(found[0]), prefix + found[1])
@@ -233,9 +303,10 @@ class Purity:
                     if name == "setupProjection" and len(args) > 1 and isinstance(args[1], A.Name) \
                             and args[1].name.startswith("world."):
                         info.pure = False
-                    if name == "set" and args and isinstance(args[0], A.Name) \
-                            and args[0].name.startswith(("scope.t", "trim.")):
-                        info.pure = False  # sets an absolute position, or which planes trim
+                    if name == "set" and args and isinstance(args[0], A.Name):
+                        if args[0].name.startswith(("scope.t", "trim.")):
+                            info.pure = False  # sets an absolute position, or which planes trim
+                        info.sets.update((args[0].name, args[0].name.rsplit(".", 1)[-1]))
                     if name == "center" and top:
                         info.centers = True
                     if name in YAWED_OPS:
@@ -254,9 +325,13 @@ class Purity:
                         uv = "fresh"
                     continue
                 if t is A.Successor:
-                    callee = self._callee(m, name)
-                    if callee is not None:
-                        self._call(info, callee, uv)
+                    values = self._constant_args(m, args) if args else None
+                    if values is not None:  # specialised: the callee for these values
+                        self._spec.append((m, name, values, uv))
+                    else:
+                        callee = self._callee(m, name)
+                        if callee is not None:
+                            self._call(info, callee, uv)
                 self._uv = uv
                 for a in args:
                     self._expr(m, a, info)
@@ -301,6 +376,20 @@ class Purity:
                 ends.append(self._ops(m, op.otherwise, info, uv, top))
                 return _worst(ends)
         return uv
+
+    def _constant_args(self, m, args):
+        """The values of a call's arguments while a rule is specialised (:meth:`specialised`)
+        and all of them follow from its parameter values; else ``None``."""
+        if self._bound is None:
+            return None
+        bound, constant = self._bound
+        values = []
+        for a in args:
+            v = constant(m, a, bound)
+            if v is UNKNOWN:
+                return None
+            values.append(v)
+        return values
 
     def _fold_case(self, m, op: A.CaseOps):
         """(branches still to look at, ops of the branch surely taken or None)."""
@@ -446,10 +535,12 @@ def set_targets(ruleset: RuleSet) -> set[str]:
     return out
 
 
-def constant_attributes(m: Module, node, changed: set[str], local: set[str] = frozenset()):
+def constant_attributes(m: Module, node, changed: set[str], local: set[str] = frozenset(),
+                        bound=frozenset()):
     """The ``(module, AttrDef)`` an expression reads when it reads nothing but attributes no
     rule changes, literals and CGA's deterministic functions of them; else ``None``.
-    ``local``: the names of the rule's parameters, which hide attributes."""
+    ``local``: the names of the rule's parameters, which hide attributes; ``bound``: those of
+    them whose values are known (a specialised rule's, :meth:`Purity.specialised`)."""
     from .ops import SHAPE_FUNCTIONS
 
     deps, stack = [], [node]
@@ -457,6 +548,8 @@ def constant_attributes(m: Module, node, changed: set[str], local: set[str] = fr
         n = stack.pop()
         t = type(n)
         if t in (A.Num, A.Str, A.Bool):
+            continue
+        if t is A.Name and n.name in bound:
             continue
         if t is A.Name:
             found = m.attr(n.name) if n.name not in local else None
@@ -476,6 +569,68 @@ def constant_attributes(m: Module, node, changed: set[str], local: set[str] = fr
         else:
             return None
     return deps
+
+
+#: a value that cannot be known before the derivation (:meth:`Purity.specialised`)
+UNKNOWN = object()
+#: nested argument values followed at most, and specialised analyses kept at most, per
+#: derivation: ``R(n) --> … R(n + 1)`` would otherwise be followed without end
+SPECIAL_DEPTH = 24
+SPECIAL_RULES = 512
+
+
+def _geometry_free(m: Module, node) -> bool:
+    """Whether an expression reads nothing of the shape's geometry (``geometry.*``, or a
+    function of the rules, which might)."""
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        if isinstance(n, (tuple, list)):
+            stack.extend(n)
+            continue
+        if not isinstance(n, A.Node):
+            continue
+        t = type(n)
+        if t is A.Name and (n.name.startswith("geometry.") or m.function(n.name, 0) is not None):
+            return False
+        if t is A.Call and (n.name.startswith("geometry.")
+                            or m.function(n.name, len(n.args)) is not None):
+            return False
+        stack.extend(getattr(n, f) for f in n.__dataclass_fields__ if f not in ("line", "column"))
+    return True
+
+
+def _truth(value) -> bool | None:
+    if value is UNKNOWN:
+        return None
+    return bool(value)
+
+
+def _absorb(info: RuleInfo, other: RuleInfo, inherited: bool, projected: bool) -> bool:
+    """What a callee's analysis adds to its caller's; whether it changed.  ``inherited`` and
+    ``projected``: the callee is called while the caller's texture coordinates are the ones it
+    inherited, or ones a projectUV of its own made."""
+    before = (info.pure, len(info.reads), info.projects, info.uses_uv, info.uv_projected,
+              info.trims, len(info.assets), info.far, info.chance, info.yawed, len(info.sets))
+    info.sets |= other.sets
+    info.pure &= other.pure
+    info.yawed |= other.yawed
+    info.chance |= other.chance
+    info.reads |= other.reads
+    info.projects |= other.projects
+    # a callee's center() aligns to the scope its caller had when calling it (every
+    # successor's pivot), which the caller's key fixes: not propagated
+    if inherited:
+        info.uses_uv |= other.uses_uv
+    if projected:
+        info.uv_projected |= other.uses_uv
+    info.uv_projected |= other.uv_projected
+    info.trims |= other.trims
+    info.assets |= other.assets
+    info.far |= other.far
+    return (info.pure, len(info.reads), info.projects, info.uses_uv, info.uv_projected,
+            info.trims, len(info.assets), info.far, info.chance, info.yawed,
+            len(info.sets)) != before
 
 
 def _worst(states: list[str]) -> str:
@@ -551,11 +706,13 @@ def instance_key(mod, name, args, state, info: RuleInfo):
     proj0_map = None
     if proj0 is not None and (info.projects or g.corner_uvs is not None):
         proj0_map = projection_uv_map(proj0, rot, org)
-    if g.n_faces:
+    if info.fresh:  # the subtree puts its own geometry in the scope first
+        geom_key = ("fresh", g.n_faces > 0)
+    elif g.n_faces:
         if g.corner_uvs is not None and info.uses_uv:
             return None, None  # the subtree works on the inherited UV values themselves
         local = (g.vertices[g.corners] - org) @ rot
-        geom_key = (np.round(local, 6).tobytes(), g.starts.tobytes(), g.corner_uvs is not None)
+        geom_key = (rounded(local, 6), g.starts.tobytes(), g.corner_uvs is not None)
         if g.corner_uvs is not None:
             # most inherited UVs are the projection's (a facade's projectUV): its map, when it
             # gives them, saves a least-squares fit
@@ -577,31 +734,44 @@ def instance_key(mod, name, args, state, info: RuleInfo):
     proj_map = None
     if info.projects and info.uv_projected:  # UVs projected below are edited: all of it
         proj_key = tuple(sorted(
-            (k, np.round((o - org) @ rot, 6).tobytes(), np.round(u @ rot, 9).tobytes(),
-             np.round(v @ rot, 9).tobytes(), w, h, off)
+            (k, rounded((o - org) @ rot, 6), rounded(u @ rot, 9),
+             rounded(v @ rot, 9), w, h, off)
             for k, (o, u, v, w, h, off) in state.projections.items()))
     elif info.projects:
         # where the projection lies moves the UVs a projectUV below makes by a constant, which
         # the replay puts right (its map, affine in the scope frame): the key holds only the
         # projection's directions and tile sizes; set 0 is the only one kept in the geometry
-        proj_key = tuple(sorted(
-            (k, np.round(u @ rot, 9).tobytes(), np.round(v @ rot, 9).tobytes(), w, h)
-            for k, (o, u, v, w, h, off) in state.projections.items() if k == 0))
+        if proj0 is not None:
+            o, u, v, w, h, off = proj0
+            proj_key = (rounded(np.concatenate([u, v]).reshape(2, 3) @ rot, 9), w, h)
         proj_map = proj0_map
     pivot_key = ()
     if info.centers and state.pivot is not None:
         p = state.pivot
-        pivot_key = (np.round((p.origin - org) @ rot, 6).tobytes(), np.round(p.size, 6).tobytes(),
-                     np.round(rot.T @ p.rotation, 9).tobytes())
+        pivot_key = (rounded((p.origin - org) @ rot, 6), rounded(p.size, 6),
+                     rounded(rot.T @ p.rotation, 9))
     trims = trim_key(state, info.assets, info.far) if info.trims else ()
     # the scope's turn: whole, or only where the vertical lies in it (its up in scope axes)
-    turn = np.round(rot if info.yawed else rot[1], 9).tobytes()
-    key = (id(mod), name, tuple(_hashable(a) for a in args), np.round(sc.size, 6).tobytes(),
+    turn = rounded(rot if info.yawed else rot[1], 9)
+    key = (id(mod), name, tuple(_hashable(a) for a in args), rounded(sc.size, 6),
            turn, info.yawed, geom_key, tuple(sorted((k, _hashable(v))
                                                               for k, v in state.material.items())),
            tuple(sorted((k, _hashable(v)) for k, v in state.attrs.items())), ctx_key, extra,
            state.label, proj_key, pivot_key, trims)
     return key, (uv_map, proj_map)
+
+
+def rounded(a, decimals: int) -> bytes:
+    """An array rounded as a cache key: ``-0.0`` is ``0.0`` (they differ as bytes)."""
+    return (a.round(decimals) + 0.0).tobytes()
+
+
+def moved_uv_map(m: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """A (4, 2) UV map of a frame, in a frame placed in it by ``x = x_new @ a + b``."""
+    out = np.empty((4, 2))
+    out[:3] = a @ m[:3]
+    out[3] = b @ m[:3] + m[3]
+    return out
 
 
 def projection_uv_map(projection, rot: np.ndarray, org: np.ndarray) -> np.ndarray:
@@ -639,12 +809,14 @@ class Payoff:
     TRIES = 16
     MIN_SAVED = 2.0  # shapes saved per try, on average, for instancing to pay
 
-    __slots__ = ("tries", "hits", "recorded", "records", "off", "judge_after")
+    __slots__ = ("tries", "hits", "recorded", "records", "off", "judge_after", "slotted")
 
     def __init__(self, tries: int | None = None):
         self.tries = self.hits = self.recorded = self.records = 0
         self.off = False
         self.judge_after = self.TRIES if tries is None else tries
+        # its recordings fill slots of larger recordings by chance: what it saves is theirs
+        self.slotted = False
 
     def note(self, hit: bool, shapes: int) -> None:
         """One try: a hit, or a new recording of ``shapes`` shapes."""
@@ -654,7 +826,7 @@ class Payoff:
         else:
             self.records += 1
             self.recorded += shapes + 1  # the subtree's shapes and its root
-        if self.tries >= self.judge_after and self.records:
+        if self.tries >= self.judge_after and self.records and not self.slotted:
             saved = self.hits / self.tries * (self.recorded / self.records)
             self.off = saved < self.MIN_SAVED
 
@@ -666,9 +838,14 @@ class Recording:
     parts: list  # (local Mesh, label, material, symbol)
     reports: list  # (name, value) in order
     prints: list
-    shapes: int
+    shapes: int  # the subtree's shapes, but those of its slots
     # the affine UV maps at recording (the inherited UVs', projectUV(0)'s), or None each
     uv_map: tuple
+    # subtrees instanced by chance inside this one, left to each replay to choose
+    # (``Derivation._resolve``): ``(successor indices from the root, key, A, b, maps)``, the
+    # slot's scope frame in the root's (``x_root = x_slot @ A + b``) and, per UV map of the
+    # slot, which of the root's it follows
+    slots: tuple = ()
     _uv_corners: dict = field(default_factory=dict)
 
     def uv_corners(self, j: int):

@@ -29,12 +29,14 @@ from .chance import combinations, outcome, rand_value
 from .expressions import Evaluator
 from .functions import FUNCTIONS, bare_call, rand_bounds
 from .instancing import (
+    UNKNOWN,
     Payoff,
     Purity,
     Recording,
     _hashable,
     constant_attributes,
     instance_key,
+    moved_uv_map,
     set_targets,
 )
 from .module import Module, RuleSet
@@ -332,6 +334,7 @@ class Derivation:
         self.neighbours = OccluderSet(neighbours or ())
         self._instances: dict = {}
         self._payoff: dict = {}  # id(RuleInfo) -> instancing.Payoff
+        self._special: dict = {}  # id(Purity) -> its analyses for argument values
         self.sink: list | None = None  # collects leaf shapes while an ``inline`` derives
         self.inline_depth = 0
         self._purity = None
@@ -345,6 +348,14 @@ class Derivation:
         self._chance = None
         self._chance_log: list | None = None  # the choices of the subtree being recorded
         self._chance_instances: dict = {}  # key -> [(choices, Recording)]
+        self._chance_closed: set = set()  # keys derived directly from now on
+        # seeds of shapes on the way to a slot that could not be filled (:meth:`_resolve`)
+        self._unfilled: set = set()
+        # the recording by chance under way: its slots, its root's frame, UV maps and seed,
+        # and the shapes of its slots (:meth:`_slot`)
+        self._slots: list | None = None
+        self._slot_root = None
+        self._slot_shapes = 0
         if instancing and not purity.uses_occlusion:
             self._purity = self._folded_purity(chance=False)
             self._chance = self._folded_purity(chance=True)
@@ -382,6 +393,27 @@ class Derivation:
         if len(cache) < 16:
             cache.append((chance, list(deps.values()), purity))
         return purity
+
+    def _specialised(self, purity: Purity, mod: Module, rdef, args, state: ShapeState, info):
+        """``purity``'s analysis of ``rdef`` called with ``args`` on ``state``
+        (:meth:`Purity.specialised`), worked out once per derivation: conditions and arguments
+        may read attributes that no rule of the subtree sets (``info.sets``, the rule's
+        general analysis), with their values on this shape."""
+        sets = info.sets
+        known = {k: v for k, v in state.attrs.items() if k[1] not in sets}
+        context = tuple(sorted((k, _hashable(v)) for k, v in known.items()))
+        memo = self._special.setdefault(id(purity), {})
+        at = self.initial.copy()
+        at.attrs = known
+
+        def constant(module: Module, expr, bound: dict):
+            if constant_attributes(module, expr, sets, set(bound), bound) is None:
+                return UNKNOWN
+            try:
+                return Env(self, module, dict(bound), at).evaluate(expr)
+            except (CGARuntimeError, DerivationError, ArithmeticError, TypeError, ValueError):
+                return UNKNOWN
+        return purity.specialised(mod, rdef, args, constant, memo, context)
 
     # -- attributes --------------------------------------------------------------------------
     def attr_value(self, module: Module, adef: A.AttrDef, state: ShapeState):
@@ -483,6 +515,8 @@ class Derivation:
             state.label = hint.value
         if self._purity is not None:
             info = self._purity.rule(module, name)  # as called: an override counts
+            if args and info is not None and not _usable(info, state, False):
+                info = self._specialised(self._purity, mod, rdef, args, state, info) or info
             if info is not None and info.pure:
                 payoff = self._payoff.get(id(info))
                 if payoff is None:
@@ -495,12 +529,14 @@ class Derivation:
                         return
             elif self._chance is not None:
                 info = self._chance.rule(module, name)
+                if args and info is not None and not _usable(info, state, True):
+                    info = self._specialised(self._chance, mod, rdef, args, state, info) or info
                 if info is not None and info.pure and info.chance:
                     payoff = self._payoff.get(id(info))
                     if payoff is None:
                         # its first tries record a variant per outcome: judged later
                         payoff = self._payoff[id(info)] = Payoff(CHANCE_TRIES)
-                    if not payoff.off:
+                    if not payoff.off and state.seed not in self._unfilled:
                         key, uv_map = instance_key(mod, (rdef.name, id(rdef)), args, state, info)
                         if key is not None and self._by_chance(key, uv_map, node, state, name,
                                                                 args, module, depth, payoff):
@@ -527,42 +563,50 @@ class Derivation:
     def _instanced(self, key, uv_map, node, state, name, args, module, depth, payoff) -> None:
         rec = self._instances.get(key)
         scope0 = state.scope  # the recording moves it: replays go where the shape was
-        if rec is None:
+        fresh = rec is None
+        if fresh:
             rec = self._instances[key] = self._record(uv_map, node, state, name, args, module,
-                                                      depth)
-            payoff.note(False, rec.shapes)
-            self._replay(rec, scope0, uv_map, node, count=False)
-            return
-        payoff.note(True, rec.shapes)
-        self._replay(rec, scope0, uv_map, node, count=True)
+                                                      depth, slotted=False)
+        payoff.note(not fresh, rec.shapes)
+        self._replay(node, [(rec, scope0.rotation, scope0.origin, uv_map, (), ())],
+                     count=not fresh)
 
-    def _record(self, uv_map, node, state, name, args, module, depth) -> Recording:
-        """Derive a subtree now, depth first, and keep what it made relative to its scope."""
+    def _record(self, uv_map, node, state, name, args, module, depth, slotted) -> Recording:
+        """Derive a subtree now, depth first, and keep what it made relative to its scope.
+        ``slotted`` (a recording by chance): subtrees instanced by chance below it become
+        slots that each replay chooses for itself (:meth:`_slot`)."""
         scope0 = state.scope
-        saved = (self.parts, self.reports, self.prints, self._purity)
+        saved = (self.parts, self.reports, self.prints, self._purity, self._slots,
+                 self._slot_root, self._slot_shapes)
         count0 = self.shape_count
         self.parts, self.reports, self.prints = [], {}, []
-        sub: deque = deque()
-        mod, rdef = module.rule(name, len(args))
-        self._run_rule(sub, node, state, name, args, mod, rdef, depth)
-        while sub:
-            item = sub.popleft()
-            self._apply(sub, *item)
-        rot, org = scope0.rotation, scope0.origin
-        # parts alike in label, material and symbol become one mesh: replays (and exports)
-        # then handle a few meshes instead of one per leaf shape
-        groups: dict = {}
-        for p in self.parts:
-            groups.setdefault((p.label, p.material.key(), p.symbol), []).append(p)
-        parts = []
-        for (label, _, symbol), ps in groups.items():
-            merged = Mesh.merge(p.mesh for p in ps)
-            parts.append((merged.with_vertices((merged.vertices - org) @ rot), label,
-                          ps[0].material, symbol))
-        rec = Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
-                        self.shape_count - count0, uv_map)
-        self.parts, self.reports, self.prints, self._purity = saved
-        return rec
+        self._slots = [] if slotted else None
+        self._slot_root = (scope0.rotation, scope0.origin, uv_map, state.seed)
+        self._slot_shapes = 0
+        try:
+            sub: deque = deque()
+            mod, rdef = module.rule(name, len(args))
+            self._run_rule(sub, node, state, name, args, mod, rdef, depth)
+            while sub:
+                item = sub.popleft()
+                self._apply(sub, *item)
+            rot, org = scope0.rotation, scope0.origin
+            # parts alike in label, material and symbol become one mesh: replays (and exports)
+            # then handle a few meshes instead of one per leaf shape
+            groups: dict = {}
+            for p in self.parts:
+                groups.setdefault((p.label, p.material.key(), p.symbol), []).append(p)
+            parts = []
+            for (label, _, symbol), ps in groups.items():
+                merged = Mesh.merge(p.mesh for p in ps)
+                parts.append((merged.with_vertices((merged.vertices - org) @ rot), label,
+                              ps[0].material, symbol))
+            return Recording(parts, [(k, list(v)) for k, v in self.reports.items()], self.prints,
+                             self.shape_count - count0 - self._slot_shapes, uv_map,
+                             tuple(self._slots or ()))
+        finally:
+            (self.parts, self.reports, self.prints, self._purity, self._slots,
+             self._slot_root, self._slot_shapes) = saved
 
     def _by_chance(self, key, uv_map, node, state, name, args, module, depth, payoff) -> bool:
         """Instancing of a subtree that is pure but for its stochastic choices: a recording is
@@ -570,19 +614,25 @@ class Derivation:
         shape's random stream, the percentages, the branch taken).  Another shape of the same
         key replays it when its own random streams, which follow from its seed along the same
         successor indices, give every choice the same outcome; else it is derived (and
-        recorded, up to :data:`CHANCE_VARIANTS` recordings a key).  Returns False when the
-        shape is left to the caller to derive directly."""
+        recorded, up to :data:`CHANCE_VARIANTS` recordings a key).  A subtree instanced by
+        chance below it is not part of the recording's choices but a slot, which every replay
+        fills with the recording of that key whose choices its own streams repeat (a tile of
+        windows, each with its own texture, is one recording).  Returns False when the shape
+        is left to the caller to derive directly."""
         variants = self._chance_instances.setdefault(key, [])
-        if variants is None:  # its choices have more outcomes together than recordings kept
+        if key in self._chance_closed:  # its choices have more outcomes than recordings kept
             payoff.note(False, 0)
             return False
         scope0 = state.scope
         memo: dict = {}
         for choices, rec in variants:
             if _choices_hold(state.seed, choices, memo):
-                payoff.note(True, rec.shapes)
-                self._note_choices(state, choices)
-                self._replay(rec, scope0, uv_map, node, count=True)
+                plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map,
+                                     choices)
+                if plan is None:  # a slot's streams make a choice no recording has yet:
+                    return False  # derived, the slot's subtree records it (no try counted)
+                payoff.note(True, sum(r.shapes for r, *_ in plan))
+                self._place(key, plan, node, state, scope0, uv_map, payoff, count=True)
                 return True
         if len(variants) >= CHANCE_VARIANTS:
             payoff.note(False, 0)
@@ -590,33 +640,137 @@ class Derivation:
         outer_log, outer_path = self._chance_log, state.path
         self._chance_log, state.path = [], ()
         try:
-            rec = self._record(uv_map, node, state, name, args, module, depth)
-            choices = self._chance_log
+            rec = self._record(uv_map, node, state, name, args, module, depth, slotted=True)
+            choices = tuple(self._chance_log)
         finally:
             self._chance_log, state.path = outer_log, outer_path
         if combinations(choices) > CHANCE_VARIANTS:
-            # a subtree of several choices (a row of windows, each with its own texture):
-            # its recordings would rarely repeat, while the subtrees of each choice (one window)
-            # do; shapes of this key are derived directly from now on, their parts instanced
-            self._chance_instances[key] = None
-        elif all(path is not None for path, *_ in choices):
-            variants.append((tuple(choices), rec))
+            # a subtree of several choices of its own (not in slots): its recordings would
+            # rarely repeat, while the subtrees of each choice do; shapes of this key are
+            # derived directly from now on, their parts instanced
+            self._chance_closed.add(key)
+        stored = all(path is not None for path, *_ in choices)
+        if stored:
+            variants.append((choices, rec))
         payoff.note(False, rec.shapes)
-        self._note_choices(state, choices)
-        self._replay(rec, scope0, uv_map, node, count=False)
+        # its slots were filled just now, by recordings kept under their keys
+        plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map, choices)
+        self._place(key if stored else None, plan, node, state, scope0, uv_map, payoff,
+                    count=False)
         return True
 
-    def _note_choices(self, state: ShapeState, choices) -> None:
+    def _resolve(self, rec, seed: int, rot, org, uv_map, choices):
+        """The recordings a replay of ``rec`` at this frame and random stream puts down: ``rec``
+        and, for every slot, the recording of the slot's key whose choices the slot's own
+        stream repeats, at the slot's frame, down the slots of slots.  ``(recording, rotation,
+        origin, UV maps, choices, successor indices from the root)`` each; ``None`` when a
+        slot's stream makes a choice that no recording of its key has."""
+        picked = [(rec, seed, choices, (), None)]  # first which recordings, then where
+        k = 0
+        while k < len(picked):
+            r, s0, _, path, _ = picked[k]
+            k += 1
+            for j, (spath, key, *_) in enumerate(r.slots):
+                s = s0
+                for i in spath:
+                    s = child_seed(s, i)
+                variants = self._chance_instances.get(key)
+                memo: dict = {}
+                got = next(((c, v) for c, v in variants if _choices_hold(s, c, memo)),
+                           None) if variants else None
+                if got is None:
+                    # the shapes between the root and this slot would find the same gap: they
+                    # are derived without trying (:meth:`_by_chance`)
+                    s = seed
+                    for i in (*path, *spath)[:-1]:
+                        s = child_seed(s, i)
+                        self._unfilled.add(s)
+                    return None
+                picked.append((got[1], s, got[0], (*path, *spath), (k - 1, j)))
+        out = []
+        for r, _, ch, path, parent in picked:
+            if parent is None:
+                out.append((r, rot, org, uv_map, ch, path))
+                continue
+            pr, prot, porg, pmaps, *_ = out[parent[0]]
+            _, _, a, b, follows = pr.slots[parent[1]]
+            maps = []
+            for j in follows:
+                if j is not None and pmaps[j] is None:
+                    return None
+                maps.append(None if j is None else moved_uv_map(pmaps[j], a, b))
+            out.append((r, prot @ a.T, b @ prot.T + porg, tuple(maps), ch, path))
+        return out
+
+    def _place(self, key, plan, node, state: ShapeState, scope, uv_map, payoff,
+               count: bool) -> None:
+        """Put a resolved replay down: as a slot of the recording by chance this shape is part
+        of, when there is one and ``key`` can fill it again; else its parts (and its choices,
+        into the recording, if any, that now holds them).  ``scope``: the shape's before it
+        was derived."""
+        slot = self._slot(key, state, scope, uv_map) if key is not None else None
+        if slot is not None:
+            self._slots.append(slot)
+            payoff.slotted = True
+            total = sum(r.shapes for r, *_ in plan)
+            self._slot_shapes += total
+            if count:
+                self._count(node, total)
+            return
+        for _, _, _, _, choices, path in plan:
+            self._note_choices(state, choices, path)
+        self._replay(node, plan, count)
+
+    def _slot(self, key, state: ShapeState, sc, uv_map):
+        """The slot a subtree instanced by chance becomes in the recording by chance under way:
+        where it lies in the root's frame, its random stream's path from the root's, and which
+        of the root's UV maps each of its own follows.  ``None`` where none is recorded, or
+        where the subtree's stream or UV maps do not follow from the root's."""
+        if self._slots is None or state.path is None:
+            return None
+        rot0, org0, maps0, seed0 = self._slot_root
+        s = seed0
+        for i in state.path:
+            s = child_seed(s, i)
+        if s != state.seed:
+            return None
+        a = sc.rotation.T @ rot0
+        b = (sc.origin - org0) @ rot0
+        follows = []
+        for i, m in enumerate(uv_map):
+            if m is None:
+                follows.append(None)
+                continue
+            j = next((j for j in (i, 1 - i) if maps0[j] is not None and np.abs(
+                moved_uv_map(maps0[j], a, b) - m).max() <= 1e-9 * max(1.0, np.abs(m).max())),
+                None)
+            if j is None:
+                return None
+            follows.append(j)
+        return (state.path, key, a, b, tuple(follows))
+
+    def _note_choices(self, state: ShapeState, choices, below=()) -> None:
         """Within a subtree being recorded by chance, the choices of a nested one count too,
-        found from the outer root along the nested root's successor indices."""
-        if self._chance_log is not None:
+        found from the outer root along the nested root's successor indices (and ``below``
+        them, for a slot of the nested one)."""
+        if self._chance_log is not None and choices:
             prefix = state.path
             self._chance_log.extend(
-                (None if prefix is None or path is None else (*prefix, *path), *rest)
+                (None if prefix is None or path is None else (*prefix, *below, *path), *rest)
                 for path, *rest in choices)
 
-    def _replay(self, rec, scope, uv_map, node, count: bool) -> None:
-        rot, org = scope.rotation, scope.origin
+    def _replay(self, node, plan, count: bool) -> None:
+        for rec, rot, org, uv_map, *_ in plan:
+            self._replay_one(rec, rot, org, uv_map, node)
+        if count:
+            self._count(node, sum(r.shapes for r, *_ in plan))
+
+    def _count(self, node, shapes: int) -> None:
+        self.shape_count += shapes
+        if self.shape_count > self.limits.max_shapes:
+            self.count_shape(node.symbol)
+
+    def _replay_one(self, rec, rot, org, uv_map, node) -> None:
         # UVs that follow from where the shape is — inherited from its ancestors, or made by a
         # projectUV below from an inherited projection — are affine in the scope frame: the
         # corners that carry the recording's map get this shape's
@@ -638,10 +792,6 @@ class Derivation:
         for k, values in rec.reports:
             self.reports.setdefault(k, []).extend(values)
         self.prints.extend(rec.prints)
-        if count:
-            self.shape_count += rec.shapes
-            if self.shape_count > self.limits.max_shapes:
-                self.count_shape(node.symbol)
 
     def _output(self, node: Shape, state: ShapeState, symbol: str) -> None:
         if self.sink is not None:  # an ``inline`` collects its leaf shapes
@@ -752,6 +902,14 @@ class Derivation:
 CHANCE_VARIANTS = 16
 #: Tries after which instancing by chance is judged for a rule (see ``instancing.Payoff``).
 CHANCE_TRIES = 64
+
+
+def _usable(info, state: ShapeState, chance: bool) -> bool:
+    """Whether a rule's analysis lets this shape be instanced (plainly, or by chance)."""
+    if not info.pure or (chance and not info.chance):
+        return False
+    g = state.geometry
+    return not (info.uses_uv and g.corner_uvs is not None and g.n_faces)
 
 
 def _choices_hold(seed: int, choices, memo: dict | None = None) -> bool:

@@ -293,14 +293,20 @@ def _reach(size: np.ndarray, assets, far: bool) -> np.ndarray:
     two zero sizes.  CityEngine fits a zero size to the mean of the others times the asset's
     proportion; with known assets and only operations that stay in the box that bounds it,
     otherwise the mean of the other sizes (at least 1 m) stands in."""
-    flat = size < 1e-6
-    if flat.all():
+    sx, sy, sz = size.tolist()  # three numbers: plain floats are faster than arrays here
+    flat = (sx < 1e-6, sy < 1e-6, sz < 1e-6)
+    if all(flat):
         return np.full(3, 1e6)  # a point scope: assets keep their own size
-    mean = float(size[~flat].mean())
+    if not any(flat):
+        return np.zeros(3)
+    kept = [v for v, f in zip((sx, sy, sz), flat) if not f]
+    mean = sum(kept) / len(kept)
     known = [_PROPORTIONS.get(a) for a in assets]
     if far or not known or any(r is None for r in known):
-        return np.where(flat, max(mean, 1.0), 0.0)
-    return np.where(flat, mean * np.max(known, axis=0), 0.0)
+        fill = max(mean, 1.0)
+        return np.array([fill if f else 0.0 for f in flat])
+    most = np.max(known, axis=0) if len(known) > 1 else known[0]
+    return np.array([mean * most[k] if f else 0.0 for k, f in enumerate(flat)])
 
 
 def trim_key(state, assets=(), far: bool = True) -> tuple:
@@ -317,7 +323,8 @@ def trim_key(state, assets=(), far: bool = True) -> tuple:
     near = _nearest(local, at_origin, sc.size, _reach(sc.size, assets, far)) < 1e-6
     if not near.any():
         return ()
-    return (np.round(local[near], 9).tobytes(), np.round(at_origin[near], 6).tobytes())
+    return ((np.round(local[near], 9) + 0.0).tobytes(),  # -0.0 is 0.0 (not as bytes)
+            (np.round(at_origin[near], 6) + 0.0).tobytes())
 
 
 def _in_scope_frame(normals: np.ndarray, offsets: np.ndarray, scope):
