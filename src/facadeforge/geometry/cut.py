@@ -112,6 +112,10 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray, tick=None) -> li
     pts = p.tolist()
     if len(pts) == 4 and not _convex_quad(pts):
         return None
+    if mesh.corner_data is None:
+        slabs = _slabs_of_prism(p, uv, axis, cuts, mesh.face_data)
+        if slabs is not None:
+            return slabs
     uvs = uv.tolist() if uv is not None else None
     # edge and vertex data (tags) follow the clipping exactly when the face has any
     labels = [(c, c) for c in range(len(pts))] if mesh.corner_data is not None else None
@@ -139,6 +143,77 @@ def _split_single_face(mesh: Mesh, axis: int, cuts: np.ndarray, tick=None) -> li
             out.append(piece)
         else:
             out.append(Mesh())
+    return out
+
+
+def _slabs_of_prism(p: np.ndarray, uv, axis: int, cuts: np.ndarray, face_data):
+    """All slabs of a convex face at once, when its corners lie on the two planes that bound
+    it along the axis (a facade, a floor, a tile in its scope frame) and every inner cut falls
+    strictly between them.  Each slab's corners are then a fixed pattern — the face's corners
+    on a bounding plane, or points of its edges at the slab's cuts — in the order
+    :func:`_clip_py` gives them; the pattern is found once by clipping marks, and the points
+    of every slab computed together.  ``None`` for any other face or cuts."""
+    coord = p[:, axis]
+    lo, hi = float(coord.min()), float(coord.max())
+    at_lo = coord <= lo + EPS
+    n = len(cuts) - 1
+    if n < 2 or not (at_lo | (coord >= hi - EPS)).all() or hi - lo <= 4 * EPS \
+            or cuts[0] > lo + EPS or cuts[-1] < hi - EPS or cuts[1] <= lo + EPS \
+            or cuts[-2] >= hi - EPS or (np.diff(cuts[1:-1]) <= EPS).any():
+        return None
+    # a mark: (lo corner, hi corner, cut) is the point of that edge at a cut (1, 2, 3: three
+    # cuts in a row), (corner, corner, 0) one of the face's own corners
+    marks = [(j, j, 0) for j in range(len(p))]
+
+    def below(m, cut: int) -> bool:
+        return bool(at_lo[m[0]]) if m[2] == 0 else m[2] < cut
+
+    def clip(poly, keep_below: bool, cut: int):  # _clip_py on marks
+        out = []
+        for j, m in enumerate(poly):
+            mn = poly[(j + 1) % len(poly)]
+            if below(m, cut) == keep_below:
+                out.append(m)
+            if below(m, cut) != below(mn, cut):  # the segment lies on one edge lo → hi
+                a, b = (m[0], m[1]) if m[2] else (mn[0], mn[1]) if mn[2] else (m[0], mn[0])
+                out.append((a, b, cut) if at_lo[a] else (b, a, cut))
+        return out
+    first, rest = clip(marks, True, 1), clip(marks, False, 1)
+    middle, rest = clip(rest, True, 2), clip(rest, False, 2)
+    later, rest = clip(rest, True, 3), clip(rest, False, 3)
+    # the slabs between cuts repeat one pattern (checked on two of them), the last is the rest
+    if min(len(first), len(middle), len(rest)) < 3 or len(middle) != len(later) or any(
+            (a, b, c - 1) != (d, e, f - 2) for (a, b, c), (d, e, f) in zip(middle, later)):
+        return None
+    lower = np.asarray(cuts[:-1], float)
+    upper = np.asarray(cuts[1:], float)
+
+    def slabs(pattern, base: int, rows: slice):
+        """Corners (and UVs) of the slabs ``rows`` of one pattern: cut ``base`` is a slab's
+        lower cut, ``base + 1`` its upper."""
+        ea = np.array([a for a, _, _ in pattern])
+        eb = np.array([b for _, b, _ in pattern])
+        cut = np.array([c for _, _, c in pattern])
+        own = cut == 0
+        value = np.where(cut == base, lower[rows, None], upper[rows, None])  # (m, k)
+        pa, pb = p[ea], p[eb]
+        span = np.where(own, 1.0, pb[:, axis] - pa[:, axis])
+        t = np.where(own, 0.0, (value - pa[:, axis]) / span)
+        v = pa + t[..., None] * (pb - pa)
+        v[..., axis] = np.where(own, pa[:, axis], value)
+        w = None if uv is None else uv[ea] + t[..., None] * (uv[eb] - uv[ea])
+        return v, w
+    parts = [slabs(first, 0, slice(0, 1))]
+    if n > 2:
+        parts.append(slabs(middle, 1, slice(1, n - 1)))
+    parts.append(slabs(rest, 3, slice(n - 1, n)))
+    out: list[Mesh] = []
+    for v, w in parts:
+        for i in range(len(v)):
+            m = v.shape[1]
+            out.append(Mesh(v[i], corners=np.arange(m), starts=np.array([0, m]),
+                            corner_uvs=None if w is None else w[i], closed=False,
+                            face_data=face_data))
     return out
 
 

@@ -568,8 +568,9 @@ class Derivation:
             rec = self._instances[key] = self._record(uv_map, node, state, name, args, module,
                                                       depth, slotted=False)
         payoff.note(not fresh, rec.shapes)
-        self._replay(node, [(rec, scope0.rotation, scope0.origin, uv_map, (), ())],
-                     count=not fresh)
+        self._replay_one(rec, scope0.rotation, scope0.origin, uv_map, node)
+        if not fresh:
+            self._count(node, rec.shapes)
 
     def _record(self, uv_map, node, state, name, args, module, depth, slotted) -> Recording:
         """Derive a subtree now, depth first, and keep what it made relative to its scope.
@@ -628,11 +629,11 @@ class Derivation:
         for choices, rec in variants:
             if _choices_hold(state.seed, choices, memo):
                 plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map,
-                                     choices)
+                                     choices, key)
                 if plan is None:  # a slot's streams make a choice no recording has yet:
                     return False  # derived, the slot's subtree records it (no try counted)
-                payoff.note(True, sum(r.shapes for r, *_ in plan))
-                self._place(key, plan, node, state, scope0, uv_map, payoff, count=True)
+                payoff.note(True, sum(e.rec.shapes for e in plan))
+                self._place(plan, node, state, payoff, count=True)
                 return True
         if len(variants) >= CHANCE_VARIANTS:
             payoff.note(False, 0)
@@ -654,27 +655,30 @@ class Derivation:
             variants.append((choices, rec))
         payoff.note(False, rec.shapes)
         # its slots were filled just now, by recordings kept under their keys
-        plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map, choices)
-        self._place(key if stored else None, plan, node, state, scope0, uv_map, payoff,
-                    count=False)
+        plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map, choices,
+                             key if stored else None)
+        self._place(plan, node, state, payoff, count=False)
         return True
 
-    def _resolve(self, rec, seed: int, rot, org, uv_map, choices):
+    def _resolve(self, rec, seed: int, rot, org, uv_map, choices, key=None):
         """The recordings a replay of ``rec`` at this frame and random stream puts down: ``rec``
         and, for every slot, the recording of the slot's key whose choices the slot's own
-        stream repeats, at the slot's frame, down the slots of slots.  ``(recording, rotation,
-        origin, UV maps, choices, successor indices from the root)`` each; ``None`` when a
-        slot's stream makes a choice that no recording of its key has."""
-        picked = [(rec, seed, choices, (), None)]  # first which recordings, then where
+        stream repeats, at the slot's frame, down the slots of slots (:class:`_Placed`, each
+        after the one whose slot it fills); ``None`` when a slot's stream makes a choice that
+        no recording of its key has."""
+        plan = [_Placed(rec, seed, choices, (), -1, key)]  # first which recordings, then where
         k = 0
-        while k < len(picked):
-            r, s0, _, path, _ = picked[k]
-            k += 1
-            for j, (spath, key, *_) in enumerate(r.slots):
-                s = s0
-                for i in spath:
-                    s = child_seed(s, i)
-                variants = self._chance_instances.get(key)
+        while k < len(plan):
+            r, s0, path = plan[k].rec, plan[k].seed, plan[k].path
+            seeds = {(): s0}  # slots' paths share their beginnings: each stream found once
+            for j, (spath, skey, *_) in enumerate(r.slots):
+                n = len(spath)
+                while spath[:n] not in seeds:
+                    n -= 1
+                s = seeds[spath[:n]]
+                for m in range(n, len(spath)):
+                    s = seeds[spath[:m + 1]] = child_seed(s, spath[m])
+                variants = self._chance_instances.get(skey)
                 memo: dict = {}
                 got = next(((c, v) for c, v in variants if _choices_hold(s, c, memo)),
                            None) if variants else None
@@ -686,58 +690,67 @@ class Derivation:
                         s = child_seed(s, i)
                         self._unfilled.add(s)
                     return None
-                picked.append((got[1], s, got[0], (*path, *spath), (k - 1, j)))
-        out = []
-        for r, _, ch, path, parent in picked:
-            if parent is None:
-                out.append((r, rot, org, uv_map, ch, path))
+                plan.append(_Placed(got[1], s, got[0], (*path, *spath), k, skey, j))
+            k += 1
+        for e in plan:
+            if e.parent < 0:
+                e.rot, e.org, e.maps = rot, org, uv_map
                 continue
-            pr, prot, porg, pmaps, *_ = out[parent[0]]
-            _, _, a, b, follows = pr.slots[parent[1]]
+            up = plan[e.parent]
+            _, _, a, b, follows = up.rec.slots[e.slot]
             maps = []
             for j in follows:
-                if j is not None and pmaps[j] is None:
+                if j is not None and up.maps[j] is None:
                     return None
-                maps.append(None if j is None else moved_uv_map(pmaps[j], a, b))
-            out.append((r, prot @ a.T, b @ prot.T + porg, tuple(maps), ch, path))
-        return out
+                maps.append(None if j is None else moved_uv_map(up.maps[j], a, b))
+            e.rot, e.org, e.maps = up.rot @ a.T, b @ up.rot.T + up.org, tuple(maps)
+        return plan
 
-    def _place(self, key, plan, node, state: ShapeState, scope, uv_map, payoff,
-               count: bool) -> None:
-        """Put a resolved replay down: as a slot of the recording by chance this shape is part
-        of, when there is one and ``key`` can fill it again; else its parts (and its choices,
-        into the recording, if any, that now holds them).  ``scope``: the shape's before it
-        was derived."""
-        slot = self._slot(key, state, scope, uv_map) if key is not None else None
-        if slot is not None:
-            self._slots.append(slot)
-            payoff.slotted = True
-            total = sum(r.shapes for r, *_ in plan)
-            self._slot_shapes += total
-            if count:
-                self._count(node, total)
-            return
-        for _, _, _, _, choices, path in plan:
-            self._note_choices(state, choices, path)
-        self._replay(node, plan, count)
+    def _place(self, plan, node, state: ShapeState, payoff, count: bool) -> None:
+        """Put a resolved replay down.  Within a recording by chance, a recording of the plan
+        that makes choices (and can be filled again: it has a key) becomes a slot of it, with
+        what fills its own slots; the others' parts become its parts (their choices, if any,
+        its choices).  ``state``: the shape's, whose path leads from the recording's root."""
+        slotted = self._slots is not None and state.path is not None
+        if slotted:  # the streams below follow the root's along its path (:meth:`_slot`)
+            s = self._slot_root[3]
+            for i in state.path:
+                s = child_seed(s, i)
+            slotted = s == plan[0].seed
+        covered = [False] * len(plan)
+        total = slot_shapes = 0
+        for k, e in enumerate(plan):
+            total += e.rec.shapes
+            if e.parent >= 0 and covered[e.parent]:
+                covered[k] = True
+                slot_shapes += e.rec.shapes
+                continue
+            if slotted and e.choices and e.key is not None:
+                slot = self._slot(e, state.path)
+                if slot is not None:
+                    self._slots.append(slot)
+                    payoff.slotted = True
+                    covered[k] = True
+                    slot_shapes += e.rec.shapes
+                    continue
+            self._note_choices(state, e.choices, e.path)
+            self._replay_one(e.rec, e.rot, e.org, e.maps, node)
+        self._slot_shapes += slot_shapes
+        if count:
+            self._count(node, total)
 
-    def _slot(self, key, state: ShapeState, sc, uv_map):
-        """The slot a subtree instanced by chance becomes in the recording by chance under way:
-        where it lies in the root's frame, its random stream's path from the root's, and which
-        of the root's UV maps each of its own follows.  ``None`` where none is recorded, or
-        where the subtree's stream or UV maps do not follow from the root's."""
-        if self._slots is None or state.path is None:
-            return None
-        rot0, org0, maps0, seed0 = self._slot_root
-        s = seed0
-        for i in state.path:
-            s = child_seed(s, i)
-        if s != state.seed:
-            return None
-        a = sc.rotation.T @ rot0
-        b = (sc.origin - org0) @ rot0
+    def _slot(self, e: _Placed, prefix: tuple):
+        """The slot a placed recording becomes in the recording by chance under way: where it
+        lies in the root's frame, its random stream's path from the root's (``prefix``, the
+        placed replay's own path, then the recording's within it: :meth:`_place` has checked
+        that the replay's stream follows the root's), and which of the root's UV maps each of
+        its own follows.  ``None`` where its UV maps do not follow from the root's."""
+        rot0, org0, maps0, _ = self._slot_root
+        path = (*prefix, *e.path)
+        a = e.rot.T @ rot0
+        b = (e.org - org0) @ rot0
         follows = []
-        for i, m in enumerate(uv_map):
+        for i, m in enumerate(e.maps):
             if m is None:
                 follows.append(None)
                 continue
@@ -747,7 +760,7 @@ class Derivation:
             if j is None:
                 return None
             follows.append(j)
-        return (state.path, key, a, b, tuple(follows))
+        return (path, e.key, a, b, tuple(follows))
 
     def _note_choices(self, state: ShapeState, choices, below=()) -> None:
         """Within a subtree being recorded by chance, the choices of a nested one count too,
@@ -758,12 +771,6 @@ class Derivation:
             self._chance_log.extend(
                 (None if prefix is None or path is None else (*prefix, *below, *path), *rest)
                 for path, *rest in choices)
-
-    def _replay(self, node, plan, count: bool) -> None:
-        for rec, rot, org, uv_map, *_ in plan:
-            self._replay_one(rec, rot, org, uv_map, node)
-        if count:
-            self._count(node, sum(r.shapes for r, *_ in plan))
 
     def _count(self, node, shapes: int) -> None:
         self.shape_count += shapes
@@ -902,6 +909,21 @@ class Derivation:
 CHANCE_VARIANTS = 16
 #: Tries after which instancing by chance is judged for a rule (see ``instancing.Payoff``).
 CHANCE_TRIES = 64
+
+
+class _Placed:
+    """One recording of a replay by chance (``Derivation._resolve``): the recording, the seed
+    of the shape it stands for, the outcomes its choices had, its successor indices from the
+    replay's root, the index of the one whose slot it fills (``-1``: the root) and which slot,
+    its key (``None``: kept under none), and where it goes (rotation, origin, UV maps)."""
+
+    __slots__ = ("rec", "seed", "choices", "path", "parent", "key", "slot", "rot", "org",
+                 "maps")
+
+    def __init__(self, rec, seed, choices, path, parent, key, slot=-1):
+        self.rec, self.seed, self.choices, self.path = rec, seed, choices, path
+        self.parent, self.key, self.slot = parent, key, slot
+        self.rot = self.org = self.maps = None
 
 
 def _usable(info, state: ShapeState, chance: bool) -> bool:
