@@ -12,6 +12,7 @@ import gc
 import math
 import sys
 import threading
+import zlib
 from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -309,6 +310,7 @@ class Derivation:
         self.name = name
         self.overrides = dict(attrs or {})
         self.seed = int(seed)
+        self.root_seed = self.seed * 0x9E3779B1 + 0x7F4A7C15  # the initial shape's stream
         self.strict = strict
         self.assets = assets
         self.limits = limits or Limits()
@@ -427,7 +429,7 @@ class Derivation:
             value = _coerce_override(self.overrides[qualified], adef)
         elif not adef.const and adef.name in module.import_overrides:
             importer, expr = module.import_overrides[adef.name]
-            value = Env(self, importer, {}, self.initial.copy()).evaluate(expr)
+            value = Env(self, importer, {}, self._attr_state(qualified)).evaluate(expr)
         elif not adef.const and (source := module.propagated_from(adef.name)) is not None:
             # the importer's value, which a set() on this shape may have changed: not cached
             return self.attr_value(*source, state)
@@ -436,11 +438,19 @@ class Derivation:
                 raise CGARuntimeError(f"attribute '{adef.name}' depends on itself")
             self._attr_busy.add(key)
             try:
-                value = Env(self, module, {}, self.initial.copy()).evaluate(adef.value)
+                value = Env(self, module, {}, self._attr_state(qualified)).evaluate(adef.value)
             finally:
                 self._attr_busy.discard(key)
         self._attr_cache[key] = value
         return value
+
+    def _attr_state(self, qualified: str) -> ShapeState:
+        """The initial shape as an attribute's value sees it, with a random stream of its own
+        that follows from the derivation's seed (``attr h = rand(20, 60)``: another height for
+        another seed, and another than ``attr w = rand(20, 60)``'s)."""
+        state = self.initial.copy()
+        state.seed = child_seed(self.root_seed, zlib.crc32(qualified.encode()))
+        return state
 
     # -- warnings ----------------------------------------------------------------------------
     def warn(self, message: str, node=None, rule: str | None = None) -> None:
@@ -485,7 +495,7 @@ class Derivation:
         self.budget.start()
         root = Shape(self.start_rule, self.initial.scope, operator="initial", id=self.new_id())
         state = self.initial.copy()
-        state.seed = self.seed * 0x9E3779B1 + 0x7F4A7C15
+        state.seed = self.root_seed
         state.label = ""
         queue: deque = deque([(root, state, self.start_rule, (), self.ruleset.main, 0)])
         while queue:
