@@ -405,14 +405,17 @@ class Derivation:
         known = {k: v for k, v in state.attrs.items() if k[1] not in sets}
         context = tuple(sorted((k, _hashable(v)) for k, v in known.items()))
         memo = self._special.setdefault(id(purity), {})
-        at = self.initial.copy()
-        at.attrs = known
+        at: list = []  # the shape the values are read on, made when first needed (a memo hit
+        # needs none)
 
         def constant(module: Module, expr, bound: dict):
             if constant_attributes(module, expr, sets, set(bound), bound) is None:
                 return UNKNOWN
+            if not at:
+                at.append(self.initial.copy())
+                at[0].attrs = known
             try:
-                return Env(self, module, dict(bound), at).evaluate(expr)
+                return Env(self, module, dict(bound), at[0]).evaluate(expr)
             except (CGARuntimeError, DerivationError, ArithmeticError, TypeError, ValueError):
                 return UNKNOWN
         return purity.specialised(mod, rdef, args, constant, memo, context)
