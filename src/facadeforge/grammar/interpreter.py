@@ -353,6 +353,10 @@ class Derivation:
         self._chance_closed: set = set()  # keys derived directly from now on
         # seeds of shapes on the way to a slot that could not be filled (:meth:`_resolve`)
         self._unfilled: set = set()
+        # per key instanced by chance, the state its first recording was derived from: a slot
+        # whose stream makes a choice no recording has yet is derived again from it, with the
+        # slot's seed, in its own frame (:meth:`_fill`)
+        self._prototypes: dict = {}
         # the recording by chance under way: its slots, its root's frame, UV maps and seed,
         # and the shapes of its slots (:meth:`_slot`)
         self._slots: list | None = None
@@ -651,6 +655,19 @@ class Derivation:
         if len(variants) >= CHANCE_VARIANTS:
             payoff.note(False, 0)
             return False
+        if key not in self._prototypes:
+            self._prototypes[key] = (state.copy(), uv_map, name, args, module, depth, payoff)
+        choices, rec, stored = self._record_by_chance(key, uv_map, node, state, name, args,
+                                                      module, depth, payoff)
+        # its slots were filled just now, by recordings kept under their keys
+        plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map, choices,
+                             key if stored else None)
+        self._place(plan, node, state, payoff, count=False)
+        return True
+
+    def _record_by_chance(self, key, uv_map, node, state, name, args, module, depth, payoff):
+        """Record a subtree by chance with the choices it makes (paths from its root), kept
+        among the key's variants when every choice has a path; ``(choices, rec, stored)``."""
         outer_log, outer_path = self._chance_log, state.path
         self._chance_log, state.path = [], ()
         try:
@@ -665,13 +682,31 @@ class Derivation:
             self._chance_closed.add(key)
         stored = all(path is not None for path, *_ in choices)
         if stored:
-            variants.append((choices, rec))
+            self._chance_instances[key].append((choices, rec))
         payoff.note(False, rec.shapes)
-        # its slots were filled just now, by recordings kept under their keys
-        plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map, choices,
-                             key if stored else None)
-        self._place(plan, node, state, payoff, count=False)
-        return True
+        return choices, rec, stored
+
+    def _fill(self, key, seed: int):
+        """A recording for a slot of ``key`` whose stream (``seed``) makes a choice that no
+        recording of the key has: the key's first shape derived again with that seed, in its
+        own frame (shapes of one key make the same subtree relative to their frames, but for
+        their choices), kept as a new variant.  ``(choices, rec)``, or ``None`` where the key
+        keeps no more variants.  The shapes it derives are left to the replay to count."""
+        proto = self._prototypes.get(key)
+        variants = self._chance_instances.get(key)
+        if proto is None or key in self._chance_closed or len(variants) >= CHANCE_VARIANTS:
+            return None
+        st0, uv_map, name, args, module, depth, payoff = proto
+        state = st0.copy()
+        state.seed = seed
+        node = Shape(name, state.scope, id=self.new_id())
+        count0, path0 = self.shape_count, self.current_path
+        try:
+            choices, rec, stored = self._record_by_chance(key, uv_map, node, state, name, args,
+                                                          module, depth, payoff)
+        finally:
+            self.shape_count, self.current_path = count0, path0
+        return (choices, rec) if stored else None
 
     def _resolve(self, rec, seed: int, rot, org, uv_map, choices, key=None):
         """The recordings a replay of ``rec`` at this frame and random stream puts down: ``rec``
@@ -695,6 +730,8 @@ class Derivation:
                 memo: dict = {}
                 got = next(((c, v) for c, v in variants if _choices_hold(s, c, memo)),
                            None) if variants else None
+                if got is None:
+                    got = self._fill(skey, s)
                 if got is None:
                     # the shapes between the root and this slot would find the same gap: they
                     # are derived without trying (:meth:`_by_chance`)
