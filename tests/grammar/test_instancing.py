@@ -160,12 +160,13 @@ def test_stochastic_tiles_are_replayed_by_the_outcome_of_their_choice(monkeypatc
     import facadeforge.grammar.interpreter as interp
 
     outcomes = []
-    real = interp._choices_hold
+    real = interp.Derivation._variant
 
-    def counting(seed, choices, memo=None):
-        outcomes.append(real(seed, choices, memo))
-        return outcomes[-1]
-    monkeypatch.setattr(interp, "_choices_hold", counting)
+    def counting(self, key, seed):
+        got = real(self, key, seed)
+        outcomes.append(got is not None)
+        return got
+    monkeypatch.setattr(interp.Derivation, "_variant", counting)
     rules = load_rules(ROOT / "benchmarks" / "grammars" / "detailed_varied.cga",
                        assets=ROOT / "examples" / "assets")
     chance = Purity(rules.ruleset, chance=True)

@@ -316,6 +316,36 @@ def _clip_halfspace(p, uv, axis, value, keep_below):
     return q, (np.array(out_uv) if uv is not None else None)
 
 
+def clip_convex_faces(p, uv, starts, axis: int, value: float, keep_below: bool):
+    """:func:`_clip_halfspace` of many convex polygons at once: ``p`` (C, 3) their corners one
+    polygon after the other, ``uv`` (C, 2) or ``None``, ``starts`` (F + 1,) where each begins.
+    Each corner puts down itself if kept, then the point where its edge to the next corner
+    crosses the plane, as the loop does.  Returns the points, their UVs, the offsets of the
+    polygons left (at least three points) and which input polygon each is."""
+    d = p[:, axis] - value
+    if not keep_below:
+        d = -d
+    nxt = np.arange(1, len(p) + 1)
+    nxt[starts[1:] - 1] = starts[:-1]
+    db = d[nxt]
+    keep = d <= EPS
+    cross = ((d < -EPS) & (db > EPS)) | ((d > EPS) & (db < -EPS))
+    t = np.where(cross, d / np.where(cross, d - db, 1.0), 0.0)[:, None]
+    emit = np.column_stack([keep, cross]).ravel()
+    q = np.stack([p, p + t * (p[nxt] - p)], axis=1).reshape(-1, 3)[emit]
+    quv = None if uv is None else np.stack([uv, uv + t * (uv[nxt] - uv)],
+                                           axis=1).reshape(-1, 2)[emit]
+    counts = np.add.reduceat(keep.astype(np.int64) + cross, starts[:-1])
+    ok = counts >= 3
+    if not ok.all():
+        rows = np.repeat(ok, counts)
+        q = q[rows]
+        quv = None if quv is None else quv[rows]
+        counts = counts[ok]
+    q[:, axis] = np.where(np.abs(q[:, axis] - value) <= EPS, value, q[:, axis])
+    return q, quv, np.concatenate([[0], np.cumsum(counts)]), np.flatnonzero(ok)
+
+
 def _clip_slab(p, uv, axis, lo, hi, normal, convex):
     """Pieces of polygon ``p`` inside ``lo <= coord <= hi`` as a list of (poly, uv)."""
     if convex:

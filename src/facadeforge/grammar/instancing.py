@@ -847,6 +847,26 @@ class Recording:
     # slot, which of the root's it follows
     slots: tuple = ()
     _uv_corners: dict = field(default_factory=dict)
+    _seeds: tuple | None = None
+
+    def seed_program(self) -> tuple:
+        """How a replay finds its slots' random streams: steps ``(from, index)``, each the
+        stream of successor ``index`` of an earlier one (0: the root's, ``k``: step ``k``'s),
+        and per slot the stream it takes.  Slots' paths share their beginnings (the windows of
+        one tile): each stream is made once."""
+        if self._seeds is None:
+            nodes: dict = {(): 0}
+            steps, of_slot = [], []
+            for spath, *_ in self.slots:
+                n = len(spath)
+                while spath[:n] not in nodes:
+                    n -= 1
+                for m in range(n, len(spath)):
+                    steps.append((nodes[spath[:m]], spath[m]))
+                    nodes[spath[:m + 1]] = len(steps)
+                of_slot.append(nodes[spath])
+            self._seeds = (tuple(steps), tuple(of_slot))
+        return self._seeds
 
     def uv_corners(self, j: int):
         """Part ``j``'s corners as ``[x, y, z, 1]`` rows, and per UV map the corners whose UVs

@@ -350,6 +350,9 @@ class Derivation:
         self._chance = None
         self._chance_log: list | None = None  # the choices of the subtree being recorded
         self._chance_instances: dict = {}  # key -> [(choices, Recording)]
+        # key -> (what its variants' choices draw, {their outcomes: variant}) while all of
+        # them draw alike (the usual case: one texture choice), None once they do not
+        self._chance_index: dict = {}
         self._chance_closed: set = set()  # keys derived directly from now on
         # seeds of shapes on the way to a slot that could not be filled (:meth:`_resolve`)
         self._unfilled: set = set()
@@ -642,16 +645,16 @@ class Derivation:
             payoff.note(False, 0)
             return False
         scope0 = state.scope
-        memo: dict = {}
-        for choices, rec in variants:
-            if _choices_hold(state.seed, choices, memo):
-                plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map,
-                                     choices, key)
-                if plan is None:  # a slot's streams make a choice no recording has yet:
-                    return False  # derived, the slot's subtree records it (no try counted)
-                payoff.note(True, sum(e.rec.shapes for e in plan))
-                self._place(plan, node, state, payoff, count=True)
-                return True
+        got = self._variant(key, state.seed) if variants else None
+        if got is not None:
+            choices, rec = got
+            plan = self._resolve(rec, state.seed, scope0.rotation, scope0.origin, uv_map,
+                                 choices, key)
+            if plan is None:  # a slot's streams make a choice no recording can be made for:
+                return False  # derived, the slot's subtree records it (no try counted)
+            payoff.note(True, sum(e.rec.shapes for e in plan))
+            self._place(plan, node, state, payoff, count=True)
+            return True
         if len(variants) >= CHANCE_VARIANTS:
             payoff.note(False, 0)
             return False
@@ -683,8 +686,35 @@ class Derivation:
         stored = all(path is not None for path, *_ in choices)
         if stored:
             self._chance_instances[key].append((choices, rec))
+            drawn, outcomes = tuple(c[:4] for c in choices), tuple(c[4] for c in choices)
+            index = self._chance_index.get(key, ())
+            if index == ():
+                self._chance_index[key] = (drawn, {outcomes: (choices, rec)})
+            elif index is not None:
+                if index[0] == drawn:
+                    index[1].setdefault(outcomes, (choices, rec))
+                else:
+                    self._chance_index[key] = None
         payoff.note(False, rec.shapes)
         return choices, rec, stored
+
+    def _variant(self, key, seed: int):
+        """The first recording of ``key`` whose choices the streams below ``seed`` repeat,
+        as ``(choices, rec)``, or ``None``: by the outcomes of the choices when every variant
+        of the key draws alike, else variant by variant."""
+        index = self._chance_index.get(key)
+        if index:
+            drawn, table = index
+            outcomes = []
+            for path, draw, kind, params in drawn:
+                s = seed
+                for i in path:
+                    s = child_seed(s, i)
+                outcomes.append(outcome(kind, random_value(s, draw), params))
+            return table.get(tuple(outcomes))
+        memo: dict = {}
+        return next(((c, v) for c, v in self._chance_instances.get(key, ())
+                     if _choices_hold(seed, c, memo)), None)
 
     def _fill(self, key, seed: int):
         """A recording for a slot of ``key`` whose stream (``seed``) makes a choice that no
@@ -717,19 +747,17 @@ class Derivation:
         plan = [_Placed(rec, seed, choices, (), -1, key)]  # first which recordings, then where
         k = 0
         while k < len(plan):
-            r, s0, path = plan[k].rec, plan[k].seed, plan[k].path
-            seeds = {(): s0}  # slots' paths share their beginnings: each stream found once
+            r, path = plan[k].rec, plan[k].path
+            if not r.slots:
+                k += 1
+                continue
+            steps, of_slot = r.seed_program()
+            seeds = [plan[k].seed]
+            for src, i in steps:
+                seeds.append(child_seed(seeds[src], i))
             for j, (spath, skey, *_) in enumerate(r.slots):
-                n = len(spath)
-                while spath[:n] not in seeds:
-                    n -= 1
-                s = seeds[spath[:n]]
-                for m in range(n, len(spath)):
-                    s = seeds[spath[:m + 1]] = child_seed(s, spath[m])
-                variants = self._chance_instances.get(skey)
-                memo: dict = {}
-                got = next(((c, v) for c, v in variants if _choices_hold(s, c, memo)),
-                           None) if variants else None
+                s = seeds[of_slot[j]]
+                got = self._variant(skey, s) if skey in self._chance_instances else None
                 if got is None:
                     got = self._fill(skey, s)
                 if got is None:

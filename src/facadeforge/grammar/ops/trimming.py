@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...geometry.cut import _clip_slab, _convex_faces
-from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, weld_ids
+from ...geometry.cut import _clip_slab, _convex_faces, clip_convex_faces
+from ...geometry.mesh import EPS, Mesh, cross3, plane_basis, ranges_index, weld_ids
 from ..values import CGARuntimeError, to_bool, type_name
 from . import operation, shape_function
 
@@ -193,6 +193,16 @@ def _cut(mesh: Mesh, origin: np.ndarray, normal: np.ndarray) -> tuple[Mesh, np.n
     local = (mesh.vertices - origin) @ frame
     normals = mesh.face_normals()
     convex = _convex_faces(mesh, normals)
+    if convex[crossing].all():  # the usual case: every cut face clipped at once
+        sizes = mesh.starts[crossing + 1] - mesh.starts[crossing]
+        idx = ranges_index(mesh.starts[crossing], sizes)
+        q, quv, starts, left = clip_convex_faces(
+            local[mesh.corners[idx]], None if mesh.corner_uvs is None else mesh.corner_uvs[idx],
+            np.concatenate([[0], np.cumsum(sizes)]), 2, 0.0, False)
+        src = crossing[left]
+        cut = Mesh(q @ frame.T + origin, corners=np.arange(len(q)), starts=starts,
+                   corner_uvs=quv).inherit(mesh, src) if len(src) else Mesh()
+        return Mesh.merge([mesh.subset(kept), cut]), np.concatenate([kept, src]).astype(np.int64)
     big = float(d.max()) + 1.0
     polys, uvs, src = [], [], []
     for f in crossing:
