@@ -18,6 +18,8 @@ operation that builds new faces says which old face each came from (:meth:`Mesh.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Iterable, Sequence
 
 import numpy as np
@@ -641,12 +643,18 @@ def plane_basis(normal: np.ndarray, first_edge: np.ndarray | None = None) -> np.
     n = np.asarray(normal, float)
     if first_edge is not None and np.linalg.norm(first_edge - n * (first_edge @ n)) > EPS:
         u = first_edge - n * (first_edge @ n)
-    else:
-        helper = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
-        u = np.cross(helper, n)
-    u = u / np.linalg.norm(u)
-    v = np.cross(n, u)
-    return np.column_stack([u, v, n])
+        u = u / np.linalg.norm(u)
+        v = np.cross(n, u)
+        return np.column_stack([u, v, n])
+    # helper × n for the helper axis (x, or y when n is near x), on plain floats: numpy's
+    # per-call cost dominates on three numbers, and the trim of every inserted asset asks
+    nx, ny, nz = n.tolist()
+    ux, uy, uz = (0.0, -nz, ny) if abs(nx) < 0.9 else (nz, 0.0, -nx)
+    r = math.sqrt(ux * ux + uy * uy + uz * uz)
+    ux, uy, uz = ux / r, uy / r, uz / r
+    return np.array([[ux, ny * uz - nz * uy, nx],
+                     [uy, nz * ux - nx * uz, ny],
+                     [uz, nx * uy - ny * ux, nz]])
 
 
 #: Polygons with more corners than this are triangulated by GEOS (:func:`_triangulate_large`):

@@ -9,10 +9,18 @@ streams, so both always agree.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+def _whole(f):
+    """``f`` (math.floor, math.ceil, round: halves to even, as numpy's rint) on a float, as a
+    float; infinities and NaN as they are (numpy's rounding keeps them)."""
+    return lambda x: float(f(x)) if math.isfinite(x) else x
+
+
 #: ``floor(rand(lo, hi))`` and its kin: a draw rounded to a whole number is a discrete choice
-ROUNDINGS = {"floor": np.floor, "ceil": np.ceil, "rint": np.rint}
+ROUNDINGS = {"floor": _whole(math.floor), "ceil": _whole(math.ceil), "rint": _whole(round)}
 
 
 def rand_value(r: float, params) -> float:
