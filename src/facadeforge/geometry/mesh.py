@@ -19,7 +19,6 @@ operation that builds new faces says which old face each came from (:meth:`Mesh.
 from __future__ import annotations
 
 import math
-
 from collections.abc import Iterable, Sequence
 
 import numpy as np

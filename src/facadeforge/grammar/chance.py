@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+
 def _whole(f):
     """``f`` (math.floor, math.ceil, round: halves to even, as numpy's rint) on a float, as a
     float; infinities and NaN as they are (numpy's rounding keeps them)."""
