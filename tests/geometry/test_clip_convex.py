@@ -51,3 +51,23 @@ def test_clip_convex_faces_without_uvs():
     starts = np.concatenate([[0], np.cumsum([len(q) for q in polys])])
     q, quv, out_starts, left = clip_convex_faces(p, None, starts, 1, 0.0, False)
     assert quv is None and len(out_starts) == len(left) + 1
+
+
+def test_plane_basis_is_right_handed_and_orthonormal():
+    """``plane_basis`` on plain floats: columns u, v in the plane and the normal itself, a
+    right-handed orthonormal frame, u along helper × n (x, or y near x) as numpy's version."""
+    from facadeforge.geometry.mesh import plane_basis
+
+    rng = np.random.default_rng(2)
+    normals = [np.array(v, float) for v in ((1, 0, 0), (0, 0, -1), (0, 1, 0), (0.95, 0.1, 0.3))]
+    normals += list(rng.normal(size=(200, 3)))
+    for n in normals:
+        n = n / np.linalg.norm(n)
+        b = plane_basis(n)
+        np.testing.assert_allclose(b.T @ b, np.eye(3), atol=1e-12)
+        assert np.linalg.det(b) > 0.999999
+        np.testing.assert_array_equal(b[:, 2], n)
+        helper = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
+        u = np.cross(helper, n)
+        np.testing.assert_allclose(b[:, 0], u / np.linalg.norm(u), atol=1e-14)
+    assert np.isnan(plane_basis(np.zeros(3))[:, :2]).all()

@@ -650,6 +650,8 @@ def plane_basis(normal: np.ndarray, first_edge: np.ndarray | None = None) -> np.
     nx, ny, nz = n.tolist()
     ux, uy, uz = (0.0, -nz, ny) if abs(nx) < 0.9 else (nz, 0.0, -nx)
     r = math.sqrt(ux * ux + uy * uy + uz * uz)
+    if not r:  # a zero normal: NaN axes, as numpy's division gives them
+        return np.column_stack([np.full(3, np.nan), np.full(3, np.nan), n])
     ux, uy, uz = ux / r, uy / r, uz / r
     return np.array([[ux, ny * uz - nz * uy, nx],
                      [uy, nz * ux - nx * uz, ny],
