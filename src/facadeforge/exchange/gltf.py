@@ -269,8 +269,10 @@ class _GlbBuilder:
         pad = -self.size % 4
         if pad:
             self._append(b"\0" * pad)
-        j["buffers"] = [{"byteLength": self.size}] if self.size else []
-        if not self.size:
+        if self.size:
+            j["buffers"] = [{"byteLength": self.size}]
+        else:  # glTF allows no empty arrays (an empty model: a rule that deletes everything)
+            j.pop("buffers", None)
             j.pop("bufferViews", None)
         text = json.dumps(j, separators=(",", ":")).encode("utf-8")
         text += b" " * (-len(text) % 4)
