@@ -333,3 +333,36 @@ def test_sigkill_midway_then_rerun_gives_every_building_once(inputs, tmp_path):
     assert len(list(csv.DictReader((out / "buildings.csv").open()))) == 200
     assert tileset_problems(out / "tiles" / "tileset.json") == []
     assert not list((out / ".work").iterdir())
+
+
+def test_a_changed_import_or_asset_is_other_rules(scheduler, tmp_path, capsys):
+    """The rules hash covers imported rule files and the asset folder, not only the main
+    file: a rerun after either changed is refused as other rules (its chunks would mix old and
+    new buildings).  An OUTDIR inside the rules' folder does not count as an asset."""
+    d = tmp_path / "project"
+    d.mkdir()
+    (d / "lib.cga").write_text('Tile --> color("#b0a090") Tile.\n')
+    main_rules = d / "main.cga"
+    main_rules.write_text(RULES.replace("Tile --> color(\"#b0a090\") Tile.\n", "")
+                          .replace('version "2019.0"\n', 'version "2019.0"\nimport lib : "lib.cga"\n')
+                          .replace(": Tile }*", ": lib.Tile }*"))
+    assets = tmp_path / "assets"
+    assets.mkdir()
+    (assets / "tex.png").write_bytes(b"not read by these rules")
+    fps = city(tmp_path / "city.geojson", 6)
+    out = d / "out"
+    argv = (main_rules, [fps], out, scheduler, "--assets", str(assets))
+    assert run(*argv) == 0
+    capsys.readouterr()
+    assert run(*argv) == 0  # the same inputs (its own outputs inside the folder): resumed
+    assert "(0 derived, 2 kept from an earlier run)" in capsys.readouterr().out  # chunks
+    (d / "lib.cga").write_text('Tile --> color("#102030") Tile.\n')
+    assert run(*argv) == 2
+    assert "other rules" in capsys.readouterr().err
+    (d / "lib.cga").write_text('Tile --> color("#b0a090") Tile.\n')
+    os.utime(d / "lib.cga")
+    assert run(*argv) == 0  # the import as it was: the same rules again
+    capsys.readouterr()
+    (assets / "tex.png").write_bytes(b"another texture, another size")
+    assert run(*argv) == 2
+    assert "other rules" in capsys.readouterr().err

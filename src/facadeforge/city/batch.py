@@ -33,8 +33,10 @@ hash, the rules hash, the options and the tool version, and derives the others. 
 other rules, options, chunk size or footprints on an existing OUTDIR is refused with an
 :class:`~facadeforge.errors.InputError` naming what changed (give a new ``-o``, or delete
 OUTDIR to start over): mixing two cities' chunks in one folder would be silently wrong.  The
-rules hash covers the main rule file's bytes (or the ``.rpk``'s), not imported rule files or
-assets.  Scratch folders of dead processes of this host are removed at the start; one
+rules hash covers what a derivation reads (:func:`rules_hash`): the rule file's bytes (or the
+``.rpk``'s, assets and all), every rule file it imports, and the listing of the asset folders
+(``--assets``; for a ``.cga``, its project's folders too): each file's name, size and
+modification time.  Scratch folders of dead processes of this host are removed at the start; one
 ``batch`` at a time may write an OUTDIR (a lock file, released by the system however the
 driver ends).
 
@@ -159,6 +161,51 @@ def plan_chunks(footprint_sets: Sequence[list], size: int) -> list[Chunk]:
             chunks.append(Chunk(cid, part, h.hexdigest(), width))
             cid += 1
     return chunks
+
+
+#: Most asset files :func:`rules_hash` lists (a project folder holding far more is listed up
+#: to this many files, in name order: the hash stays bounded in time and still deterministic).
+MAX_LISTED_FILES = 50_000
+
+
+def rules_hash(rules_path: Path, loaded, assets=None, skip: Path | None = None) -> str:
+    """sha256 of what deriving ``loaded`` (the rules read from ``rules_path``) can read: the
+    rule file's (or ``.rpk``'s) bytes, every imported rule file's bytes, and the other files of
+    the asset folders by name, size and modification time (``--assets``; for a ``.cga``, also the
+    folders its assets resolve against; a package's own folders are its bytes).  A rerun after
+    an imported rule or an asset changed then redoes the city instead of keeping chunks made
+    from the old ones.  ``skip``: a folder left out of the listing (the OUTDIR, when it lies
+    in the rules' folder: its files change as the run writes them)."""
+    h = hashlib.sha256(_file_hash(rules_path).encode())
+    skip = skip.resolve() if skip is not None else None
+    package = getattr(loaded, "package", None)
+    main = Path(str(loaded.ruleset.main.path))
+    for m in sorted({str(m.path) for m in loaded.ruleset.main.all_modules()}):
+        f = Path(m)
+        if f != main and f.is_file():
+            h.update(f"import {f.name}\0{_file_hash(f)}\0".encode())
+    roots = [Path(assets).resolve()] if assets else []
+    if package is None:
+        roots += [Path(r) for r in loaded.assets.roots]
+    listed = 0
+    for root in dict.fromkeys(roots):
+        if not root.is_dir():
+            continue
+        for dirpath, dirs, files in os.walk(root):
+            dirs[:] = sorted(d for d in dirs if skip is None or Path(dirpath, d).resolve() != skip)
+            for name in sorted(files):
+                if listed >= MAX_LISTED_FILES:
+                    break
+                if name.lower().endswith(".cga"):  # rule files count by their bytes, above
+                    continue
+                f = Path(dirpath) / name
+                try:
+                    st = f.stat()
+                except OSError:
+                    continue
+                h.update(f"{f.relative_to(root)}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+                listed += 1
+    return h.hexdigest()
 
 
 def _file_hash(path: Path) -> str:
@@ -575,6 +622,7 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
         if "." not in k and k not in known and k != "seed":
             raise RuleError(f"--attr {k}: the rules have no attribute '{k}' (it has: "
                             f"{', '.join(sorted(known)[:8]) or 'none'})")
+    read_hash = rules_hash(rules_path, loaded, assets, skip=out)
     del loaded
     paths = [Path(f) for f in footprints]
     sets = [load_footprints(p) for p in paths]
@@ -587,7 +635,7 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
                                   ).hexdigest()
     input_hash = hashlib.sha256("".join(c.input_hash for c in chunks).encode()).hexdigest()
     config = {"written_by": "facadeforge batch", "version": __version__,
-              "rules": str(rules_path), "rules_hash": _file_hash(rules_path),
+              "rules": str(rules_path), "rules_hash": read_hash,
               "footprints": [str(p) for p in paths], "input_hash": input_hash,
               "options": options, "chunks": len(chunks),
               "buildings": sum(len(c.footprints) for c in chunks)}
