@@ -279,15 +279,18 @@ def _surface_rings(mesh: Mesh):
             run = []
         p0 = mesh.vertices[corners[starts[f]]]
         basis = plane_basis(normals[f], mesh.vertices[corners[starts[f] + 1]] - p0)
-        at = {}
-        for g in group:
-            for c in range(starts[g], starts[g + 1]):
-                at.setdefault(tuple(np.round(mesh.vertices[corners[c]], 6)), uv[c])
+        # each corner's uv by its position rounded to the µm (the first corner there wins),
+        # rounded all at once: a city's frames and openings have hundreds of thousands
+        at: dict = {}
+        gc = ranges_index(starts[group], starts[np.asarray(group) + 1] - starts[group])
+        for key, c in zip(map(tuple, np.round(mesh.vertices[corners[gc]], 6).tolist()), gc):
+            at.setdefault(key, c)
         for outer, holes in rings(plane_polygon(mesh, group, p0, basis)):
             for k, ring in enumerate([outer, *holes]):
                 pts = p0 + ring @ basis[:, :2].T
-                ring_uv = [at.get(tuple(np.round(q, 6))) for q in pts]
-                found = has_uv and all(u is not None for u in ring_uv)
+                found_at = [at.get(key) for key in map(tuple, np.round(pts, 6).tolist())]
+                found = has_uv and all(c is not None for c in found_at)
+                ring_uv = [uv[c] for c in found_at] if found else None
                 yield (pts, np.array(ring_uv) if found else np.zeros((len(pts), 2)),
                        np.array([len(pts)]), np.array([found]), np.array([k]))
     if run:
