@@ -161,3 +161,33 @@ def test_cli(tmp_path, capsys):
     captured = capsys.readouterr()
     err = captured.err.strip().splitlines()
     assert len(err) == 1 and "no such file" in err[0] and not captured.out
+
+
+def test_z_up_model(tmp_path, capsys):
+    """The same mass model written z up (as GIS and photogrammetry tools write city models):
+    with ``--up z`` it gives the same facades, windows and walls as the y-up original; read as
+    y up, its textured wall stands on its side (width and height swapped)."""
+    from facadeforge.city.enhance import Z_UP_TO_Y_UP
+
+    path, _ = _build(tmp_path / "in", textured=(1,))
+    y_up = enhance(path, px_per_m=30)
+    turned = [Model(parts=[Part(p.mesh.with_vertices(p.mesh.vertices @ Z_UP_TO_Y_UP), p.label,
+                                p.material, p.symbol) for p in m.parts], name=m.name)
+              for m in load(path)]
+    z_path = tmp_path / "z_up.glb"
+    export(turned, z_path)
+    assert np.ptp(np.concatenate([p.mesh.vertices for m in turned for p in m.parts]), 0)[2] \
+        == pytest.approx(HEIGHT)                     # up is z now
+    out = tmp_path / "out"
+    assert main(["enhance", str(z_path), "--up", "z", "--px-per-m", "30", "-o", str(out)]) == 0
+    capsys.readouterr()
+    z_up = json.loads((out / "report.json").read_text())
+    assert [f["windows"] for f in z_up["facades"]] == [f.record["windows"] for f in y_up.facades]
+    for a, b in zip(z_up["facades"], (f.record for f in y_up.facades)):
+        assert a["width_m"] == b["width_m"] and a["height_m"] == b["height_m"]
+        np.testing.assert_allclose(a["normal"], b["normal"], atol=1e-4)
+    misread = enhance(z_path, px_per_m=30)  # as y up: the wall stands on its side
+    assert [(f.record["width_m"], f.record["height_m"]) for f in misread.facades] != \
+        [(f.record["width_m"], f.record["height_m"]) for f in y_up.facades]
+    with pytest.raises(InputError, match="--up 'x'"):
+        enhance(z_path, up="x")

@@ -78,7 +78,8 @@ EXAMPLES = {
   facadeforge repair-model tiles.obj --up z -o fixed.glb          # a z-up OBJ""",
     "enhance": """examples:
   facadeforge enhance mass.glb -o enhanced/          # every textured facade made procedural
-  facadeforge enhance city.obj --px-per-m 60 -o enhanced/   # aerial textures upsampled more""",
+  facadeforge enhance city.obj --px-per-m 60 -o enhanced/   # aerial textures upsampled more
+  facadeforge enhance city.obj --up z -o enhanced/          # a z-up model (GIS, photogrammetry)""",
     "multiview": """examples:
   facadeforge multiview photos/ --cameras cameras_v2.txt -o out/   # VisualSFM cameras
   facadeforge multiview photos/ --cameras sparse/0/ -o out/        # a COLMAP text model
@@ -297,7 +298,10 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         epilog=EXAMPLES["enhance"],
                         formatter_class=argparse.RawDescriptionHelpFormatter)
     en.add_argument("model", help="textured mass model: .obj (with its .mtl and textures) or "
-                                  ".glb (y up, metres)")
+                                  ".glb (metres)")
+    en.add_argument("--up", choices=("y", "z"), default="y",
+                    help="the model's up axis: y (default; glTF, facadeforge's models) or z "
+                         "(most city models)")
     en.add_argument("--px-per-m", type=_positive, default=40.0,
                     help="resolution of the unwrapped facade images, pixels per metre "
                          "(default 40; coarser textures are upsampled)")
@@ -820,7 +824,7 @@ def cmd_repair_model(args) -> int:
 def cmd_enhance(args) -> int:
     from .city.enhance import enhance
 
-    r = enhance(args.model, args.output, px_per_m=args.px_per_m, seed=args.seed)
+    r = enhance(args.model, args.output, px_per_m=args.px_per_m, seed=args.seed, up=args.up)
     s = r.report["summary"]
     print(f"{args.model}: {s['facades']} {_plural('facade', s['facades'])} reconstructed "
           f"({s['windows']} {_plural('window', s['windows'])}), {s['skipped']} "

@@ -355,8 +355,20 @@ def _reconstruct(image, size_m, seed):
 
 
 # ---------------------------------------------------------------------------------- main
+#: z-up coordinates (x, y, z) to facadeforge's y-up frame (x, z, -y): a rotation, so faces
+#: keep their orientation
+Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+def _turned(model: Model, rotation: np.ndarray) -> Model:
+    """``model`` with every part's vertices rotated (``v @ rotation.T``)."""
+    parts = [Part(p.mesh.with_vertices(p.mesh.vertices @ rotation.T), p.label, p.material,
+                  p.symbol, p.shape_id) for p in model.parts]
+    return Model(parts=parts, name=model.name, attributes=dict(model.attributes))
+
+
 def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = None, *,
-            px_per_m: float = 40, seed: int = 0) -> EnhanceResult:
+            px_per_m: float = 40, seed: int = 0, up: str = "y") -> EnhanceResult:
     """Replace every textured facade of a mass model by its procedural facade (module
     docstring).
 
@@ -374,6 +386,12 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
         bicubically.
     seed : int
         Seed of the reconstructions.
+    up : {"y", "z"}
+        The model's up axis.  A z-up model (city models from GIS and photogrammetry tools) is
+        turned into the y-up frame facadeforge works in (``x, z, -y``) as it is read: the
+        outputs are y-up (``model.glb``, as glTF has it) and z-up (``model.city.json``, as
+        CityJSON has it), and the report's origins, directions and normals are in the y-up
+        frame.
 
     Returns
     -------
@@ -393,6 +411,9 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
     path = Path(model_path)
     ppm = _check_px_per_m(px_per_m)
     fmt = _check_path(path)
+    if up not in ("y", "z"):
+        raise InputError(f"--up {up!r}: use y (glTF, facadeforge's models) or z (most city "
+                         "models)")
     inputs = {"MODEL": path}
     if out_dir is not None:
         from ..outdir import check_outdir
@@ -403,6 +424,8 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
     try:
         t = time.perf_counter()
         models = load(path, texture_dir=work / "textures") if fmt == "glb" else load(path)
+        if up == "z":
+            models = [_turned(m, Z_UP_TO_Y_UP) for m in models]
         load_s = time.perf_counter() - t
         if not any(p.material.texture and p.mesh.n_faces for m in models for p in m.parts):
             raise InputError(f"MODEL {path} has no textured faces (no material with a texture "
