@@ -16,7 +16,8 @@ from ..geometry.mesh import Mesh
 from ..model.model import Material, Model, Part
 from .synthetic import generate
 
-__all__ = ["DEPTH", "HEIGHT", "TEXTURE_PPM", "WIDTH", "box_mass_model", "truth_windows"]
+__all__ = ["DEPTH", "HEIGHT", "TEXTURE_PPM", "WIDTH", "box_mass_model", "photo_street",
+           "truth_windows"]
 
 WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
 TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
@@ -74,3 +75,39 @@ def box_mass_model(folder: Path, *, textured=(0, 1, 2, 3), ppm: float = TEXTURE_
     path = folder / "mass.glb"
     export([Model(parts=parts, name="block")], path)
     return path, truth
+
+
+def photo_street(folder: Path, photos, *, ppm: float = 50.0, depth: float = DEPTH,
+                 gap: float = 2.0) -> Path:
+    """A street of box buildings, one per photo, side by side along x: each street wall (+z)
+    textured with its photo (UVs 0–1, ``ppm`` pixels a metre: the photo's size sets the wall's),
+    the other walls and the flat roof untextured; each building a model named after its photo,
+    all in one GLB (the input of ``benchmarks/enhance.py``'s real-photo case).  ``photos``:
+    paths of rectified facade photos (CMP's)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    models, x0 = [], 0.0
+    plaster = Material(name="plaster", color=(0.8, 0.75, 0.7))
+    roof_mat = Material(name="roof", color=(0.5, 0.2, 0.2))
+    for photo in map(Path, photos):
+        w_px, h_px = Image.open(photo).size
+        w, h, d = w_px / ppm, h_px / ppm, depth
+        x1 = x0 + w
+        quads = [([(x0, 0, d), (x1, 0, d), (x1, h, d), (x0, h, d)], True),
+                 ([(x1, 0, d), (x1, 0, 0), (x1, h, 0), (x1, h, d)], False),
+                 ([(x1, 0, 0), (x0, 0, 0), (x0, h, 0), (x1, h, 0)], False),
+                 ([(x0, 0, 0), (x0, 0, d), (x0, h, d), (x0, h, 0)], False)]
+        uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+        parts = []
+        for quad, street in quads:
+            mat = Material(name=f"facade_{photo.stem}", texture=str(photo)) if street else plaster
+            parts.append(Part(Mesh(np.array(quad, float), faces=[np.arange(4)],
+                                   uvs=[uv] if street else None), label="wall", material=mat,
+                              symbol="Wall"))
+        roof = np.array([(x0, h, d), (x1, h, d), (x1, h, 0), (x0, h, 0)], float)
+        parts.append(Part(Mesh(roof, faces=[np.arange(4)]), label="roof", material=roof_mat,
+                          symbol="Roof"))
+        models.append(Model(parts=parts, name=photo.stem))
+        x0 = x1 + gap
+    path = folder / "street.glb"
+    export(models, path)
+    return path
