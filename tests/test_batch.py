@@ -141,6 +141,12 @@ def test_batch_writes_chunks_tiles_and_table(inputs, scheduler, tmp_path, capsys
         glb = pygltflib.GLTF2().load(str(out / e["files"]["glb"]))
         assert len(glb.meshes) == 5 and glb.asset.version == "2.0"
     assert tileset_problems(out / "tiles" / "tileset.json") == []
+    # from afar the city's 30 buildings are blocks (6 chunk tiles: one parent, the root)
+    root = json.loads((out / "tiles" / "tileset.json").read_text())["root"]
+    assert root["refine"] == "REPLACE" and root["content"]["uri"] == "coarse_00000.glb"
+    blocks = pygltflib.GLTF2().load(str(out / "tiles" / "coarse_00000.glb"))
+    pos = blocks.accessors[blocks.meshes[0].primitives[0].attributes.POSITION]
+    assert pos.count == 30 * 24  # 6 faces of 4 corners a block
     assert not list((out / ".work").iterdir())
 
 

@@ -12,6 +12,7 @@ import pygltflib
 import pytest
 
 from facadeforge.city.tileset import (
+    COARSE_ERROR,
     FANOUT,
     ContentTile,
     box_volume,
@@ -67,6 +68,36 @@ def test_many_tiles_make_levels_whose_errors_shrink(tmp_path):
     walk(doc["root"])
     assert uris == [f"{k:05d}.glb" for k in range(n)]
     assert not list(tmp_path.glob(".*.part"))
+
+
+def test_parents_of_content_tiles_show_the_buildings_as_blocks(tmp_path):
+    """With the tiles' building bounds, each parent of content tiles holds their blocks
+    (``coarse_NNNNN.glb``, REPLACE, error COARSE_ERROR); higher parents hold nothing."""
+    n = FANOUT * 2 + 1
+    ts = tiles(n, tmp_path)
+    for t in ts:   # two buildings a tile, side by side inside its bounds
+        lo, hi = np.asarray(t.lo), np.asarray(t.hi)
+        mid = (lo + hi) / 2
+        t.buildings = [(lo, [mid[0], hi[1], hi[2]]), ([mid[0], lo[1], lo[2]], hi)]
+    path = write_tileset(tmp_path / "tileset.json", ts)
+    assert tileset_problems(path) == []
+    doc = json.loads(path.read_text())
+    root = doc["root"]
+    assert "content" not in root and root["refine"] == "ADD"
+    parents = root["children"]
+    assert [p["content"]["uri"] for p in parents] == [f"coarse_{k:05d}.glb" for k in range(3)]
+    assert all(p["refine"] == "REPLACE" and p["geometricError"] == COARSE_ERROR
+               for p in parents)
+    assert doc["geometricError"] >= root["geometricError"] > COARSE_ERROR
+    blocks = pygltflib.GLTF2().load(str(tmp_path / "coarse_00002.glb"))
+    pos = blocks.accessors[blocks.meshes[0].primitives[0].attributes.POSITION]
+    assert pos.count == 2 * 24  # the last parent holds one tile: two blocks of 24 corners
+    lo, hi = np.array(pos.min), np.array(pos.max)
+    assert lo == pytest.approx(np.asarray(ts[-1].lo)) and hi == pytest.approx(np.asarray(ts[-1].hi))
+    assert not list(tmp_path.glob(".*.part"))
+    # without building bounds, no blocks: parents stay empty
+    plain = tileset_dict(tiles(3))
+    assert "content" not in plain["root"] and plain["root"]["refine"] == "ADD"
 
 
 def test_offset_tiles_carry_a_translation_inside_the_parent(tmp_path):

@@ -95,6 +95,17 @@ def test_batch_tile_content_is_valid(tmp_path):
     assert_valid(tmp_path / "00000.glb")
 
 
+def test_coarse_blocks_of_a_tileset_are_valid(tmp_path):
+    """The LoD1 blocks a tileset's parents show from afar (``city/tileset.py``)."""
+    from facadeforge.city.tileset import ContentTile, write_tileset
+
+    (tmp_path / "00000.glb").write_bytes(b"")
+    tile = ContentTile("00000.glb", (0, 0, -20), (30, 12, 0),
+                       buildings=[((0, 0, -20), (12, 9, -8)), ((15, 0, -14), (30, 12, 0))])
+    write_tileset(tmp_path / "tileset.json", [tile])
+    assert_valid(tmp_path / "coarse_00000.glb")
+
+
 @pytest.mark.skipif(not (CANDLER / "candler.rpk").exists(),
                     reason="../shared/data/cga/candler.rpk (Esri's Candler package) is absent")
 def test_candler_package_is_valid(tmp_path):

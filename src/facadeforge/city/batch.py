@@ -714,6 +714,21 @@ def _run(spec, todo: list[Chunk], entries: dict, scheduler, workers, progress,
     return errors
 
 
+def _building_bounds(stats: Path) -> np.ndarray:
+    """(N, 2, 3) bounds of the buildings a chunk made (its ``buildings.csv`` rows; models'
+    axes), for the coarse blocks of the tileset's parents."""
+    rows = csv.DictReader(io.StringIO(stats.read_text(encoding="utf-8")))
+    out = []
+    for r in rows:
+        try:
+            lo = [float(r[f"min_{a}"]) for a in "xyz"]
+            hi = [float(r[f"max_{a}"]) for a in "xyz"]
+        except (KeyError, TypeError, ValueError):  # a failed building: no bounds
+            continue
+        out.append((lo, hi))
+    return np.asarray(out, float).reshape(-1, 2, 3)
+
+
 def _merge(out: Path, entries: list[dict]) -> list[Path]:
     """``buildings.csv`` from the chunks' rows and ``tiles/tileset.json`` from their glTFs, each
     written to a temporary name and renamed into place."""
@@ -734,7 +749,8 @@ def _merge(out: Path, entries: list[dict]) -> list[Path]:
         for e in with_glb:
             off = np.asarray(e.get("origin_offset") or [0.0, 0.0, 0.0], float) - base
             tiles.append(ContentTile(Path(e["files"]["glb"]).name, e["bbox"][0], e["bbox"][1],
-                                     (off[0], -off[2], off[1])))
+                                     (off[0], -off[2], off[1]),
+                                     buildings=_building_bounds(out / e["files"]["stats"])))
         transform = None
         crs, unit = with_glb[0].get("crs"), with_glb[0].get("unit")
         if crs is not None and unit in (None, 1, 1.0):

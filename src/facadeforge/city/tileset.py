@@ -7,10 +7,15 @@ Axes
     the boxes here are in tiles axes: x east, y north, z up, metres.
 Tree
     The content tiles are grouped, in the order given (a batch gives them in space-filling-curve
-    order, so neighbours share a parent), by at most :data:`FANOUT` under content-less parent
-    tiles up to one root.  A leaf's ``geometricError`` is 0 (its glTF is all there is); a
-    parent's is the diagonal of its box, so a viewer opens it once it covers enough of the
-    screen; ``refine`` is ``ADD`` everywhere.
+    order, so neighbours share a parent), by at most :data:`FANOUT` under parent tiles up to one
+    root.  A leaf's ``geometricError`` is 0 (its glTF is all there is).  When the tiles say
+    where their buildings are (``ContentTile.buildings``), each parent of content tiles holds
+    a coarse level of detail: every building beneath it as its bounding block (LoD1,
+    ``coarse_NNNNN.glb``), ``refine: REPLACE`` (the detailed tiles take the blocks' place when
+    a viewer comes close) and ``geometricError`` :data:`COARSE_ERROR` (what the blocks leave
+    out), so a city seen from afar shows its blocks instead of nothing.  Higher parents have no
+    content, ``refine: ADD`` and the diagonal of their box as their error, so a viewer opens
+    them once they cover enough of the screen.
 Georeference
     ``transform`` (column-major 4×4) on the root places the local frame on the globe (ECEF,
     EPSG:4978), see :func:`enu_transform`; without it the tileset is in local coordinates.
@@ -27,11 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FANOUT", "ContentTile", "box_volume", "enu_transform", "tileset_dict",
-           "tileset_problems", "write_tileset"]
+__all__ = ["COARSE_ERROR", "FANOUT", "ContentTile", "box_volume", "enu_transform",
+           "tileset_dict", "tileset_problems", "write_tileset"]
 
 #: Children a parent tile has at most.
 FANOUT = 8
+#: Geometric error (m) of a parent's LoD1 blocks against the detailed buildings they stand for:
+#: roofs, cornices, balconies and recesses of a few metres.
+COARSE_ERROR = 8.0
 
 # CGA / glTF (x, y up, z) → 3D Tiles (x, -z, y)
 _TO_TILES = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
@@ -56,6 +64,9 @@ class ContentTile:
     lo: Sequence[float]
     hi: Sequence[float]
     offset: Sequence[float] = field(default_factory=lambda: (0.0, 0.0, 0.0))
+    #: (N, 2, 3) bounds of each building of the content, glTF axes, the content's frame; with
+    #: them the tile's parent shows the buildings as blocks from afar (module docstring)
+    buildings: Sequence | None = None
 
 
 def _tiles_bounds(lo, hi) -> tuple[np.ndarray, np.ndarray]:
@@ -84,6 +95,12 @@ def tileset_dict(tiles: Sequence[ContentTile], *, transform: Sequence[float] | N
     ValueError
         No tiles, or bounds that are not finite.
     """
+    return _tree(tiles, transform, generator)[0]
+
+
+def _tree(tiles, transform, generator) -> tuple[dict, list[tuple[str, np.ndarray]]]:
+    """The tileset object and the coarse contents it names: ``(uri, blocks)`` with ``blocks``
+    (N, 2, 3) building bounds in glTF axes of the root's frame."""
     if not tiles:
         raise ValueError("a tileset needs at least one tile with content")
     level = []
@@ -99,21 +116,49 @@ def tileset_dict(tiles: Sequence[ContentTile], *, transform: Sequence[float] | N
             # a tile's box is in its own frame, which its transform moves into the parent's
             node["transform"] = [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, *map(float, off), 1.0]
         level.append((node, lo + off, hi + off))
-    while len(level) > 1 or "content" in level[0][0]:
+    coarse: list[tuple[str, np.ndarray]] = []
+    first = True  # the level above the content tiles (even a single one needs a parent)
+    while len(level) > 1 or first:
         parents = []
         for k in range(0, len(level), FANOUT):
             group = level[k:k + FANOUT]
             lo = np.min([g[1] for g in group], axis=0)
             hi = np.max([g[2] for g in group], axis=0)
-            parents.append(({"boundingVolume": {"box": box_volume(lo, hi, pad=0.01)},
-                             "geometricError": _diagonal(lo, hi), "refine": "ADD",
-                             "children": [g[0] for g in group]}, lo - 0.01, hi + 0.01))
+            node = {"boundingVolume": {"box": box_volume(lo, hi, pad=0.01)},
+                    "geometricError": _diagonal(lo, hi), "refine": "ADD",
+                    "children": [g[0] for g in group]}
+            diagonal = node["geometricError"]
+            blocks = _blocks(tiles[k:k + FANOUT]) if first else None
+            if blocks is not None and len(blocks):
+                uri = f"coarse_{len(coarse):05d}.glb"
+                coarse.append((uri, blocks))
+                node.update(content={"uri": uri}, refine="REPLACE",
+                            geometricError=min(COARSE_ERROR, diagonal))
+            parents.append((node, lo - 0.01, hi + 0.01, diagonal))
         level = parents
+        first = False
     root = level[0][0]
     if transform is not None:
         root["transform"] = [float(v) for v in transform]
-    return {"asset": {"version": "1.1", "generator": generator},
-            "geometricError": root["geometricError"], "root": root}
+    # the error of showing nothing: the city's diagonal (above the root's blocks, if it has any)
+    doc = {"asset": {"version": "1.1", "generator": generator},
+           "geometricError": level[0][3], "root": root}
+    return doc, coarse
+
+
+def _blocks(tiles: Sequence[ContentTile]) -> np.ndarray | None:
+    """The buildings of ``tiles`` as (N, 2, 3) glTF-axes bounds in their parent's frame (each
+    tile's offset, tiles axes ``(x, -z, y)`` of glTF, applied); ``None`` when a tile does not
+    say where its buildings are."""
+    out = []
+    for t in tiles:
+        if t.buildings is None:
+            return None
+        b = np.asarray(t.buildings, float).reshape(-1, 2, 3)
+        off = np.asarray(t.offset, float)
+        out.append(b + np.array([off[0], off[2], -off[1]]))
+    blocks = np.concatenate(out) if out else np.zeros((0, 2, 3))
+    return blocks[np.isfinite(blocks).all(axis=(1, 2)) & (blocks[:, 1] > blocks[:, 0]).all(1)]
 
 
 def _diagonal(lo, hi) -> float:
@@ -122,14 +167,41 @@ def _diagonal(lo, hi) -> float:
 
 def write_tileset(path: str | os.PathLike, tiles: Sequence[ContentTile], *,
                   transform: Sequence[float] | None = None) -> Path:
-    """Write ``tileset.json`` atomically (a temporary file beside it, then a rename); the
+    """Write ``tileset.json`` atomically (a temporary file beside it, then a rename), after
+    the coarse blocks of its parents (``coarse_NNNNN.glb``, each written the same way); the
     content files are the caller's and must lie beside it under their URIs."""
     path = Path(path)
-    text = json.dumps(tileset_dict(tiles, transform=transform), indent=1) + "\n"
+    doc, coarse = _tree(tiles, transform, "facadeforge")
+    for uri, blocks in coarse:
+        _write_blocks(path.parent / uri, blocks)
+    text = json.dumps(doc, indent=1) + "\n"
     tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
     return path
+
+
+#: The six outward quads of a box, corners numbered by bits (x, y, z) of lo (0) / hi (1).
+_BOX_QUADS = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2],
+                       [1, 3, 7, 5]])
+
+
+def _write_blocks(path: Path, blocks: np.ndarray) -> None:
+    """A GLB of one block per building (its bounds, glTF axes), written atomically."""
+    from ..exchange import export_glb
+    from ..geometry.mesh import Mesh
+    from ..model.model import Material, Model, Part
+
+    bits = (np.arange(8)[:, None] >> np.arange(3)) & 1            # (8, 3) corner of lo/hi
+    verts = np.where(bits[None] == 1, blocks[:, None, 1], blocks[:, None, 0]).reshape(-1, 3)
+    quads = (_BOX_QUADS[None] + 8 * np.arange(len(blocks))[:, None, None]).reshape(-1, 4)
+    mesh = Mesh(verts, corners=quads.reshape(-1), starts=np.arange(0, quads.size + 1, 4))
+    model = Model(parts=[Part(mesh, label="building",
+                              material=Material(name="block", color=(0.78, 0.76, 0.72)),
+                              symbol="Block")], name=path.stem)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.part")
+    export_glb([model], tmp)
+    os.replace(tmp, path)
 
 
 def enu_transform(easting: float, northing: float, height: float, epsg: int) -> list[float]:
