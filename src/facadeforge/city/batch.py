@@ -192,6 +192,8 @@ def rules_hash(rules_path: Path, loaded, assets=None, skip: Path | None = None) 
         if not root.is_dir():
             continue
         for dirpath, dirs, files in os.walk(root):
+            if listed >= MAX_LISTED_FILES:
+                break  # bounded: a huge project folder is not walked to its end
             dirs[:] = sorted(d for d in dirs if skip is None or Path(dirpath, d).resolve() != skip)
             for name in sorted(files):
                 if listed >= MAX_LISTED_FILES:
