@@ -66,3 +66,31 @@ def test_a_killed_runs_folder_is_removed_by_the_next(tmp_path, monkeypatch):
     assert leftovers(tmp) == [package.root.name]        # the stale one is gone
     package.cleanup()
     assert leftovers(tmp) == []
+
+
+def test_derive_of_a_package_to_obj_copies_its_textures(tmp_path, capsys):
+    """``derive PKG.rpk -o x.obj``: the package's textures are copied as the OBJ is written,
+    while the package is still unpacked (they were copied at the end, after the derivation had
+    removed its folder: 'No such file or directory …/assets/….jpg')."""
+    import numpy as np
+    import py7zr
+    from PIL import Image
+
+    from facadeforge.cli import main
+
+    src = tmp_path / "src"
+    (src / "rules").mkdir(parents=True)
+    (src / "assets").mkdir()
+    (src / "rules" / "main.cga").write_text(
+        '@StartRule\nLot --> extrude(6) comp(f) { side : Wall | top : Roof. }\n'
+        'Wall --> setupProjection(0, scope.xy, 3, 3) projectUV(0) texture("brick.png") Wall.\n')
+    Image.fromarray(np.full((8, 8, 3), 120, np.uint8)).save(src / "assets" / "brick.png")
+    rpk = tmp_path / "pkg.rpk"
+    with py7zr.SevenZipFile(rpk, "w") as z:
+        z.write(src / "rules" / "main.cga", arcname="rules/main.cga")
+        z.write(src / "assets" / "brick.png", arcname="assets/brick.png")
+    out = tmp_path / "out" / "city.obj"
+    out.parent.mkdir()
+    assert main(["derive", str(rpk), "--lot", "10x8", "-o", str(out)]) == 0, capsys.readouterr()
+    assert (out.parent / "textures" / "brick.png").is_file()
+    assert "map_Kd textures/brick.png" in out.with_suffix(".mtl").read_text()

@@ -83,13 +83,10 @@ def export_obj(models: Model | Sequence[Model], path: str | os.PathLike, *,
     path = Path(path)
     mtl_path = path.with_suffix(".mtl")
     with Staging() as stage:
-        library = _MaterialLibrary(path.parent, texture_folder)
+        library = _MaterialLibrary(path.parent, texture_folder, stage)
         with open(stage.path(path), "wb") as out:
             # model by model: a city never sits in memory whole
             _write_obj(out, iter_models(models), library, mtl_path.name, precision)
-        for source, relative in library.textures.items():
-            if relative is not None:
-                stage.copy(source, path.parent / relative)
         stage.write_text(mtl_path, library.mtl_text())
     copied = [path.parent / rel for rel in library.textures.values() if rel is not None]
     return [path, mtl_path, *copied]
@@ -98,9 +95,12 @@ def export_obj(models: Model | Sequence[Model], path: str | os.PathLike, *,
 class _MaterialLibrary:
     """Unique MTL names for materials and relative names for their texture files."""
 
-    def __init__(self, folder: Path, texture_folder: str) -> None:
+    def __init__(self, folder: Path, texture_folder: str, stage=None) -> None:
         self.folder = folder
         self.texture_folder = texture_folder
+        # textures are copied as they are first met: a rule package's unpacked files last only
+        # as long as the derivation that streams its models here (``derive`` of an .rpk)
+        self.stage = stage
         self.names: dict[tuple, str] = {}
         self.materials: dict[str, Material] = {}
         self.textures: dict[str, str | None] = {}
@@ -133,6 +133,8 @@ class _MaterialLibrary:
             n += 1
             relative = f"{self.texture_folder}/{safe_name(stem, 'texture')}_{n}{suffix}"
         self.textures[source] = relative
+        if self.stage is not None:
+            self.stage.copy(source, self.folder / relative)
 
     def mtl_text(self) -> str:
         lines = ["# facadeforge MTL export"]
