@@ -21,6 +21,17 @@ the recording whose choices its own random streams repeat (the streams follow fr
 seed and those indices alone), and is derived and recorded otherwise (up to a few recordings a
 key; ``Derivation._by_chance``).  Continuous random values (``rand()``) keep a subtree impure.
 
+Subtrees instanced by chance nest: a tile of three windows, each window choosing its texture.
+The windows are *slots* of the tile's recording (``Recording.slots``), not part of its choices.
+Every replay of the tile resolves each slot (``Derivation._resolve``): the slot's random
+stream follows from the replay's seed along the slot's successor indices, and picks the window
+recording whose choices that stream repeats.  Variants of one key that all draw alike are found
+by their outcomes in one lookup (``Derivation._variant``).  A slot whose stream makes a choice
+that no variant has is derived alone (``Derivation._fill``): its key's first shape is derived
+again, with the slot's seed, in that shape's own frame, and kept as a new variant.  The tile
+around the slot is not derived again.  Recordings with no choices of their own are flattened
+into the recording under way.
+
 Enabled only when the caller drops shape trees (the CLI), and never for rule sets that use
 occlusion queries (replayed shapes would not leave occluders behind).
 """
