@@ -716,10 +716,10 @@ def _run(spec, todo: list[Chunk], entries: dict, scheduler, workers, progress,
     return errors
 
 
-def _building_bounds(stats: Path) -> np.ndarray:
-    """(N, 2, 3) bounds of the buildings a chunk made (its ``buildings.csv`` rows; models'
-    axes), for the coarse blocks of the tileset's parents."""
-    rows = csv.DictReader(io.StringIO(stats.read_text(encoding="utf-8")))
+def _building_bounds(stats_text: str) -> np.ndarray:
+    """(N, 2, 3) bounds of the buildings a chunk made (the text of its ``buildings.csv``;
+    models' axes), for the coarse blocks of the tileset's parents."""
+    rows = csv.DictReader(io.StringIO(stats_text))
     out = []
     for r in rows:
         try:
@@ -739,8 +739,9 @@ def _merge(out: Path, entries: list[dict]) -> list[Path]:
     tmp = out / f".buildings.csv.{os.getpid()}.part"
     with open(tmp, "w", encoding="utf-8", newline="") as fh:
         fh.write(",".join(STATS_COLUMNS) + "\n")
+        stats = {}
         for e in entries:
-            text = (out / e["files"]["stats"]).read_text(encoding="utf-8")
+            text = stats[e["chunk"]] = (out / e["files"]["stats"]).read_text(encoding="utf-8")
             fh.write(text.split("\n", 1)[1] if "\n" in text else "")
     os.replace(tmp, out / "buildings.csv")
     files = [out / "buildings.csv"]
@@ -752,7 +753,7 @@ def _merge(out: Path, entries: list[dict]) -> list[Path]:
             off = np.asarray(e.get("origin_offset") or [0.0, 0.0, 0.0], float) - base
             tiles.append(ContentTile(Path(e["files"]["glb"]).name, e["bbox"][0], e["bbox"][1],
                                      (off[0], -off[2], off[1]),
-                                     buildings=_building_bounds(out / e["files"]["stats"])))
+                                     buildings=_building_bounds(stats[e["chunk"]])))
         transform = None
         crs, unit = with_glb[0].get("crs"), with_glb[0].get("unit")
         if crs is not None and unit in (None, 1, 1.0):

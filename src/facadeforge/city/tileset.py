@@ -181,22 +181,18 @@ def write_tileset(path: str | os.PathLike, tiles: Sequence[ContentTile], *,
     return path
 
 
-#: The six outward quads of a box, corners numbered by bits (x, y, z) of lo (0) / hi (1).
-_BOX_QUADS = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2],
-                       [1, 3, 7, 5]])
-
-
 def _write_blocks(path: Path, blocks: np.ndarray) -> None:
-    """A GLB of one block per building (its bounds, glTF axes), written atomically."""
+    """A GLB of one block per building (the unit cube stretched over its bounds, glTF axes),
+    written atomically."""
     from ..exchange import export_glb
     from ..geometry.mesh import Mesh
+    from ..geometry.primitives import unit_cube
     from ..model.model import Material, Model, Part
 
-    bits = (np.arange(8)[:, None] >> np.arange(3)) & 1            # (8, 3) corner of lo/hi
-    verts = np.where(bits[None] == 1, blocks[:, None, 1], blocks[:, None, 0]).reshape(-1, 3)
-    quads = (_BOX_QUADS[None] + 8 * np.arange(len(blocks))[:, None, None]).reshape(-1, 4)
-    mesh = Mesh(verts, corners=quads.reshape(-1), starts=np.arange(0, quads.size + 1, 4))
-    model = Model(parts=[Part(mesh, label="building",
+    cube = unit_cube()
+    lo, ext = blocks[:, 0], blocks[:, 1] - blocks[:, 0]
+    mesh = Mesh.merge(cube.with_vertices(cube.vertices * e + o) for o, e in zip(lo, ext))
+    model = Model(parts=[Part(mesh.with_uvs(None), label="building",
                               material=Material(name="block", color=(0.78, 0.76, 0.72)),
                               symbol="Block")], name=path.stem)
     tmp = path.with_name(f".{path.name}.{os.getpid()}.part")

@@ -23,17 +23,19 @@ WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
 TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
 
 
-def walls() -> list[tuple[np.ndarray, float]]:
-    """The box's 4 walls: corners (bottom-left, bottom-right, top-right, top-left seen from
-    outside, counter-clockwise around the outward normal) and width."""
-    W, D, H = WIDTH, DEPTH, HEIGHT
+def walls(W: float = WIDTH, D: float = DEPTH, H: float = HEIGHT, x0: float = 0.0
+          ) -> list[tuple[np.ndarray, float]]:
+    """The 4 walls of a box ``W`` × ``D`` × ``H`` from ``x`` = ``x0``: corners (bottom-left,
+    bottom-right, top-right, top-left seen from outside, counter-clockwise around the outward
+    normal) and width; the first faces +z (the street)."""
     quads = [
         [(0, 0, D), (W, 0, D), (W, H, D), (0, H, D)],      # faces +z
         [(W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D)],      # faces +x
         [(W, 0, 0), (0, 0, 0), (0, H, 0), (W, H, 0)],      # faces -z
         [(0, 0, 0), (0, 0, D), (0, H, D), (0, H, 0)],      # faces -x
     ]
-    return [(np.array(q, float), W if i % 2 == 0 else D) for i, q in enumerate(quads)]
+    return [(np.array(q, float) + (x0, 0.0, 0.0), W if i % 2 == 0 else D)
+            for i, q in enumerate(quads)]
 
 
 def truth_windows(photo: Path, scale: float = 1.0) -> int:
@@ -91,23 +93,18 @@ def photo_street(folder: Path, photos, *, ppm: float = 50.0, depth: float = DEPT
     for photo in map(Path, photos):
         w_px, h_px = Image.open(photo).size
         w, h, d = w_px / ppm, h_px / ppm, depth
-        x1 = x0 + w
-        quads = [([(x0, 0, d), (x1, 0, d), (x1, h, d), (x0, h, d)], True),
-                 ([(x1, 0, d), (x1, 0, 0), (x1, h, 0), (x1, h, d)], False),
-                 ([(x1, 0, 0), (x0, 0, 0), (x0, h, 0), (x1, h, 0)], False),
-                 ([(x0, 0, 0), (x0, 0, d), (x0, h, d), (x0, h, 0)], False)]
         uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
         parts = []
-        for quad, street in quads:
+        for i, (quad, _) in enumerate(walls(w, d, h, x0)):
+            street = i == 0
             mat = Material(name=f"facade_{photo.stem}", texture=str(photo)) if street else plaster
-            parts.append(Part(Mesh(np.array(quad, float), faces=[np.arange(4)],
-                                   uvs=[uv] if street else None), label="wall", material=mat,
-                              symbol="Wall"))
-        roof = np.array([(x0, h, d), (x1, h, d), (x1, h, 0), (x0, h, 0)], float)
+            parts.append(Part(Mesh(quad, faces=[np.arange(4)], uvs=[uv] if street else None),
+                              label="wall", material=mat, symbol="Wall"))
+        roof = np.array([(0, h, d), (w, h, d), (w, h, 0), (0, h, 0)], float) + (x0, 0.0, 0.0)
         parts.append(Part(Mesh(roof, faces=[np.arange(4)]), label="roof", material=roof_mat,
                           symbol="Roof"))
         models.append(Model(parts=parts, name=photo.stem))
-        x0 = x1 + gap
+        x0 += w + gap
     path = folder / "street.glb"
     export(models, path)
     return path
