@@ -1,9 +1,9 @@
 """Element detection from the classifier's probabilities, step by step (the ablation behind
 :mod:`facadeforge.imaging.detect`): window precision / recall / F1 (IoU ≥ 0.5) on the CMP val
 split for the connected components of the argmax map (what the ``classifier`` bench method
-scores) and for steps 1–6 of :func:`~facadeforge.imaging.detect.detect_elements` (step 6,
-``behind`` = the label set's ``windows_behind``, is what ``reconstruct`` runs on rectified
-photos), with the shipped ``cmp12`` network ``reconstruct`` detects elements with; the argmax
+scores) and for steps 1–7 of :func:`~facadeforge.imaging.detect.detect_elements` (steps 6–7,
+``behind`` and ``covers`` = the label set's ``windows_behind`` and ``windows_covering``, are
+what ``reconstruct`` runs on rectified photos), with the shipped ``cmp12`` network ``reconstruct`` detects elements with; the argmax
 components are the shipped ``cmp6`` default's.  Neither model has seen these facades.
 Writes ``benchmarks/results/detect_cmp.json``.
 
@@ -25,17 +25,19 @@ STEPS = {1: "1. XY-cut of the class mask", 2: "2. + column valley splits",
          3: "3. + fragments dropped (area < 0.3 median)", 4: "4. + weak evidence dropped "
          "(mean p < 0.5)", 5: "5. + row-consistent splits (width >= 1.8 row median) = "
          "detect_elements", 6: "6. + windows extended through the railing below them "
-         "(behind=balcony, as reconstruct on rectified photos)"}
+         "(behind=balcony)", 7: "7. + closed shutters counted as window, open ones beside the "
+         "glass trimmed off (covers=blind) = what reconstruct runs on rectified photos"}
 
 
 #: The options of detect_elements that switch steps 2–5 off, in step order.
 _OFF = (("dip", 0.0), ("rel_area", 0.0), ("min_score", 0.0), ("row_ratio", float("inf")))
 
 
-def _steps(k: int, behind: tuple[str, ...]) -> dict[str, object]:
+def _steps(k: int, behind: tuple[str, ...], covers: tuple[str, ...]) -> dict[str, object]:
     """Options running only steps 1–``k`` (the defaults for the steps up to ``k``; step 6
-    extends windows through ``behind``)."""
-    return {**dict(_OFF[k - 1:]), "behind": behind if k >= 6 else ()}
+    extends windows through ``behind``, step 7 counts ``covers`` as window)."""
+    return {**dict(_OFF[k - 1:]), "behind": behind if k >= 6 else (),
+            "covers": covers if k >= 7 else ()}
 
 
 def main() -> int:
@@ -66,7 +68,8 @@ def main() -> int:
                  np.array([o.as_array() for o in comps]).reshape(-1, 4)}
         for k, name in STEPS.items():
             t = time.perf_counter()
-            els = detect_elements(prob, clf.classes, **_steps(k, fine.windows_behind))
+            els = detect_elements(prob, clf.classes, **_steps(k, fine.windows_behind,
+                                                             fine.windows_covering))
             seconds[k] += time.perf_counter() - t
             found[name] = np.array([e.box for e in els if e.label == "window"],
                                    float).reshape(-1, 4)

@@ -474,7 +474,8 @@ def _detect(prob, clf, gray, px_per_m, edges):
         elements, fronts = clf.detected_elements()
     else:
         elements = detect_elements(prob, clf.classes,
-                                   behind=known.windows_behind if known is not None else ())
+                                   behind=known.windows_behind if known is not None else (),
+                                   covers=known.windows_covering if known is not None else ())
         fronts = detect_protruding(prob, clf.classes)
     info = {"classifier": {"kind": clf.kind, "label_set": clf.label_set},
             "found": len(elements), "protruding": len(fronts),

@@ -181,6 +181,17 @@ def test_windows_behind_follows_each_dataset_convention():
                  windows_behind=("balcony",))
 
 
+def test_windows_covering_names_cmp_closed_shutters():
+    """CMP draws its window rectangles over closed shutters (``blind``); RueMonge has none."""
+    from facadeforge.datasets import get_label_set
+
+    assert get_label_set("cmp12").windows_covering == ("blind",)
+    assert get_label_set("ecp7").windows_covering == ()
+    with pytest.raises(InputError, match="windows_covering"):
+        LabelSet("x", ("wall", "window"), np.zeros((2, 3), np.uint8), {1: 0, 2: 1},
+                 windows_covering=("blind",))
+
+
 def test_project_proba_sums_fine_classes_into_the_merged_ones():
     cmp12, cmp6 = get_label_set("cmp12"), get_label_set("cmp6")
     rng = np.random.default_rng(0)

@@ -258,6 +258,31 @@ def test_windows_extend_through_the_railing_in_front_of_them():
     assert [e.box for e in through] == [(10, 10, 30, 44)]
 
 
+def test_closed_shutters_are_windows_and_open_ones_beside_glass_are_not():
+    """``covers``: a window whose shutters are closed (CMP draws its rectangle over them) is a
+    window; shutters open beside a window's glass are trimmed off it; patches of wall the
+    classifier calls shutter, smaller than the windows or in none of their columns, are no
+    windows."""
+    classes = ("wall", "window", "blind")
+    prob = np.zeros((100, 200, 3), np.float32)
+    prob[:, :, 0] = 1
+    for x in (10, 60, 110):                  # three glass windows in a row, 20 x 30 px
+        prob[10:40, x:x + 20] = (0, 1, 0)
+    prob[10:40, 130:136] = (0, 0, 1)         # the third one's shutter, open beside its glass
+    prob[60:90, 10:30] = (0, 0, 1)           # a closed window below the first: shutters only
+    prob[60:90, 60:80] = (0, 1, 0)           # a glass window below the second, its lower
+    prob[75:90, 60:80] = (0, 0, 1)           # half behind closed shutters
+    prob[60:72, 110:126] = (0, 0, 1)         # shutter-coloured patches of wall: one small,
+    prob[60:90, 165:185] = (0, 0, 1)         # one in no column of windows
+    plain = detect_elements(prob, classes, labels=("window",))
+    covered = detect_elements(prob, classes, labels=("window",), covers=("blind",))
+    assert sorted(e.box for e in plain) == [(10, 10, 30, 40), (60, 10, 80, 40),
+                                            (60, 60, 80, 75), (110, 10, 130, 40)]
+    assert sorted(e.box for e in covered) == [(10, 10, 30, 40), (10, 60, 30, 90),
+                                              (60, 10, 80, 40), (60, 60, 80, 90),
+                                              (110, 10, 130, 40)]
+
+
 # -- balconies: protruding elements ----------------------------------------------------------
 
 def test_detect_protruding_finds_a_band_and_per_window_balconies(balcony_scene):

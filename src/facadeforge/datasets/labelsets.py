@@ -148,6 +148,11 @@ class LabelSet:
         overlap a balcony box, by a median 39 % of their area), RueMonge's windows stop at it.
         Element detection extends windows through them
         (:func:`~facadeforge.imaging.detect.detect_elements` ``behind``).
+    windows_covering : tuple of str
+        Classes that cover a window in its frame and that the dataset annotates as part of the
+        window's rectangle: CMP's closed shutters (``blind``) lie inside its window rectangles.
+        Element detection counts them as window where no glass shows beside them
+        (:func:`~facadeforge.imaging.detect.detect_elements` ``covers``).
 
     Notes
     -----
@@ -163,6 +168,7 @@ class LabelSet:
     canonical_map: Mapping[str, int] = field(default_factory=dict)
     ignore_color: tuple[int, int, int] | None = None
     windows_behind: tuple[str, ...] = ()
+    windows_covering: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         where = f"label set {self.name!r}"
@@ -216,6 +222,11 @@ class LabelSet:
             raise InputError(f"{where}: windows_behind {list(behind)} names classes outside "
                              f"{list(classes)}")
         set_(self, "windows_behind", behind)
+        covering = tuple(_canonical_name(c, where) for c in self.windows_covering)
+        if not set(covering) <= set(classes):
+            raise InputError(f"{where}: windows_covering {list(covering)} names classes outside "
+                             f"{list(classes)}")
+        set_(self, "windows_covering", covering)
 
     # ------------------------------------------------------------------ lookups
     @property
@@ -482,6 +493,7 @@ _CMP12 = LabelSet(
     id_map={i: i - 1 for i in range(1, 13)},
     dataset_names=_CMP_NAMES,
     windows_behind=("balcony",),
+    windows_covering=("blind",),
 )
 
 # cmp6 class of each CMP id.
