@@ -272,6 +272,18 @@ SHUTTER_SIZE = 0.5
 ALIGN = 0.5
 
 
+#: …and is no shutter open beside a window with glass: a box within this share of the median
+#: window width of one, beside it in the same rows.
+BESIDE = 0.25
+
+
+def _beside(a, b, gap: float) -> bool:
+    """Box ``a`` stands beside box ``b``, within ``gap`` pixels, over half of ``a``'s rows."""
+    rows = min(a[3], b[3]) - max(a[1], b[1])
+    apart = max(a[0], b[0]) - min(a[2], b[2])
+    return rows >= 0.5 * (a[3] - a[1]) and apart <= gap
+
+
 def _x_share(a, b) -> float:
     """The share of box ``a``'s width that box ``b``'s columns cover."""
     return max(0, min(a[2], b[2]) - max(a[0], b[0])) / max(1, a[2] - a[0])
@@ -297,9 +309,11 @@ def _to_glass(els: list[Element], glass: np.ndarray) -> list[Element]:
     if len(trimmed) >= 3:
         h = float(np.median([e.box[3] - e.box[1] for e in trimmed]))
         a = float(np.median([e.area for e in trimmed]))
+        w = float(np.median([e.box[2] - e.box[0] for e in trimmed]))
         closed = [e for e in closed if e.box[3] - e.box[1] >= SHUTTER_SIZE * h
                   and e.area >= SHUTTER_SIZE * a
-                  and (not ALIGN or any(_x_share(e.box, g.box) >= ALIGN for g in trimmed))]
+                  and any(_x_share(e.box, g.box) >= ALIGN for g in trimmed)
+                  and not any(_beside(e.box, g.box, BESIDE * w) for g in trimmed)]
     return trimmed + closed
 
 
