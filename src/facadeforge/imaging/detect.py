@@ -39,8 +39,9 @@ Why this exists
        steps 1–5, then each box is trimmed to the columns its glass spans (shutters *open*
        beside a window are not the window); a box with no glass is a closed window when it is
        the size of the windows with glass and stands in one of their columns (pale wall the
-       classifier calls shutter is not).  On CMP val window F1 0.765 → 0.794 (recall 0.689 →
-       0.737; 10 % of the window and blind pixels of CMP's labels are blind).
+       classifier calls shutter is not).  A tenth of the window and blind pixels of CMP's
+       labels are blind; what the step gains is step 7 of
+       ``benchmarks/results/detect_cmp.json``.
 
     Tried on the same split and not kept (no gain): splitting boxes wider than 1.7 median
     widths, splitting at full-height mullions (CMP marks some mullioned windows as one window
@@ -260,8 +261,8 @@ def _covered(p, argmax, classes, covers):
     return q, np.argmax(q, axis=2), argmax == w
 
 
-# Step 7 (module docstring), chosen on the CMP val split (window F1 0.765 → 0.794 there: not a
-# held-out figure).
+# Step 7 (module docstring), chosen on the CMP val split (``detect_cmp.json``: not a held-out
+# figure).
 #: A window box with less than this share of glass pixels is a closed one (shutters only).
 GLASS_SHARE = 0.1
 #: A box with glass is trimmed to the columns holding at least this share of its glassiest one.
