@@ -271,8 +271,6 @@ GLASS_COLUMN = 0.1
 SHUTTER_SIZE = 0.5
 #: …and shares at least this much of its width with one of them (windows stand in columns).
 ALIGN = 0.5
-
-
 #: …and is no shutter open beside a window with glass: a box within this share of the median
 #: window width of one, beside it in the same rows.
 BESIDE = 0.25
@@ -293,9 +291,10 @@ def _x_share(a, b) -> float:
 def _to_glass(els: list[Element], glass: np.ndarray) -> list[Element]:
     """Window boxes of the merged mask (:func:`_covered`) trimmed to the columns their glass
     spans (open shutters beside a window are not the window); a box with no glass (shutters
-    closed) is kept whole when it is the size of the windows with glass (at least
-    :data:`SHUTTER_SIZE` of their median height and area: a pale patch of wall the
-    classifier calls shutter is smaller)."""
+    closed) is kept whole when it is the size of the windows with glass (:data:`SHUTTER_SIZE`:
+    a pale patch of wall the classifier calls shutter is smaller), stands in one of their
+    columns (:data:`ALIGN`) and not right beside one (:data:`BESIDE`: an open shutter).  With
+    fewer than three windows with glass there is nothing to compare with, and all are kept."""
     trimmed, closed = [], []
     for e in els:
         x0, y0, x1, y1 = e.box
