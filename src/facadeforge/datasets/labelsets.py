@@ -151,8 +151,8 @@ class LabelSet:
     windows_covering : tuple of str
         Classes that cover a window in its frame and that the dataset annotates as part of the
         window's rectangle: CMP's closed shutters (``blind``) lie inside its window rectangles.
-        Element detection counts them as window where no glass shows beside them
-        (:func:`~facadeforge.imaging.detect.detect_elements` ``covers``).
+        Element detection counts them as window, and trims off those open beside a window's
+        glass (:func:`~facadeforge.imaging.detect.detect_elements` ``covers``).
 
     Notes
     -----
@@ -217,16 +217,12 @@ class LabelSet:
         set_(self, "canonical_map", MappingProxyType(canonical))
         if self.ignore_color is not None:
             set_(self, "ignore_color", tuple(int(c) for c in self.ignore_color))
-        behind = tuple(_canonical_name(c, where) for c in self.windows_behind)
-        if not set(behind) <= set(classes):
-            raise InputError(f"{where}: windows_behind {list(behind)} names classes outside "
-                             f"{list(classes)}")
-        set_(self, "windows_behind", behind)
-        covering = tuple(_canonical_name(c, where) for c in self.windows_covering)
-        if not set(covering) <= set(classes):
-            raise InputError(f"{where}: windows_covering {list(covering)} names classes outside "
-                             f"{list(classes)}")
-        set_(self, "windows_covering", covering)
+        for conv in ("windows_behind", "windows_covering"):
+            named = tuple(_canonical_name(c, where) for c in getattr(self, conv))
+            if not set(named) <= set(classes):
+                raise InputError(f"{where}: {conv} {list(named)} names classes outside "
+                                 f"{list(classes)}")
+            set_(self, conv, named)
 
     # ------------------------------------------------------------------ lookups
     @property
