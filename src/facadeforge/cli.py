@@ -79,7 +79,10 @@ EXAMPLES = {
     "enhance": """examples:
   facadeforge enhance mass.glb -o enhanced/          # every textured facade made procedural
   facadeforge enhance city.obj --px-per-m 60 -o enhanced/   # aerial textures upsampled more
-  facadeforge enhance city.obj --up z -o enhanced/          # a z-up model (GIS, photogrammetry)""",
+  facadeforge enhance city.obj --up z -o enhanced/          # a z-up model (GIS, photogrammetry)
+  facadeforge enhance --batch city.glb -o city-enhanced/   # many buildings on a Dask cluster
+  facadeforge enhance --batch north.obj south.obj -o city-enhanced/ --scheduler tcp://head:8786
+  (--batch: resumable like `batch`; the same command again keeps the finished chunks)""",
     "multiview": """examples:
   facadeforge multiview photos/ --cameras cameras_v2.txt -o out/   # VisualSFM cameras
   facadeforge multiview photos/ --cameras sparse/0/ -o out/        # a COLMAP text model
@@ -297,8 +300,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                         "reconstructed and replaced by its procedural facade (Müller 2007 §1)",
                         epilog=EXAMPLES["enhance"],
                         formatter_class=argparse.RawDescriptionHelpFormatter)
-    en.add_argument("model", help="textured mass model: .obj (with its .mtl and textures) or "
-                                  ".glb (metres)")
+    en.add_argument("model", nargs="+", help="textured mass model: .obj (with its .mtl and "
+                                             "textures) or .glb (metres); several with --batch")
     en.add_argument("--up", choices=("y", "z"), default="y",
                     help="the model's up axis: y (default; glTF, facadeforge's models) or z "
                          "(most city models)")
@@ -307,6 +310,18 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                          "(default 40; coarser textures are upsampled)")
     en.add_argument("--seed", type=int, default=0)
     en.add_argument("-o", "--output", required=True, help="output folder")
+    en.add_argument("--batch", action="store_true",
+                    help="enhance the buildings in chunks on a Dask cluster, as `batch` derives "
+                         "a city: resumable, CityJSONSeq chunks, 3D Tiles, report.json "
+                         "(docs/city.md)")
+    en.add_argument("--scheduler", metavar="ADDRESS",
+                    help="with --batch: a running Dask scheduler, e.g. tcp://host:8786 "
+                         "(default: a local cluster on 127.0.0.1)")
+    en.add_argument("--workers", type=int, default=None,
+                    help="with --batch: worker processes of the local cluster (default: all "
+                         "cores)")
+    en.add_argument("--chunk", type=int, default=None, metavar="N",
+                    help="with --batch: buildings a task and a 3D tile (default 8)")
 
     pt = sub.add_parser("points", help="laser scan → facade planes, depth maps, windows and "
                         "doors, CGA rules and a 3D model in the scan's coordinates (CityFit)",
@@ -824,12 +839,40 @@ def cmd_repair_model(args) -> int:
 def cmd_enhance(args) -> int:
     from .city.enhance import enhance
 
-    r = enhance(args.model, args.output, px_per_m=args.px_per_m, seed=args.seed, up=args.up)
+    given = [f for f, v in (("--scheduler", args.scheduler), ("--workers", args.workers),
+                            ("--chunk", args.chunk)) if v is not None]
+    if not args.batch and (given or len(args.model) > 1):
+        why = f"{given[0]} is" if given else "several models are"
+        raise InputError(f"{why} for a batch of buildings: add --batch (outputs per chunk and a "
+                         "3D tileset, docs/city.md), or give one model without it")
+    if args.batch:
+        return _enhance_batch(args)
+    r = enhance(args.model[0], args.output, px_per_m=args.px_per_m, seed=args.seed,
+                up=args.up)
     s = r.report["summary"]
-    print(f"{args.model}: {s['facades']} {_plural('facade', s['facades'])} reconstructed "
+    print(f"{args.model[0]}: {s['facades']} {_plural('facade', s['facades'])} reconstructed "
           f"({s['windows']} {_plural('window', s['windows'])}), {s['skipped']} "
           f"{_plural('wall', s['skipped'])} skipped, {s['kept_faces']} faces kept; "
           f"{s['seconds']['total']:.1f} s → {args.output}")
+    return 0
+
+
+def _enhance_batch(args) -> int:
+    import json
+
+    from .city.enhance_batch import DEFAULT_CHUNK, enhance_batch
+
+    r = enhance_batch(args.model, args.output, px_per_m=args.px_per_m, seed=args.seed,
+                      up=args.up, scheduler=args.scheduler, workers=args.workers,
+                      chunk=args.chunk if args.chunk is not None else DEFAULT_CHUNK)
+    s = json.loads((r.outdir / "report.json").read_text(encoding="utf-8"))["summary"]
+    print(f"{r.buildings} building(s) in {r.chunks} chunk(s) ({r.derived} enhanced, {r.skipped} "
+          f"kept from an earlier run): {s['facades']} {_plural('facade', s['facades'])} "
+          f"reconstructed ({s['windows']} {_plural('window', s['windows'])}), {s['skipped']} "
+          f"{_plural('wall', s['skipped'])} skipped, {len(r.failed)} failed → {args.output}/ "
+          f"({r.seconds:.1f} s)")
+    for chunk, name, message in r.failed[:10]:
+        print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
     return 0
 
 

@@ -130,34 +130,44 @@ def _footprint_hash(h, fp) -> None:
     h.update(json.dumps(fp.attributes, sort_keys=True, default=str).encode())
 
 
-def plan_chunks(footprint_sets: Sequence[list], size: int) -> list[Chunk]:
-    """Cut footprints into chunks of at most ``size``: per footprint file (a file's buildings
-    share its origin), in Morton order of their centres; names made unique across files
-    (``name~2``…), as each becomes a CityJSON id."""
+def _footprint_centre(fp) -> np.ndarray:
+    return np.asarray(fp.polygon, float).mean(axis=0)[[0, 2]]
+
+
+def _renamed_footprint(fp, name: str):
+    import dataclasses
+
+    return dataclasses.replace(fp, name=name)
+
+
+def plan_chunks(item_sets: Sequence[list], size: int, *, centre=_footprint_centre,
+                renamed=_renamed_footprint, digest=_footprint_hash) -> list[Chunk]:
+    """Cut items (footprints; for ``enhance``, the buildings of mass models) into chunks of at
+    most ``size``: per input file (a file's items share its origin), in Morton order of their
+    centres (``centre(item)``: x and z), names made unique across files (``name~2``…, with
+    ``renamed(item, name)``), as each becomes a CityJSON id; a chunk's input hash is the sha256
+    of what ``digest(h, item)`` feeds it for its items."""
     if size < 1:
         raise InputError(f"--chunk {size}: give a positive number of buildings a chunk")
     chunks, seen, cid = [], {}, 0
-    total = sum(len(s) for s in footprint_sets)
+    total = sum(len(s) for s in item_sets)
     width = max(5, len(str(max(total // size, 1))))
-    for fps in footprint_sets:
-        centres = np.array([np.asarray(fp.polygon, float).mean(axis=0)[[0, 2]] for fp in fps]
-                           ).reshape(-1, 2)
+    for items in item_sets:
+        centres = np.array([centre(it) for it in items]).reshape(-1, 2)
         order = np.argsort(_morton(centres), kind="stable")
         ordered = []
         for i in order:
-            fp = fps[i]
-            n = seen.get(fp.name, 0)
-            seen[fp.name] = n + 1
+            it = items[i]
+            n = seen.get(it.name, 0)
+            seen[it.name] = n + 1
             if n:
-                import dataclasses
-
-                fp = dataclasses.replace(fp, name=f"{fp.name}~{n + 1}")
-            ordered.append(fp)
+                it = renamed(it, f"{it.name}~{n + 1}")
+            ordered.append(it)
         for k in range(0, len(ordered), size):
             part = ordered[k:k + size]
             h = hashlib.sha256()
-            for fp in part:
-                _footprint_hash(h, fp)
+            for it in part:
+                digest(h, it)
             chunks.append(Chunk(cid, part, h.hexdigest(), width))
             cid += 1
     return chunks
@@ -285,8 +295,6 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
     """Derive one chunk and write its files into ``spec["outdir"]`` (module docstring); the
     Dask task.  Returns the chunk's manifest entry (counts, bounds, failures: no geometry)."""
     from ..engine import _queries_neighbours, derive_footprint, neighbour_occluders
-    from ..exchange import export_cityjsonseq, export_glb
-    from ..scratch import scratch_dir
 
     t0 = time.perf_counter()
     rules = _worker_rules(spec)
@@ -324,14 +332,7 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
         rows.append(_row(name, fp.name, m))
     seconds = time.perf_counter() - t0
 
-    lo = np.full(3, np.inf)
-    hi = np.full(3, -np.inf)
-    for m in models:
-        s = m.derived_stats
-        if s["faces"]:
-            lo = np.minimum(lo, s["bbox"][0])
-            hi = np.maximum(hi, s["bbox"][1])
-    has_geometry = bool(np.isfinite(lo).all())
+    bbox = chunk_bounds(models)
     first = models[0].attributes if models else (chunk.footprints[0].attributes
                                                  if chunk.footprints else {})
     entry = {"chunk": chunk.id, "name": name, "input_hash": chunk.input_hash,
@@ -340,36 +341,58 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
              "buildings": len(chunk.footprints), "derived": len(models), "failed": failed,
              "faces": int(sum(m.derived_stats["faces"] for m in models)),
              "triangles": int(sum(m.derived_stats["triangles"] for m in models)),
-             "bbox": [lo.tolist(), hi.tolist()] if has_geometry else None,
+             "bbox": bbox,
              "origin_offset": first.get("_origin_offset"), "crs": first.get("_crs"),
              "unit": first.get("_unit"), "seconds": round(seconds, 3),
              "write_seconds": None,
              "worker": f"{os.uname().nodename}:{os.getpid()}", "files": {}}
+    return write_chunk(out, entry, models, rows)
 
+
+def write_chunk(out: Path, entry: dict, models: list, rows: list[dict], extra=None) -> dict:
+    """Write a chunk's files into OUTDIR (module docstring): CityJSONSeq and glTF of
+    ``models`` (when they have faces), the statistics ``rows``, whatever ``extra(work)``
+    writes into the scratch folder (it returns ``(scratch path, path relative to OUTDIR)``
+    pairs: files, or folders that replace the folder there), each renamed into place, and the
+    manifest ``entry`` last.  Returns ``entry`` with its ``files``."""
+    from ..exchange import export_cityjsonseq, export_glb
+    from ..exchange.cityjson import BY_CONTENT
+    from ..scratch import scratch_dir
+
+    t0 = time.perf_counter()
+    name = entry["name"]
+    has_geometry = entry["bbox"] is not None
     (out / _WORK).mkdir(exist_ok=True)
     work = scratch_dir(_SCRATCH, out / _WORK)
     try:
         finals: list[tuple[Path, str]] = []   # (scratch file, final path relative to OUTDIR)
         if has_geometry:
-            for path in export_cityjsonseq(models, work / f"{name}.city.jsonl"):
+            # textures named by their bytes: the chunks share one textures/ folder
+            for path in export_cityjsonseq(models, work / f"{name}.city.jsonl",
+                                           textures=BY_CONTENT):
                 rel = path.relative_to(work).as_posix()
                 finals.append((path, f"chunks/{rel}"))
             export_glb(models, work / f"{name}.glb")
             finals.append((work / f"{name}.glb", f"tiles/{name}.glb"))
-        del models
         (work / f"{name}.buildings.csv").write_text(_csv_text(rows), encoding="utf-8")
         finals.append((work / f"{name}.buildings.csv", f"chunks/{name}.buildings.csv"))
+        if extra is not None:
+            finals += extra(work)
         # textures first, the chunk's own files next, the manifest entry last: a chunk is
         # done exactly when its entry exists (module docstring)
         finals.sort(key=lambda f: not f[1].startswith("chunks/textures/"))
         for src, rel in finals:
             dest = out / rel
             dest.parent.mkdir(parents=True, exist_ok=True)
+            if src.is_dir() and dest.is_dir() and not dest.is_symlink():
+                # a folder left by a worker that died before its manifest entry: replaced
+                shutil.rmtree(dest)
             os.replace(src, dest)
-        entry["write_seconds"] = round(time.perf_counter() - t0 - seconds, 3)
+        entry["write_seconds"] = round(time.perf_counter() - t0, 3)
         entry["files"] = {"cityjsonseq": f"chunks/{name}.city.jsonl" if has_geometry else None,
                           "glb": f"tiles/{name}.glb" if has_geometry else None,
-                          "stats": f"chunks/{name}.buildings.csv"}
+                          "stats": f"chunks/{name}.buildings.csv",
+                          **{k: v for k, v in entry.get("files", {}).items()}}
         tmp = work / "manifest.json"
         tmp.write_text(json.dumps(entry, indent=1) + "\n", encoding="utf-8")
         (out / "manifest").mkdir(exist_ok=True)
@@ -379,13 +402,26 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
     return entry
 
 
+def chunk_bounds(models: list) -> list | None:
+    """``[lo, hi]`` of the models' ``derived_stats`` boxes, ``None`` when none has a face."""
+    lo = np.full(3, np.inf)
+    hi = np.full(3, -np.inf)
+    for m in models:
+        s = m.derived_stats
+        if s["faces"]:
+            lo = np.minimum(lo, s["bbox"][0])
+            hi = np.maximum(hi, s["bbox"][1])
+    return [lo.tolist(), hi.tolist()] if np.isfinite(lo).all() else None
+
+
 # -- the driver -------------------------------------------------------------------------------
 
 class _Progress:
     """Buildings a second and ETA on stderr: one updating line on a terminal, else a plain
     line every few seconds."""
 
-    def __init__(self, total: int, stream=None, every: float = 5.0):
+    def __init__(self, total: int, stream=None, every: float = 5.0, label: str = "batch"):
+        self.label = label
         self.stream = stream if stream is not None else sys.stderr
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self.total, self.every = total, every
@@ -405,7 +441,7 @@ class _Progress:
         eta = (self.total - self.done) / rate if rate > 0 else math.inf
         eta_text = f"ETA {_duration(eta)}" if math.isfinite(eta) else "ETA ?"
         pct = 100.0 * self.done / self.total if self.total else 100.0
-        text = (f"batch: {self.done}/{self.total} buildings ({pct:.0f} %), chunk {chunks_done}/"
+        text = (f"{self.label}: {self.done}/{self.total} buildings ({pct:.0f} %), chunk {chunks_done}/"
                 f"{chunks}, {rate:.1f} buildings/s, {eta_text}")
         if self.tty:
             self.stream.write("\r" + text.ljust(78) + ("\n" if finished else ""))
@@ -494,6 +530,8 @@ def _check_config(out: Path, config: dict) -> None:
 
 def _changed(old: dict, new: dict) -> str | None:
     """What differs between an OUTDIR's ``batch.json`` and this run, in the user's words."""
+    if old.get("written_by") != new["written_by"]:
+        return f"another command ({old.get('written_by')}; this is {new['written_by']})"
     if old.get("rules_hash") != new["rules_hash"]:
         return (f"other rules (was {old.get('rules')}, sha256 {str(old.get('rules_hash'))[:12]}"
                 f"…; now {new['rules']}, {new['rules_hash'][:12]}…)")
@@ -502,9 +540,11 @@ def _changed(old: dict, new: dict) -> str | None:
     if diff:
         flag = {"attrs": "--attr"}
         return "other options (" + ", ".join(
-            f"{flag.get(k, '--' + k)} was {was.get(k)!r}, now {now[k]!r}" for k in diff) + ")"
+            f"{flag.get(k, '--' + k.replace('_', '-'))} was {was.get(k)!r}, now {now[k]!r}"
+            for k in diff) + ")"
     if old.get("input_hash") != new["input_hash"]:
-        return (f"other footprints (was {', '.join(map(str, old.get('footprints') or []))}; "
+        what = "models" if "models" in new else "footprints"
+        return (f"other {what} (was {', '.join(map(str, old.get(what) or []))}; "
                 "these files or their contents differ)")
     if old.get("version") != new["version"]:
         return f"another facadeforge version ({old.get('version')}; this is {new['version']})"
@@ -683,16 +723,17 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
 
 
 def _run(spec, todo: list[Chunk], entries: dict, scheduler, workers, progress,
-         n_chunks: int) -> list[str]:
-    """Derive ``todo`` on the cluster; fill ``entries``; return one message per failed chunk."""
+         n_chunks: int, task=derive_chunk, label: str = "batch") -> list[str]:
+    """Run ``task(spec, chunk)`` for the chunks ``todo`` on the cluster (:func:`derive_chunk`;
+    ``enhance``'s own task); fill ``entries``; return one message per failed chunk."""
     from distributed import as_completed
 
     n_local = min(workers or os.cpu_count() or 1, len(todo))
     client, cluster = _client(scheduler, None if scheduler else n_local)
-    bar = _Progress(sum(len(c.footprints) for c in todo)) if progress else None
+    bar = _Progress(sum(len(c.footprints) for c in todo), label=label) if progress else None
     errors = []
     try:
-        futures = {client.submit(derive_chunk, spec, c, key=f"facadeforge-chunk-{c.name}-"
+        futures = {client.submit(task, spec, c, key=f"facadeforge-{label}-{c.name}-"
                                  f"{c.input_hash[:12]}", pure=False): c for c in todo}
         done = len(entries)
         for fut in as_completed(futures):

@@ -354,6 +354,116 @@ def _reconstruct(image, size_m, seed):
     return rec, region, fac.get("width_m", cw), fac.get("height_m", ch), notes
 
 
+@dataclass
+class BuildingResult:
+    """One building enhanced: its new ``model`` (walls replaced, every other face kept), the
+    reconstructed ``facades``, the ``skipped`` walls and the number of faces kept."""
+
+    model: Model
+    facades: list[EnhancedFacade]
+    skipped: list[dict]
+    kept_faces: int
+
+
+def enhance_building(model: Model, building: str, ppm: float, seed: int, textures: dict,
+                     first: int = 0) -> BuildingResult:
+    """Steps 1–4 of the module docstring on one building of a mass model: every textured wall
+    unwrapped, reconstructed and replaced.  ``textures``: a cache (texture path → pixels or
+    the problem reading them) shared by the buildings of one model; ``first``: the number of
+    the first facade's folder (``facade_NN``)."""
+    from ..repair.model_textures import _read_texture
+
+    facades: list[EnhancedFacade] = []
+    skipped: list[dict] = []
+    parts = model.parts
+    removed: dict[int, set[int]] = {}
+    added: list[Part] = []
+    for wi, wall in enumerate(_group_walls(parts)):
+        entry: dict[str, Any] = {"building": building, "wall": wi,
+                                 "texture": Path(wall.texture).name,
+                                 "faces": len(wall.faces)}
+        if wall.texture not in textures:
+            textures[wall.texture] = _read_texture(wall.texture)
+        pixels, problem = textures[wall.texture]
+        pos, uvs = _wall_corners(parts, wall)
+        frame = _frame(wall, pos)
+        w_m, h_m = frame.size_m
+        entry.update(width_m=round(w_m, 3), height_m=round(h_m, 3),
+                     normal=[round(float(c), 4) for c in wall.n])
+        if pixels is None:
+            skipped.append({**entry, "reason": f"texture {entry['texture']}: {problem}"})
+            continue
+        if min(w_m, h_m) < MIN_WALL_M:
+            skipped.append({**entry, "reason": f"wall of {w_m:.2f} x {h_m:.2f} m, "
+                            f"smaller than {MIN_WALL_M:g} m a side"})
+            continue
+        affine, rms = _fit_affine(frame, pos, uvs, pixels.shape)
+        tex_px = max(pixels.shape[:2])
+        if not math.isfinite(rms) or rms > max(2.0, 0.02 * tex_px):
+            skipped.append({**entry, "reason": "the UVs are not one affine image of "
+                            f"the wall (residual {rms:.1f} px): not a facade texture"})
+            continue
+        along_u = float(np.linalg.norm(affine[:, 0]))
+        along_v = float(np.linalg.norm(affine[:, 1]))
+        src_ppm = float(math.sqrt(abs(np.linalg.det(affine[:, :2]))))
+        if src_ppm <= 0:
+            skipped.append({**entry, "reason": "the texture is degenerate on the wall "
+                            "(zero pixels per metre)"})
+            continue
+        out_ppm = max(ppm, min(src_ppm, _MAX_UPSCALE * ppm))
+        t = time.perf_counter()
+        image = _unwrap(pixels, affine, frame.size_m, out_ppm, src_ppm < out_ppm)
+        entry.update(px_per_m=round(src_ppm, 3),
+                     px_per_m_uv=[round(along_u, 3), round(along_v, 3)],
+                     resampled_px_per_m=round(out_ppm, 3),
+                     upsampled=round(out_ppm / src_ppm, 3),
+                     image_px=[int(image.shape[1]), int(image.shape[0])])
+        try:
+            rec, region, fw, fh, notes = _reconstruct(image, frame.size_m, seed)
+        except InputError as exc:
+            skipped.append({**entry, "reason": f"reconstruction refused the unwrapped "
+                            f"texture: {exc}"})
+            continue
+        if rec.model is None:
+            skipped.append({**entry, "reason": "the reconstruction made no model"})
+            continue
+        placed = _place(rec.model, frame, region, (fw, fh))
+        if region != (0.0, 0.0, w_m, h_m):
+            src_part = parts[wall.faces[0][0]]
+            placed += _margins(frame, region, affine, pixels.shape, src_part.material)
+        for pi, f in wall.faces:
+            removed.setdefault(pi, set()).add(f)
+        added += placed
+        folder = f"facade_{first + len(facades):02d}"
+        entry.update(folder=folder, windows=_windows(rec.tree),
+                     floors=rec.report.get("floors"), flags=list(rec.report.get(
+                         "flags", [])), needs_review=bool(rec.report.get("needs_review")),
+                     region_m=[round(float(c), 3) for c in region],
+                     origin=[round(float(c), 4) for c in frame.origin],
+                     u=[round(float(c), 4) for c in frame.u], notes=notes,
+                     uv_residual_px=round(rms, 3),
+                     seconds=round(time.perf_counter() - t, 3))
+        if src_ppm < 0.75 * ppm:
+            entry["notes"].append(f"source texture {src_ppm:.1f} px/m upsampled to "
+                                  f"{out_ppm:g} px/m (bicubic): details below "
+                                  f"{2 / src_ppm:.2f} m are guessed")
+        facades.append(EnhancedFacade(building, wi, folder, frame, image, rec, placed,
+                                      entry))
+    kept = []
+    for pi, part in enumerate(parts):
+        gone = removed.get(pi)
+        if not gone:
+            kept.append(part)
+            continue
+        keep = [f for f in range(part.mesh.n_faces) if f not in gone]
+        if keep:
+            kept.append(Part(part.mesh.subset(keep), part.label, part.material,
+                             part.symbol, part.shape_id))
+    return BuildingResult(Model(parts=kept + added, name=building,
+                                attributes=dict(model.attributes)), facades, skipped,
+                          sum(p.mesh.n_faces for p in kept))
+
+
 # ---------------------------------------------------------------------------------- main
 #: z-up coordinates (x, y, z) to facadeforge's y-up frame (x, z, -y): a rotation, so faces
 #: keep their orientation
@@ -365,6 +475,40 @@ def _turned(model: Model, rotation: np.ndarray) -> Model:
     parts = [Part(p.mesh.with_vertices(p.mesh.vertices @ rotation.T), p.label, p.material,
                   p.symbol, p.shape_id) for p in model.parts]
     return Model(parts=parts, name=model.name, attributes=dict(model.attributes))
+
+
+def _check_up(up: str) -> None:
+    if up not in ("y", "z"):
+        raise InputError(f"--up {up!r}: use y (glTF, facadeforge's models) or z (most city "
+                         "models)")
+
+
+def load_mass_model(path: Path, up: str, texture_dir: Path) -> list[Model]:
+    """The buildings of a mass model file (``.obj``/``.glb``, checked by the caller) in
+    facadeforge's y-up frame; a GLB's embedded textures are written into ``texture_dir``."""
+    from ..exchange import load
+
+    models = load(path, texture_dir=texture_dir) if _check_path(path) == "glb" else load(path)
+    if up == "z":
+        models = [_turned(m, Z_UP_TO_Y_UP) for m in models]
+    return models
+
+
+def _textured(models: list[Model]) -> bool:
+    return any(p.material.texture and p.mesh.n_faces for m in models for p in m.parts)
+
+
+def write_facade(folder: Path, facade: EnhancedFacade) -> None:
+    """A reconstructed facade's files: ``rules.cga``, ``shape_tree.json`` and ``texture.png``
+    (the unwrapped wall image)."""
+    from PIL import Image
+
+    from ..outdir import write_json
+
+    folder.mkdir(parents=True)
+    (folder / "rules.cga").write_text(facade.reconstruction.rules, encoding="utf-8")
+    write_json(folder / "shape_tree.json", facade.reconstruction.tree.to_dict(), indent=1)
+    Image.fromarray(facade.image).save(folder / "texture.png", compress_level=1)
 
 
 def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = None, *,
@@ -403,17 +547,14 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
         Not an ``.obj``/``.glb`` file, a missing file, a bad ``px_per_m``, a model without
         textured faces, an OUTDIR that may not be replaced.
     """
-    from ..exchange import export, load
-    from ..repair.model_textures import _read_texture
+    from ..exchange import export
     from ..scratch import scratch_dir
 
     t_start = time.perf_counter()
     path = Path(model_path)
     ppm = _check_px_per_m(px_per_m)
-    fmt = _check_path(path)
-    if up not in ("y", "z"):
-        raise InputError(f"--up {up!r}: use y (glTF, facadeforge's models) or z (most city "
-                         "models)")
+    _check_path(path)
+    _check_up(up)
     inputs = {"MODEL": path}
     if out_dir is not None:
         from ..outdir import check_outdir
@@ -423,108 +564,24 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
     work = scratch_dir("facadeforge-enhance-")
     try:
         t = time.perf_counter()
-        models = load(path, texture_dir=work / "textures") if fmt == "glb" else load(path)
-        if up == "z":
-            models = [_turned(m, Z_UP_TO_Y_UP) for m in models]
+        models = load_mass_model(path, up, work / "textures")
         load_s = time.perf_counter() - t
-        if not any(p.material.texture and p.mesh.n_faces for m in models for p in m.parts):
+        if not _textured(models):
             raise InputError(f"MODEL {path} has no textured faces (no material with a texture "
                              "image), so there is no facade image to reconstruct; give a "
                              "textured mass model (.obj with its .mtl and textures, or .glb)")
-        textures: dict[str, tuple[np.ndarray | None, str | None]] = {}
+        textures: dict = {}
         facades: list[EnhancedFacade] = []
         skipped: list[dict] = []
         out_models: list[Model] = []
         kept_faces = 0
         for mi, model in enumerate(models):
-            building = model.name or f"building_{mi}"
-            parts = model.parts
-            removed: dict[int, set[int]] = {}
-            added: list[Part] = []
-            for wi, wall in enumerate(_group_walls(parts)):
-                entry: dict[str, Any] = {"building": building, "wall": wi,
-                                         "texture": Path(wall.texture).name,
-                                         "faces": len(wall.faces)}
-                if wall.texture not in textures:
-                    textures[wall.texture] = _read_texture(wall.texture)
-                pixels, problem = textures[wall.texture]
-                pos, uvs = _wall_corners(parts, wall)
-                frame = _frame(wall, pos)
-                w_m, h_m = frame.size_m
-                entry.update(width_m=round(w_m, 3), height_m=round(h_m, 3),
-                             normal=[round(float(c), 4) for c in wall.n])
-                if pixels is None:
-                    skipped.append({**entry, "reason": f"texture {entry['texture']}: {problem}"})
-                    continue
-                if min(w_m, h_m) < MIN_WALL_M:
-                    skipped.append({**entry, "reason": f"wall of {w_m:.2f} x {h_m:.2f} m, "
-                                    f"smaller than {MIN_WALL_M:g} m a side"})
-                    continue
-                affine, rms = _fit_affine(frame, pos, uvs, pixels.shape)
-                tex_px = max(pixels.shape[:2])
-                if not math.isfinite(rms) or rms > max(2.0, 0.02 * tex_px):
-                    skipped.append({**entry, "reason": "the UVs are not one affine image of "
-                                    f"the wall (residual {rms:.1f} px): not a facade texture"})
-                    continue
-                along_u = float(np.linalg.norm(affine[:, 0]))
-                along_v = float(np.linalg.norm(affine[:, 1]))
-                src_ppm = float(math.sqrt(abs(np.linalg.det(affine[:, :2]))))
-                if src_ppm <= 0:
-                    skipped.append({**entry, "reason": "the texture is degenerate on the wall "
-                                    "(zero pixels per metre)"})
-                    continue
-                out_ppm = max(ppm, min(src_ppm, _MAX_UPSCALE * ppm))
-                t = time.perf_counter()
-                image = _unwrap(pixels, affine, frame.size_m, out_ppm, src_ppm < out_ppm)
-                entry.update(px_per_m=round(src_ppm, 3),
-                             px_per_m_uv=[round(along_u, 3), round(along_v, 3)],
-                             resampled_px_per_m=round(out_ppm, 3),
-                             upsampled=round(out_ppm / src_ppm, 3),
-                             image_px=[int(image.shape[1]), int(image.shape[0])])
-                try:
-                    rec, region, fw, fh, notes = _reconstruct(image, frame.size_m, seed)
-                except InputError as exc:
-                    skipped.append({**entry, "reason": f"reconstruction refused the unwrapped "
-                                    f"texture: {exc}"})
-                    continue
-                if rec.model is None:
-                    skipped.append({**entry, "reason": "the reconstruction made no model"})
-                    continue
-                placed = _place(rec.model, frame, region, (fw, fh))
-                if region != (0.0, 0.0, w_m, h_m):
-                    src_part = parts[wall.faces[0][0]]
-                    placed += _margins(frame, region, affine, pixels.shape, src_part.material)
-                for pi, f in wall.faces:
-                    removed.setdefault(pi, set()).add(f)
-                added += placed
-                folder = f"facade_{len(facades):02d}"
-                entry.update(folder=folder, windows=_windows(rec.tree),
-                             floors=rec.report.get("floors"), flags=list(rec.report.get(
-                                 "flags", [])), needs_review=bool(rec.report.get("needs_review")),
-                             region_m=[round(float(c), 3) for c in region],
-                             origin=[round(float(c), 4) for c in frame.origin],
-                             u=[round(float(c), 4) for c in frame.u], notes=notes,
-                             uv_residual_px=round(rms, 3),
-                             seconds=round(time.perf_counter() - t, 3))
-                if src_ppm < 0.75 * ppm:
-                    entry["notes"].append(f"source texture {src_ppm:.1f} px/m upsampled to "
-                                          f"{out_ppm:g} px/m (bicubic): details below "
-                                          f"{2 / src_ppm:.2f} m are guessed")
-                facades.append(EnhancedFacade(building, wi, folder, frame, image, rec, placed,
-                                              entry))
-            kept = []
-            for pi, part in enumerate(parts):
-                gone = removed.get(pi)
-                if not gone:
-                    kept.append(part)
-                    continue
-                keep = [f for f in range(part.mesh.n_faces) if f not in gone]
-                if keep:
-                    kept.append(Part(part.mesh.subset(keep), part.label, part.material,
-                                     part.symbol, part.shape_id))
-            kept_faces += sum(p.mesh.n_faces for p in kept)
-            out_models.append(Model(parts=kept + added, name=building,
-                                    attributes=dict(model.attributes)))
+            b = enhance_building(model, model.name or f"building_{mi}", ppm, seed, textures,
+                                 first=len(facades))
+            facades += b.facades
+            skipped += b.skipped
+            kept_faces += b.kept_faces
+            out_models.append(b.model)
         seconds = {"load": round(load_s, 3),
                    "facades": round(sum(f.record["seconds"] for f in facades), 3)}
         report = {
@@ -544,19 +601,13 @@ def enhance(model_path: str | os.PathLike, out_dir: str | os.PathLike | None = N
             from ..outdir import write_outdir
 
             def write(stage: Path) -> None:
-                from PIL import Image
-
                 from ..outdir import write_json
 
                 t = time.perf_counter()
                 export(out_models, stage / "model.glb")
                 export(out_models, stage / "model.city.json")
                 for f in facades:
-                    d = stage / f.folder
-                    d.mkdir()
-                    (d / "rules.cga").write_text(f.reconstruction.rules, encoding="utf-8")
-                    write_json(d / "shape_tree.json", f.reconstruction.tree.to_dict(), indent=1)
-                    Image.fromarray(f.image).save(d / "texture.png", compress_level=1)
+                    write_facade(stage / f.folder, f)
                 seconds["export"] = round(time.perf_counter() - t, 3)
                 seconds["total"] = round(time.perf_counter() - t_start, 3)
                 write_json(stage / "report.json", report)

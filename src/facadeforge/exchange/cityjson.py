@@ -28,6 +28,7 @@ Appearance
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import os
@@ -60,7 +61,11 @@ from ._common import (
 )
 from .errors import ExportError, LoadError
 
-__all__ = ["DEFAULT_SEMANTIC_MAP", "SEMANTIC_TYPES", "export_cityjson", "load_cityjson"]
+__all__ = ["BY_CONTENT", "DEFAULT_SEMANTIC_MAP", "SEMANTIC_TYPES", "export_cityjson",
+           "load_cityjson"]
+
+#: ``textures=BY_CONTENT``: copied textures named by their bytes too (:func:`export_cityjson`).
+BY_CONTENT = "by-content"
 
 THEME = "facadeforge"
 
@@ -141,8 +146,11 @@ def export_cityjson(models: Model | Sequence[Model], path: str | os.PathLike, *,
         were moved near zero), so the buildings go back to where the footprints were.
     metadata : dict, optional
         Extra ``metadata`` members (``title``, ``identifier``, ``pointOfContact``…).
-    textures : bool
-        Copy readable textures and write texture coordinates.
+    textures : bool or "by-content"
+        Copy readable textures and write texture coordinates.  ``"by-content"`` names each
+        copied texture by its bytes too (``<stem>_<sha256 prefix>.<ext>``), so that files
+        written one after another into one ``textures/`` folder (``batch``'s chunks) share the
+        images they have in common and never overwrite another image of the same name.
 
     Returns
     -------
@@ -521,9 +529,12 @@ class _CityJsonWriter:
             if found is not None:
                 data, mime = found
                 ext = image_extension(mime)
-                relative = f"textures/{safe_name(Path(source).stem, 'texture')}{ext}"
+                stem = safe_name(Path(source).stem, 'texture')
+                if self.with_textures == BY_CONTENT:
+                    stem = f"{stem}_{hashlib.sha256(data).hexdigest()[:12]}"
+                relative = f"textures/{stem}{ext}"
                 n = 1
-                while relative in self.texture_files:
+                while relative in self.texture_files and self.texture_files[relative] != data:
                     n += 1
                     relative = f"textures/{safe_name(Path(source).stem, 'texture')}_{n}{ext}"
                 self.texture_files[relative] = data
