@@ -10,7 +10,9 @@ With ``../shared/data/cmp`` there, a third case puts real photos on the walls: a
 box buildings (:func:`~facadeforge.datasets.mass_models.photo_street`) whose street walls carry
 the first six CMP validation photos (not trained on; the split's rule chose them, not we), 50
 px/m; the truth is CMP's window rectangles (sides of 6 px and more).  These are development
-photos (the classifiers' thresholds were chosen on this split), not held out.
+photos (the classifiers' thresholds were chosen on this split), not held out.  The street is
+also run through ``enhance --batch`` (one building a chunk, a local cluster of 2 workers): its
+windows must be the single process's, and its wall time is beside it.
 """
 
 from __future__ import annotations
@@ -30,10 +32,10 @@ ROOT = Path(__file__).resolve().parents[1]
 CLI = str(Path(sys.executable).with_name("facadeforge"))
 
 
-def _run(model: Path, out: Path, truth: list[int]) -> dict:
+def _run(model: Path, out: Path, truth: list[int], extra: tuple[str, ...] = ()) -> dict:
     t0 = time.perf_counter()
-    run = subprocess.run([CLI, "enhance", str(model), "-o", str(out)], capture_output=True,
-                         text=True)
+    run = subprocess.run([CLI, "enhance", str(model), "-o", str(out), *extra],
+                         capture_output=True, text=True)
     wall = time.perf_counter() - t0
     if run.returncode:
         raise SystemExit(run.stderr.strip()[-400:])
@@ -60,6 +62,15 @@ def _cmp_street(data: Path, tmp: Path, n: int) -> dict | None:
     report = json.loads((tmp / "street_out" / "report.json").read_text())
     out["photos"] = [s.id for s in samples]
     out["buildings"] = [f["building"] for f in report["facades"]]
+    # the same street through --batch: one building a chunk on a local cluster of 2 workers
+    batch = _run(model, tmp / "street_batch", truth,
+                 ("--batch", "--workers", "2", "--chunk", "1"))
+    report = json.loads((tmp / "street_batch" / "report.json").read_text())
+    per = {f["building"]: f["windows"] for f in report["facades"]}
+    batch["windows_found"] = [per.get(b) for b in out["buildings"]]
+    batch["same_windows_as_one_process"] = batch["windows_found"] == out["windows_found"]
+    batch["options"] = "--batch --workers 2 --chunk 1"
+    out["through_batch"] = batch
     return out
 
 
