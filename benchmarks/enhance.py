@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -82,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("-o", "--output", default=str(ROOT / "benchmarks" / "results" / "enhance.json"))
     args = ap.parse_args(argv)
     cases = {}
+    load = os.getloadavg()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         model, truth = box_mass_model(tmp / "full", seed=args.seed)
@@ -91,7 +93,12 @@ def main(argv: list[str] | None = None) -> int:
         street = _cmp_street(Path(args.data), tmp, args.photos)
         if street is not None:
             cases["cmp_val_photos_street"] = street
-    save_result({**provenance(), "seed": args.seed, "cases": cases}, args.output)
+    save_result({**provenance(), "seed": args.seed,
+                 "load_average_at_start": [round(v, 2) for v in load],
+                 "notes": ["each case is one run of the whole CLI process; the load average "
+                           "says whether other work shared the cores (wall times move with "
+                           "it; the windows found do not)"],
+                 "cases": cases}, args.output)
     return 0
 
 
