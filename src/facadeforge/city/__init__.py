@@ -1,4 +1,6 @@
-"""City scale: batch derivation on Dask (:mod:`.batch`) and 3D Tiles output (:mod:`.tileset`).
+"""City scale: batch derivation on Dask (:mod:`.batch`), 3D Tiles output (:mod:`.tileset`),
+textured mass models enhanced (:mod:`.enhance`; a city of them through ``batch``'s machinery:
+:mod:`.enhance_batch`).
 
 ``batch`` orchestrates; its workers call the same engine ``derive`` the CLI calls and write
 their own outputs (ARCHITECTURE.md).

@@ -15,7 +15,8 @@ Output folder
       manifest/NNNNN.json         one per finished chunk (written last, atomically)
       chunks/NNNNN.city.jsonl     CityJSON Text Sequences of the chunk's buildings
       chunks/NNNNN.buildings.csv  the chunk's per-building statistics
-      chunks/textures/            textures the CityJSON files refer to (if the rules texture)
+      chunks/textures/            textures the CityJSON files refer to (if the rules texture),
+                                  named by their bytes too: the chunks share the folder
       tiles/NNNNN.glb             the chunk's glTF: the content of its 3D tile
       tiles/tileset.json          3D Tiles 1.1 (written once every chunk is done)
       buildings.csv               every building's statistics (merged once every chunk is done)
@@ -42,6 +43,10 @@ driver ends).
 
 A building that fails to derive (a cap, a ``--strict`` warning, a bad footprint) is recorded as
 failed, with its message, in the manifest entry and the statistics; the batch goes on.
+
+``enhance --batch`` (:mod:`facadeforge.city.enhance_batch`) runs through the same machinery
+with its own task: :func:`plan_chunks`, :func:`write_chunk`, the manifest, the resume checks,
+the cluster and the merge are these.
 """
 
 from __future__ import annotations
