@@ -372,3 +372,80 @@ def test_a_changed_import_or_asset_is_other_rules(scheduler, tmp_path, capsys):
     (assets / "tex.png").write_bytes(b"another texture, another size")
     assert run(*argv) == 2
     assert "other rules" in capsys.readouterr().err
+
+
+PARTY = """Lot --> extrude(6) comp(f) { side : Facade | top : Roof. }
+Facade --> split(x) { ~2 : Tile }*
+Tile --> case touches(inter) : Wall. else : Window.
+"""
+
+
+def walls_per_building(out: Path) -> dict:
+    """Surfaces with the ``Wall`` symbol in each building of the CityJSONSeq chunks."""
+    walls = {}
+    for path in sorted((out / "chunks").glob("*.city.jsonl")):
+        for line in path.read_text(encoding="utf-8").splitlines()[1:]:
+            f = json.loads(line)
+            n = 0
+            for obj in f["CityObjects"].values():
+                for g in obj.get("geometry", []):
+                    sem = g.get("semantics")
+                    if sem:
+                        wall = [i for i, s in enumerate(sem["surfaces"])
+                                if s.get("facadeforge_symbol") == "Wall"]
+                        n += sum(v in wall for v in sem["values"])
+            walls[f["id"]] = n
+    return walls
+
+
+def row_of_lots(path: Path, spans) -> Path:
+    feats = [{"type": "Feature", "properties": {"name": f"p{i}"}, "geometry": {
+        "type": "Polygon", "coordinates": [[[x0, 0], [x1, 0], [x1, 8], [x0, 8], [x0, 0]]]}}
+        for i, (x0, x1) in enumerate(spans)]
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    return path
+
+
+def test_inter_occlusion_sees_neighbours_across_chunks(scheduler, tmp_path):
+    """Party walls between lots of different chunks are walls, as within one chunk and as
+    ``derive`` makes them: each chunk derives its halo's occluders too."""
+    from facadeforge import derive
+
+    (tmp_path / "party.cga").write_text(PARTY)
+    fps = row_of_lots(tmp_path / "row.geojson", [(0, 10), (10, 20), (20, 30), (40, 50)])
+    per_chunk = {}
+    for size in (1, 10):
+        out = tmp_path / f"c{size}"
+        assert main(["batch", str(tmp_path / "party.cga"), "--footprint", str(fps), "-o",
+                     str(out), "--chunk", str(size), "--scheduler", scheduler]) == 0
+        per_chunk[size] = walls_per_building(out)
+    # the 8 m x 6 m party wall is 4 tiles a side; the lone p3 has none
+    assert per_chunk[1] == per_chunk[10] == {"p0": 4, "p1": 8, "p2": 4, "p3": 0}
+    models = derive(str(tmp_path / "party.cga"), fps, workers=1)
+    assert sum(p.symbol == "Wall" for m in models for p in m.parts) > 0
+    halo = json.loads((tmp_path / "c1" / "manifest" / "00001.json").read_text())["halo"]
+    assert sorted(halo) == ["p0", "p2"]
+
+
+def test_halo_holds_near_footprints_of_other_chunks_only(tmp_path):
+    fps = load_footprints(row_of_lots(tmp_path / "row.geojson",
+                                      [(0, 10), (10, 20), (25, 30), (60, 70)]))
+    chunks = plan_chunks([fps], 1, halo_m=10.0)
+    halos = {c.footprints[0].name: sorted(fp.name for fp in c.halo) for c in chunks}
+    # p2 is 5 m from p1 and 15 m from p0; p3 is 30 m from p2
+    assert halos == {"p0": ["p1"], "p1": ["p0", "p2"], "p2": ["p1"], "p3": []}
+    # the halo is part of what a chunk is made from
+    plain = {c.footprints[0].name: c.input_hash for c in plan_chunks([fps], 1)}
+    assert all(plain[c.footprints[0].name] != c.input_hash for c in chunks if c.halo)
+
+
+def test_occluders_beyond_the_halo_are_reported(scheduler, tmp_path, capsys):
+    rules = PARTY.replace("extrude(6) comp(f)", "extrude(6) t(14, 0, 0) comp(f)")
+    (tmp_path / "far.cga").write_text(rules)
+    fps = row_of_lots(tmp_path / "row.geojson", [(0, 10), (30, 40)])
+    capsys.readouterr()
+    assert main(["batch", str(tmp_path / "far.cga"), "--footprint", str(fps), "-o",
+                 str(tmp_path / "o"), "--chunk", "1", "--scheduler", scheduler]) == 0
+    err = capsys.readouterr().err
+    assert "note: chunk 00000: building p0: its model reaches 14.0 m beyond its footprint" \
+        in err

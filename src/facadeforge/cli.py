@@ -525,6 +525,8 @@ def cmd_batch(args) -> int:
           f"({r.seconds:.1f} s)")
     for chunk, name, message in r.failed[:10]:
         print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
+    for chunk, message in r.notes[:10]:
+        print(f"note: chunk {chunk}: {message}", file=sys.stderr)
     return 0
 
 

@@ -86,12 +86,15 @@ STATS_COLUMNS = ("chunk", "building", "status", "error", "seconds", "shapes", "f
 @dataclass
 class Chunk:
     """A task's footprints: ``id`` (its files are ``f"{id:05d}"``…), the footprints, and the
-    hash of what was read of them."""
+    hash of what was read of them; ``halo``: the footprints of other chunks near them, whose
+    occluders the ``inter`` occlusion queries of the chunk's buildings see (not derived into
+    the chunk's outputs)."""
 
     id: int
     footprints: list
     input_hash: str
     width: int = 5
+    halo: list = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -110,6 +113,7 @@ class BatchResult:
     failed: list = field(default_factory=list)   # (chunk, building, message)
     seconds: float = 0.0
     files: list = field(default_factory=list)
+    notes: list = field(default_factory=list)    # (chunk, message)
 
 
 # -- planning ---------------------------------------------------------------------------------
@@ -145,13 +149,49 @@ def _renamed_footprint(fp, name: str):
     return dataclasses.replace(fp, name=name)
 
 
+def _footprint_box(fp) -> np.ndarray:
+    xz = np.asarray(fp.polygon, float)[:, [0, 2]]
+    return np.r_[xz.min(axis=0), xz.max(axis=0)]
+
+
+#: Footprints of other chunks within this many metres (between footprint bounds) of a chunk's
+#: are its halo when the rules query their neighbours (``inter`` occlusion): their occluders
+#: are derived with the chunk's, so that a building at a chunk's edge sees its neighbour across
+#: it as ``derive`` would.  A building whose model reaches further from its footprint is
+#: reported (a note in its chunk's manifest entry and on stderr).
+HALO_M = 10.0
+
+
+def _halos(boxes: np.ndarray, size: int, margin: float) -> list[np.ndarray]:
+    """For consecutive slices of ``size`` items with bounds ``boxes`` (n, 4: x0, z0, x1, z1),
+    the indices of the other items within ``margin`` of one of the slice's."""
+    out = []
+    n = len(boxes)
+    for k in range(0, n, size):
+        mine = boxes[k:k + size]
+        lo, hi = mine[:, :2].min(axis=0) - margin, mine[:, 2:].max(axis=0) + margin
+        cand = np.flatnonzero(np.all(boxes[:, :2] <= hi, axis=1)
+                              & np.all(boxes[:, 2:] >= lo, axis=1))
+        cand = cand[(cand < k) | (cand >= k + size)]
+        if len(cand):
+            c = boxes[cand]
+            gap = np.maximum(0.0, np.maximum(c[None, :, :2] - mine[:, None, 2:],
+                                             mine[:, None, :2] - c[None, :, 2:]))
+            cand = cand[(np.hypot(gap[..., 0], gap[..., 1]) <= margin).any(axis=0)]
+        out.append(cand)
+    return out
+
+
 def plan_chunks(item_sets: Sequence[list], size: int, *, centre=_footprint_centre,
-                renamed=_renamed_footprint, digest=_footprint_hash) -> list[Chunk]:
+                renamed=_renamed_footprint, digest=_footprint_hash,
+                halo_m: float | None = None) -> list[Chunk]:
     """Cut items (footprints; for ``enhance``, the buildings of mass models) into chunks of at
     most ``size``: per input file (a file's items share its origin), in Morton order of their
     centres (``centre(item)``: x and z), names made unique across files (``name~2``…, with
     ``renamed(item, name)``), as each becomes a CityJSON id; a chunk's input hash is the sha256
-    of what ``digest(h, item)`` feeds it for its items."""
+    of what ``digest(h, item)`` feeds it for its items (and its halo's).  With ``halo_m``
+    (footprints), each chunk's halo: the footprints of the same file in other chunks within
+    that distance of one of its own."""
     if size < 1:
         raise InputError(f"--chunk {size}: give a positive number of buildings a chunk")
     chunks, seen, cid = [], {}, 0
@@ -168,12 +208,19 @@ def plan_chunks(item_sets: Sequence[list], size: int, *, centre=_footprint_centr
             if n:
                 it = renamed(it, f"{it.name}~{n + 1}")
             ordered.append(it)
+        halos = None
+        if halo_m is not None and ordered:
+            halos = _halos(np.array([_footprint_box(it) for it in ordered]), size, halo_m)
         for k in range(0, len(ordered), size):
             part = ordered[k:k + size]
+            halo = [ordered[i] for i in halos[k // size]] if halos is not None else []
             h = hashlib.sha256()
             for it in part:
                 digest(h, it)
-            chunks.append(Chunk(cid, part, h.hexdigest(), width))
+            for it in halo:
+                h.update(b"halo\0")
+                digest(h, it)
+            chunks.append(Chunk(cid, part, h.hexdigest(), width, halo))
             cid += 1
     return chunks
 
@@ -312,18 +359,21 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
                                 limits=spec["limits"], keep_tree=tree, neighbours=around)
 
     around = [None] * len(chunk.footprints)
-    if len(chunk.footprints) > 1 and _queries_neighbours(rules):
-        # ``inter`` occlusion: the neighbours' occluders, within the chunk (module docstring)
+    notes = []
+    neighbours = _queries_neighbours(rules)
+    if (len(chunk.footprints) > 1 or chunk.halo) and neighbours:
+        # ``inter`` occlusion: the occluders of the neighbours in the chunk and in its halo
+        # (module docstring)
         from ..engine import _occluders_only
         from ..model.model import Model
 
         firsts = []
-        for fp in chunk.footprints:
+        for fp in [*chunk.footprints, *chunk.halo]:
             try:
                 firsts.append(_occluders_only(one(fp)))
             except Exception:  # noqa: BLE001 - reported by the second pass
                 firsts.append(Model([], None, {}, [], fp.name))
-        around = neighbour_occluders(firsts)
+        around = neighbour_occluders(firsts)[:len(chunk.footprints)]
     models, rows, failed = [], [], []
     for fp, near in zip(chunk.footprints, around):
         try:
@@ -335,6 +385,12 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
             continue
         models.append(m)
         rows.append(_row(name, fp.name, m))
+        reach = _reach(fp, m) if neighbours else 0.0
+        if reach > HALO_M:
+            notes.append(f"building {fp.name}: its model reaches {reach:.1f} m beyond its "
+                         f"footprint, more than the {HALO_M:g} m halo of the chunks: the "
+                         "inter occlusion queries of buildings of other chunks that far away "
+                         "may not see it")
     seconds = time.perf_counter() - t0
 
     bbox = chunk_bounds(models)
@@ -350,8 +406,20 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
              "origin_offset": first.get("_origin_offset"), "crs": first.get("_crs"),
              "unit": first.get("_unit"), "seconds": round(seconds, 3),
              "write_seconds": None,
-             "worker": f"{os.uname().nodename}:{os.getpid()}", "files": {}}
+             "worker": f"{os.uname().nodename}:{os.getpid()}", "files": {},
+             "halo": [fp.name for fp in chunk.halo], "notes": notes}
     return write_chunk(out, entry, models, rows)
+
+
+def _reach(fp, model) -> float:
+    """How far (metres, horizontally) ``model`` reaches beyond the bounds of its footprint
+    ``fp`` (its occluders lie within the model)."""
+    s = model.derived_stats
+    if not s["faces"]:
+        return 0.0
+    lo, hi = np.asarray(s["bbox"][0], float)[[0, 2]], np.asarray(s["bbox"][1], float)[[0, 2]]
+    box = _footprint_box(fp)
+    return float(max(0.0, *(box[:2] - lo), *(hi - box[2:])))
 
 
 def write_chunk(out: Path, entry: dict, models: list, rows: list[dict], extra=None) -> dict:
@@ -649,7 +717,7 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
         message names it; a rerun retries it).
     """
     from .. import __version__
-    from ..engine import load_rules
+    from ..engine import _queries_neighbours, load_rules
     from ..geometry.footprints import load_footprints
     from ..grammar.interpreter import Limits
 
@@ -670,10 +738,11 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
             raise RuleError(f"--attr {k}: the rules have no attribute '{k}' (it has: "
                             f"{', '.join(sorted(known)[:8]) or 'none'})")
     read_hash = rules_hash(rules_path, loaded, assets, skip=out)
+    halo = HALO_M if _queries_neighbours(loaded) else None
     del loaded
     paths = [Path(f) for f in footprints]
     sets = [load_footprints(p) for p in paths]
-    chunks = plan_chunks(sets, chunk)
+    chunks = plan_chunks(sets, chunk, halo_m=halo)
     del sets
     limits = limits or Limits()
     options = {"attrs": dict(attrs or {}), "seed": int(seed), "style": style, "start": start,
@@ -715,6 +784,8 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
                              sum(e["buildings"] for e in entries.values()))
         result.failed = [(e["name"], f["building"], f["error"])
                          for _, e in sorted(entries.items()) for f in e["failed"]]
+        result.notes = [(e["name"], n) for _, e in sorted(entries.items())
+                        for n in e.get("notes", [])]
         if errors:
             shown = "; ".join(errors[:2]) + (f" and {len(errors) - 2} more" if len(errors) > 2
                                              else "")
