@@ -191,3 +191,37 @@ def test_z_up_model(tmp_path, capsys):
         [(f.record["width_m"], f.record["height_m"]) for f in y_up.facades]
     with pytest.raises(InputError, match="--up 'x'"):
         enhance(z_path, up="x")
+
+
+def test_gable_wall_models_its_rectangle_and_keeps_the_gable(tmp_path):
+    """A street wall that is a pentagon (a gable end): the facade is modelled in the largest
+    rectangle in it, below the eaves, and the gable keeps its texture, no geometry above the
+    wall's outline."""
+    from facadeforge.datasets.mass_models import GABLE_RISE, gable_mass_model
+
+    path, truth = gable_mass_model(tmp_path / "in")
+    r = enhance(path, tmp_path / "out")
+    (f,) = r.facades
+    rec = f.record
+    assert rec["wall_cover"] < 0.98
+    assert rec["rectangle_m"] == pytest.approx([0.0, 0.0, WIDTH, HEIGHT], abs=0.11)
+    assert "not a rectangle" in rec["notes"][0]
+    assert abs(rec["windows"] - truth) <= 0.25 * truth
+    # the classifier may crop the facade further inside the rectangle (the photo's top is
+    # roof): the kept texture is the wall less the region modelled
+    x0, y0, x1, y1 = rec["region_m"]
+    assert y1 <= HEIGHT + 0.11
+    kept = [p for p in f.parts if p.symbol == "WallMargin"]
+    wall = WIDTH * HEIGHT + 0.5 * WIDTH * GABLE_RISE
+    assert kept and sum(p.mesh.area() for p in kept) == pytest.approx(
+        wall - (x1 - x0) * (y1 - y0), rel=0.01)
+    facade = [p for p in f.parts if p.symbol != "WallMargin"]
+    top = max(p.mesh.vertices[:, 1].max() for p in facade)
+    assert top <= y1 + 0.12
+    # the whole model: the gable's texture, nothing sticking out of the pentagon's corners
+    (m,) = r.models
+    for p in m.parts:
+        v = p.mesh.vertices
+        outside = (v[:, 1] > HEIGHT + 0.12) & (np.abs(v[:, 0] - WIDTH / 2) > (
+            HEIGHT + GABLE_RISE - v[:, 1]) * WIDTH / (2 * GABLE_RISE) + 0.05)
+        assert not outside.any(), p.symbol

@@ -72,7 +72,8 @@ def test_many_tiles_make_levels_whose_errors_shrink(tmp_path):
 
 def test_parents_of_content_tiles_show_the_buildings_as_blocks(tmp_path):
     """With the tiles' building bounds, each parent of content tiles holds their blocks
-    (``coarse_NNNNN.glb``, REPLACE, error COARSE_ERROR); higher parents hold nothing."""
+    (``coarse_NNNNN.glb``, REPLACE, error COARSE_ERROR); so does the root, all of them (fewer
+    than MAX_BLOCKS)."""
     n = FANOUT * 2 + 1
     ts = tiles(n, tmp_path)
     for t in ts:   # two buildings a tile, side by side inside its bounds
@@ -83,12 +84,15 @@ def test_parents_of_content_tiles_show_the_buildings_as_blocks(tmp_path):
     assert tileset_problems(path) == []
     doc = json.loads(path.read_text())
     root = doc["root"]
-    assert "content" not in root and root["refine"] == "ADD"
+    assert root["content"]["uri"] == "coarse_00003.glb" and root["refine"] == "REPLACE"
+    assert root["geometricError"] == COARSE_ERROR
     parents = root["children"]
     assert [p["content"]["uri"] for p in parents] == [f"coarse_{k:05d}.glb" for k in range(3)]
     assert all(p["refine"] == "REPLACE" and p["geometricError"] == COARSE_ERROR
                for p in parents)
-    assert doc["geometricError"] >= root["geometricError"] > COARSE_ERROR
+    assert doc["geometricError"] > COARSE_ERROR
+    top = pygltflib.GLTF2().load(str(tmp_path / "coarse_00003.glb"))
+    assert top.accessors[top.meshes[0].primitives[0].attributes.POSITION].count == 2 * n * 24
     blocks = pygltflib.GLTF2().load(str(tmp_path / "coarse_00002.glb"))
     pos = blocks.accessors[blocks.meshes[0].primitives[0].attributes.POSITION]
     assert pos.count == 2 * 24  # the last parent holds one tile: two blocks of 24 corners
@@ -171,3 +175,28 @@ def test_batch_tileset_content_is_gltf(tmp_path):
     tiles_lo = np.array([lo[0], -hi[2], lo[1]])
     tiles_hi = np.array([hi[0], -lo[2], hi[1]])
     assert (tiles_lo >= c - h - 1e-6).all() and (tiles_hi <= c + h + 1e-6).all()
+
+
+def test_higher_parents_show_the_largest_blocks_and_say_what_they_leave_out(tmp_path,
+                                                                          monkeypatch):
+    """Above the first parents a tile shows the MAX_BLOCKS largest blocks beneath it; its
+    error is the diagonal of the largest block it leaves out (at least its children's)."""
+    from facadeforge.city import tileset as ts_module
+
+    monkeypatch.setattr(ts_module, "MAX_BLOCKS", 5)
+    n = FANOUT + 1                  # two first-level parents under the root
+    ts = tiles(n, tmp_path)
+    for t in ts:
+        t.buildings = [(t.lo, t.hi)]   # one building a tile: 20 x (12 + k) x 15 m
+    path = write_tileset(tmp_path / "tileset.json", ts)
+    assert tileset_problems(path) == []
+    doc = json.loads(path.read_text())
+    root = doc["root"]
+    glb = pygltflib.GLTF2().load(str(tmp_path / root["content"]["uri"]))
+    assert glb.accessors[glb.meshes[0].primitives[0].attributes.POSITION].count == 5 * 24
+    # the tallest five shown (k = 4..8); the largest left out is k = 3: 20 x 15 x 15 m
+    pos = glb.accessors[glb.meshes[0].primitives[0].attributes.POSITION]
+    assert pos.min[0] == pytest.approx(4 * 30.0)
+    assert root["geometricError"] == pytest.approx(np.linalg.norm([20, 15, 15]), abs=1e-3)
+    assert all(c["geometricError"] == COARSE_ERROR for c in root["children"])
+    assert doc["geometricError"] > root["geometricError"]

@@ -92,6 +92,23 @@ def test_a_tileset_lists_its_contents_with_y_up_matrices(tmp_path):
     assert np.allclose(by_uri["b.glb"][:3, :3], np.eye(3))
 
 
+def test_a_tileset_is_drawn_at_its_finest_level(tmp_path):
+    """The coarse blocks of the parents (REPLACE tiles with children) are not drawn over the
+    detailed tiles that replace them."""
+    from facadeforge.city.tileset import ContentTile, write_tileset
+
+    tiles = []
+    for k in range(3):
+        (tmp_path / f"{k}.glb").write_bytes(b"glTF")
+        tiles.append(ContentTile(f"{k}.glb", [k * 20, 0, 0], [k * 20 + 10, 10, 10],
+                                 buildings=[([k * 20, 0, 0], [k * 20 + 10, 10, 10])]))
+    write_tileset(tmp_path / "tileset.json", tiles)
+    doc = json.loads((tmp_path / "tileset.json").read_text())
+    assert doc["root"]["content"]["uri"].startswith("coarse_")
+    (la,) = load_scene([tmp_path / "tileset.json"]).layers
+    assert sorted(c["uri"] for c in la.info["contents"]) == ["0.glb", "1.glb", "2.glb"]
+
+
 @pytest.mark.parametrize("name, message", [
     ("missing.glb", "is not a file"),
     ("notes.txt.bak", "is not a file the viewer shows"),

@@ -14,7 +14,10 @@ read with :func:`facadeforge.exchange.load`.  For every building:
 2. its *walls*: those faces grouped by texture and plane (horizontal normals within
    :data:`PLANE_ANGLE_DEG`, plane offsets within :data:`PLANE_OFFSET_M`).  A wall's frame is
    ``n`` its horizontal outward normal, ``v = (0, 1, 0)`` up and ``u = v × n`` (a wall facing
-   +z has ``u = +x``); its rectangle is the bounding box of its vertices in ``(u, v)``;
+   +z has ``u = +x``); its rectangle is the bounding box of its vertices in ``(u, v)``.  A
+   wall whose faces cover less than :data:`RECTANGLE_COVER` of that rectangle (a gable end,
+   a stepped wall) is modelled in the largest axis-aligned rectangle inside its faces (on a
+   grid of 0.1 m), and the rest of it keeps its texture;
 3. each wall's texture *unwrapped*: the affine map ``(u, v) → texture pixel`` is fitted to its
    corners' UVs (least squares; the v texture axis points up, row ``(1 - v) · H``) and the
    wall rectangle resampled into a rectified facade image at ``px_per_m`` or more
@@ -26,7 +29,7 @@ read with :func:`facadeforge.exchange.load`.  For every building:
    bottom-left corner on the wall plane.  When the classifier crops the image to the facade
    it sees (sky or street in the texture), the crop is reconstructed again at its own size
    and placed where it lies on the wall; the wall around it keeps the original texture
-   (margin quads).
+   (``WallMargin`` faces: the wall's outline less the region modelled, triangulated).
 
 The wall's original faces are replaced by the procedural facade; every other face (roofs,
 ground, untextured walls, walls that were skipped, with the reason in the report) is kept as
@@ -53,8 +56,8 @@ import numpy as np
 from ..errors import InputError
 from ..model.model import Material, Model, Part
 
-__all__ = ["FORMATS", "MIN_WALL_M", "PLANE_ANGLE_DEG", "PLANE_OFFSET_M", "EnhanceResult",
-           "EnhancedFacade", "WallFrame", "enhance"]
+__all__ = ["FORMATS", "MIN_WALL_M", "PLANE_ANGLE_DEG", "PLANE_OFFSET_M", "RECTANGLE_COVER",
+           "EnhanceResult", "EnhancedFacade", "WallFrame", "enhance"]
 
 #: Model formats ``enhance`` reads (textured: OBJ with its .mtl, GLB with embedded images).
 FORMATS: tuple[str, ...] = ("obj", "glb")
@@ -64,6 +67,10 @@ PLANE_ANGLE_DEG: float = 2.0
 PLANE_OFFSET_M: float = 0.05
 #: Walls smaller than this (metres) on a side are skipped: no facade to reconstruct.
 MIN_WALL_M: float = 2.0
+#: A wall whose faces cover less of its bounding rectangle than this is not a rectangle (a
+#: gable end, a stepped wall): the largest rectangle in it is modelled, the rest keeps its
+#: texture.
+RECTANGLE_COVER: float = 0.98
 #: A crop of the image by the classifier smaller than this share of a side is ignored.
 _CROP_SHARE = 0.97
 #: Largest resampling resolution, as a multiple of ``px_per_m`` (a dense texture keeps its
@@ -263,26 +270,93 @@ def _unwrap(pixels: np.ndarray, affine: np.ndarray, size_m, out_ppm: float, upsa
     return cv2.warpAffine(rgb, m, (out_w, out_h), flags=flags, borderMode=cv2.BORDER_REPLICATE)
 
 
-def _margins(frame: WallFrame, inner: tuple[float, float, float, float], affine: np.ndarray,
-             shape, material: Material) -> list[Part]:
-    """Quads of the wall rectangle around ``inner = (x0, y0, x1, y1)`` (wall metres), with
-    the original texture: what the classifier left out of the facade (sky, street)."""
+def _wall_polygon(parts: list[Part], wall: _Wall, frame: WallFrame):
+    """The union of the wall's faces in wall metres ``(x, y)`` from the rectangle's corner: a
+    shapely geometry."""
+    import shapely
+
+    pieces = []
+    basis = np.c_[frame.u, frame.v]
+    for pi, f in wall.faces:
+        mesh = parts[pi].mesh
+        xy = (mesh.vertices[mesh.face(f)] - frame.origin) @ basis
+        g = shapely.Polygon(xy)
+        if g.area > 1e-9:
+            pieces.append(g if g.is_valid else g.buffer(0))
+    return shapely.union_all(pieces).buffer(0) if pieces else shapely.Polygon()
+
+
+def _largest_rectangle(polygon, size_m, step: float) -> tuple[float, float, float, float]:
+    """The largest axis-aligned rectangle ``(x0, y0, x1, y1)`` inside ``polygon`` (wall metres),
+    on a grid of ``step`` metres: cells whose four corners are inside, then the largest
+    rectangle of such cells (one pass of the histogram-and-stack method a row)."""
+    import shapely
+
+    w_m, h_m = size_m
+    nx, ny = max(1, math.ceil(w_m / step)), max(1, math.ceil(h_m / step))
+    xs, ys = np.linspace(0.0, w_m, nx + 1), np.linspace(0.0, h_m, ny + 1)
+    gx, gy = np.meshgrid(xs, ys)
+    # (ny + 1, nx + 1) grid corners inside or on the boundary
+    corner = shapely.contains_xy(polygon.buffer(1e-6), gx, gy)
+    cells = corner[:-1, :-1] & corner[1:, :-1] & corner[:-1, 1:] & corner[1:, 1:]
+    best, box = 0, (0, 0, 0, 0)
+    heights = np.zeros(nx, np.int64)
+    for r in range(ny):                    # rows from y = 0 up; heights: cells reaching down
+        heights = np.where(cells[r], heights + 1, 0)
+        stack: list[int] = []
+        for c in range(nx + 1):
+            hc = heights[c] if c < nx else 0
+            while stack and heights[stack[-1]] >= hc:
+                top = stack.pop()
+                left = stack[-1] + 1 if stack else 0
+                area = int(heights[top]) * (c - left)
+                if area > best:
+                    best, box = area, (left, r + 1 - int(heights[top]), c, r + 1)
+            stack.append(c)
+    c0, r0, c1, r1 = box
+    return (float(xs[c0]), float(ys[r0]), float(xs[c1]), float(ys[r1]))
+
+
+def _kept_texture(frame: WallFrame, polygon, inner: tuple[float, float, float, float],
+                  affine: np.ndarray, shape, material: Material) -> list[Part]:
+    """The wall outside ``inner = (x0, y0, x1, y1)`` (wall metres), with its original texture:
+    what the classifier left out of the facade (sky, street), and the parts of a wall that is
+    not a rectangle (a gable, a step) beyond the rectangle modelled.  ``polygon``: the wall's
+    faces in wall metres."""
+    import mapbox_earcut as earcut
+    import shapely
+
+    from ..geometry.holed import rings
     from ..geometry.mesh import Mesh
 
-    w_m, h_m = frame.size_m
-    x0, y0, x1, y1 = inner
-    rects = [(0.0, 0.0, w_m, y0), (0.0, y1, w_m, h_m), (0.0, y0, x0, y1), (x1, y0, w_m, y1)]
+    rest = polygon.difference(shapely.box(*inner))
     h, w = shape[:2]
     parts = []
-    for a0, b0, a1, b1 in rects:
-        if a1 - a0 < 0.01 or b1 - b0 < 0.01:
+    for outer, holes in rings(rest):
+        loops = [outer, *holes]
+        xy = np.concatenate(loops)
+        if shapely.Polygon(outer, holes).area < 1e-4:
             continue
-        local = np.array([[a0, b0, 0.0], [a1, b0, 0.0], [a1, b1, 0.0], [a0, b1, 0.0]])
-        px = local[:, :2] @ affine[:, :2].T + affine[:, 2]
+        ends = np.cumsum([len(r) for r in loops]).astype(np.uint32)
+        tri = np.asarray(earcut.triangulate_float64(xy, ends), np.int64).reshape(-1, 3)
+        if not len(tri):
+            continue
+        local = np.c_[xy, np.zeros(len(xy))]
+        px = xy @ affine[:, :2].T + affine[:, 2]
         uv = np.c_[px[:, 0] / w, 1.0 - px[:, 1] / h]
-        mesh = Mesh(frame.to_world(local), faces=[np.arange(4)], uvs=[uv])
+        faces = list(tri)
+        mesh = Mesh(frame.to_world(local), faces=faces, uvs=[uv[t] for t in tri])
         parts.append(Part(mesh, label="wall", material=material, symbol="WallMargin"))
     return parts
+
+
+def _cut(image: np.ndarray, rect, size_m) -> np.ndarray:
+    """The part ``rect = (x0, y0, x1, y1)`` (wall metres, y up) of the unwrapped wall image."""
+    h, w = image.shape[:2]
+    sx, sy = w / size_m[0], h / size_m[1]
+    c0, c1 = round(rect[0] * sx), round(rect[2] * sx)
+    r0, r1 = round(h - rect[3] * sy), round(h - rect[1] * sy)
+    return np.ascontiguousarray(image[max(r0, 0):min(r1, h), max(c0, 0):min(c1, w)])
 
 
 def _crop_region(rec, size_px, size_m) -> tuple[float, float, float, float] | None:
@@ -412,14 +486,30 @@ def enhance_building(model: Model, building: str, ppm: float, seed: int, texture
             continue
         out_ppm = max(ppm, min(src_ppm, _MAX_UPSCALE * ppm))
         t = time.perf_counter()
+        polygon = _wall_polygon(parts, wall, frame)
+        cover = polygon.area / (w_m * h_m)
+        rect = (0.0, 0.0, w_m, h_m)
+        if cover < RECTANGLE_COVER:
+            rect = _largest_rectangle(polygon, frame.size_m, min(0.1, min(w_m, h_m) / 50))
+            rw, rh = rect[2] - rect[0], rect[3] - rect[1]
+            entry.update(wall_cover=round(cover, 3), rectangle_m=[round(c, 3) for c in rect])
+            if min(rw, rh) < MIN_WALL_M:
+                skipped.append({**entry, "reason": f"the wall is not a rectangle ({cover:.0%} "
+                                "of its bounding rectangle) and the largest rectangle in it, "
+                                f"{rw:.2f} x {rh:.2f} m, is smaller than {MIN_WALL_M:g} m a "
+                                "side"})
+                continue
         image = _unwrap(pixels, affine, frame.size_m, out_ppm, src_ppm < out_ppm)
         entry.update(px_per_m=round(src_ppm, 3),
                      px_per_m_uv=[round(along_u, 3), round(along_v, 3)],
                      resampled_px_per_m=round(out_ppm, 3),
                      upsampled=round(out_ppm / src_ppm, 3),
                      image_px=[int(image.shape[1]), int(image.shape[0])])
+        rect_size = (rect[2] - rect[0], rect[3] - rect[1])
+        if rect != (0.0, 0.0, w_m, h_m):
+            image = _cut(image, rect, frame.size_m)
         try:
-            rec, region, fw, fh, notes = _reconstruct(image, frame.size_m, seed)
+            rec, region, fw, fh, notes = _reconstruct(image, rect_size, seed)
         except InputError as exc:
             skipped.append({**entry, "reason": f"reconstruction refused the unwrapped "
                             f"texture: {exc}"})
@@ -427,10 +517,18 @@ def enhance_building(model: Model, building: str, ppm: float, seed: int, texture
         if rec.model is None:
             skipped.append({**entry, "reason": "the reconstruction made no model"})
             continue
+        region = (rect[0] + region[0], rect[1] + region[1], rect[0] + region[2],
+                  rect[1] + region[3])
+        if rect != (0.0, 0.0, w_m, h_m):
+            notes.insert(0, f"the wall is not a rectangle (its faces cover {cover:.0%} of "
+                         f"its {w_m:.2f} x {h_m:.2f} m bounding rectangle: a gable, a step): "
+                         f"the largest rectangle in it, {rect_size[0]:.2f} x "
+                         f"{rect_size[1]:.2f} m, is modelled, the rest keeps its texture")
         placed = _place(rec.model, frame, region, (fw, fh))
         if region != (0.0, 0.0, w_m, h_m):
             src_part = parts[wall.faces[0][0]]
-            placed += _margins(frame, region, affine, pixels.shape, src_part.material)
+            placed += _kept_texture(frame, polygon, region, affine, pixels.shape,
+                                    src_part.material)
         for pi, f in wall.faces:
             removed.setdefault(pi, set()).add(f)
         added += placed

@@ -9,13 +9,16 @@ Tree
     The content tiles are grouped, in the order given (a batch gives them in space-filling-curve
     order, so neighbours share a parent), by at most :data:`FANOUT` under parent tiles up to one
     root.  A leaf's ``geometricError`` is 0 (its glTF is all there is).  When the tiles say
-    where their buildings are (``ContentTile.buildings``), each parent of content tiles holds
-    a coarse level of detail: every building beneath it as its bounding block (LoD1,
-    ``coarse_NNNNN.glb``), ``refine: REPLACE`` (the detailed tiles take the blocks' place when
-    a viewer comes close) and ``geometricError`` :data:`COARSE_ERROR` (what the blocks leave
-    out), so a city seen from afar shows its blocks instead of nothing.  Higher parents have no
-    content, ``refine: ADD`` and the diagonal of their box as their error, so a viewer opens
-    them once they cover enough of the screen.
+    where their buildings are (``ContentTile.buildings``), every parent holds a coarse level
+    of detail (hierarchical LoD, ``coarse_NNNNN.glb``, ``refine: REPLACE``: the children take
+    its place when a viewer comes close): a parent of content tiles shows every building
+    beneath it as its bounding block (LoD1), with ``geometricError`` :data:`COARSE_ERROR`
+    (the details the blocks leave out); a higher parent shows the :data:`MAX_BLOCKS` largest
+    blocks beneath it, with the diagonal of the largest one it leaves out as its error (at
+    least its children's).  So a city seen from afar shows its large buildings, then more of
+    them, then every block, then the detailed tiles.  Without the buildings' bounds, parents
+    have no content, ``refine: ADD`` and the diagonal of their box as their error, so a viewer
+    opens them once they cover enough of the screen.
 Georeference
     ``transform`` (column-major 4×4) on the root places the local frame on the globe (ECEF,
     EPSG:4978), see :func:`enu_transform`; without it the tileset is in local coordinates.
@@ -32,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["COARSE_ERROR", "FANOUT", "ContentTile", "box_volume", "enu_transform",
+__all__ = ["COARSE_ERROR", "FANOUT", "MAX_BLOCKS", "ContentTile", "box_volume", "enu_transform",
            "tileset_dict", "tileset_problems", "write_tileset"]
 
 #: Children a parent tile has at most.
@@ -40,6 +43,9 @@ FANOUT = 8
 #: Geometric error (m) of a parent's LoD1 blocks against the detailed buildings they stand for:
 #: roofs, cornices, balconies and recesses of a few metres.
 COARSE_ERROR = 8.0
+#: Blocks a parent above the first level of parents shows at most: the largest buildings of
+#: those beneath it (a tile's content stays small however large the city).
+MAX_BLOCKS = 1024
 
 # CGA / glTF (x, y up, z) → 3D Tiles (x, -z, y)
 _TO_TILES = np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]])
@@ -117,6 +123,9 @@ def _tree(tiles, transform, generator) -> tuple[dict, list[tuple[str, np.ndarray
             node["transform"] = [1.0, 0, 0, 0, 0, 1.0, 0, 0, 0, 0, 1.0, 0, *map(float, off), 1.0]
         level.append((node, lo + off, hi + off))
     coarse: list[tuple[str, np.ndarray]] = []
+    # (node, lo, hi, diagonal, the blocks of every building beneath or None, error)
+    level = [(n, lo, hi, 0.0, b, 0.0) for (n, lo, hi), b in
+             zip(level, (_blocks([t]) for t in tiles))]
     first = True  # the level above the content tiles (even a single one needs a parent)
     while len(level) > 1 or first:
         parents = []
@@ -124,17 +133,22 @@ def _tree(tiles, transform, generator) -> tuple[dict, list[tuple[str, np.ndarray
             group = level[k:k + FANOUT]
             lo = np.min([g[1] for g in group], axis=0)
             hi = np.max([g[2] for g in group], axis=0)
+            diagonal = _diagonal(lo, hi)
             node = {"boundingVolume": {"box": box_volume(lo, hi, pad=0.01)},
-                    "geometricError": _diagonal(lo, hi), "refine": "ADD",
+                    "geometricError": diagonal, "refine": "ADD",
                     "children": [g[0] for g in group]}
-            diagonal = node["geometricError"]
-            blocks = _blocks(tiles[k:k + FANOUT]) if first else None
+            below = [g[4] for g in group]
+            blocks = None if any(b is None for b in below) else np.concatenate(below)
+            error = diagonal
             if blocks is not None and len(blocks):
+                shown, left_out = _coarse(blocks, first)
                 uri = f"coarse_{len(coarse):05d}.glb"
-                coarse.append((uri, blocks))
-                node.update(content={"uri": uri}, refine="REPLACE",
-                            geometricError=min(COARSE_ERROR, diagonal))
-            parents.append((node, lo - 0.01, hi + 0.01, diagonal))
+                coarse.append((uri, shown))
+                # what the blocks leave out: the buildings' details, the blocks not shown, and
+                # whatever the children's contents leave out
+                error = min(max(COARSE_ERROR, left_out, *(g[5] for g in group)), diagonal)
+                node.update(content={"uri": uri}, refine="REPLACE", geometricError=error)
+            parents.append((node, lo - 0.01, hi + 0.01, diagonal, blocks, error))
         level = parents
         first = False
     root = level[0][0]
@@ -159,6 +173,18 @@ def _blocks(tiles: Sequence[ContentTile]) -> np.ndarray | None:
         out.append(b + np.array([off[0], off[2], -off[1]]))
     blocks = np.concatenate(out) if out else np.zeros((0, 2, 3))
     return blocks[np.isfinite(blocks).all(axis=(1, 2)) & (blocks[:, 1] > blocks[:, 0]).all(1)]
+
+
+def _coarse(blocks: np.ndarray, every: bool) -> tuple[np.ndarray, float]:
+    """The blocks a parent shows: all of them above the content tiles (``every``), else at
+    most :data:`MAX_BLOCKS`, the largest (by diagonal); and the diagonal of the largest block
+    left out (0 when none is)."""
+    if every or len(blocks) <= MAX_BLOCKS:
+        return blocks, 0.0
+    size = np.linalg.norm(blocks[:, 1] - blocks[:, 0], axis=1)
+    order = np.argsort(-size, kind="stable")
+    keep = np.sort(order[:MAX_BLOCKS])
+    return blocks[keep], round(float(size[order[MAX_BLOCKS]]), 3)
 
 
 def _diagonal(lo, hi) -> float:

@@ -16,8 +16,10 @@ from ..geometry.mesh import Mesh
 from ..model.model import Material, Model, Part
 from .synthetic import generate
 
-__all__ = ["DEPTH", "HEIGHT", "TEXTURE_PPM", "WIDTH", "box_mass_model", "photo_street",
-           "truth_windows"]
+__all__ = ["DEPTH", "GABLE_RISE", "HEIGHT", "TEXTURE_PPM", "WIDTH", "box_mass_model",
+           "gable_mass_model", "photo_street", "truth_windows"]
+
+GABLE_RISE = 4.0                          # ridge above the eaves of the gable house (m)
 
 WIDTH, DEPTH, HEIGHT = 14.0, 10.0, 16.0   # footprint x, z and height (m)
 TEXTURE_PPM = 40                          # px per metre of the full-resolution textures
@@ -108,3 +110,42 @@ def photo_street(folder: Path, photos, *, ppm: float = 50.0, depth: float = DEPT
     path = folder / "street.glb"
     export(models, path)
     return path
+
+
+def gable_mass_model(folder: Path, *, seed: int = 21) -> tuple[Path, int]:
+    """A house whose street wall (+z) is a gable end: a pentagon, ``WIDTH`` wide, eaves at
+    ``HEIGHT`` and the ridge :data:`GABLE_RISE` higher, textured with one image: a synthetic
+    Haussmann facade photo below the eaves and plain render in the gable above.  The pitched
+    roof and the other walls are untextured; GLB.  Returns the path and the truth window count
+    of the facade photo."""
+    folder.mkdir(parents=True, exist_ok=True)
+    W, D, H, R = WIDTH, DEPTH, HEIGHT, HEIGHT + GABLE_RISE
+    photo = generate(1, seed=seed, out_dir=folder / "synth", size=(round(W * TEXTURE_PPM),
+                     round(H * TEXTURE_PPM)), styles=["haussmann"])[0]
+    facade = np.asarray(Image.open(photo).convert("RGB"))
+    gable = np.empty((round(GABLE_RISE * TEXTURE_PPM), facade.shape[1], 3), np.uint8)
+    gable[:] = (196, 182, 160)
+    texture = folder / "gable_texture.png"
+    Image.fromarray(np.concatenate([gable, facade])).save(texture)
+    front = np.array([(0, 0, D), (W, 0, D), (W, H, D), (W / 2, R, D), (0, H, D)], float)
+    uv = np.c_[front[:, 0] / W, front[:, 1] / R]
+    plaster = Material(name="plaster", color=(0.8, 0.75, 0.7))
+    parts = [Part(Mesh(front, faces=[np.arange(5)], uvs=[uv]), label="wall",
+                  material=Material(name="gable", texture=str(texture)), symbol="Wall")]
+    back = np.array([(W, 0, 0), (0, 0, 0), (0, H, 0), (W / 2, R, 0), (W, H, 0)], float)
+    sides = [[(W, 0, D), (W, 0, 0), (W, H, 0), (W, H, D)], [(0, 0, 0), (0, 0, D), (0, H, D),
+                                                            (0, H, 0)]]
+    parts.append(Part(Mesh(back, faces=[np.arange(5)]), label="wall", material=plaster,
+                      symbol="Wall"))
+    for q in sides:
+        parts.append(Part(Mesh(np.array(q, float), faces=[np.arange(4)]), label="wall",
+                          material=plaster, symbol="Wall"))
+    roofs = [[(W, H, D), (W, H, 0), (W / 2, R, 0), (W / 2, R, D)],
+             [(0, H, 0), (0, H, D), (W / 2, R, D), (W / 2, R, 0)]]
+    roof_mat = Material(name="roof", color=(0.5, 0.2, 0.2))
+    for q in roofs:
+        parts.append(Part(Mesh(np.array(q, float), faces=[np.arange(4)]), label="roof",
+                          material=roof_mat, symbol="Roof"))
+    path = folder / "gable.glb"
+    export([Model(parts=parts, name="house")], path)
+    return path, truth_windows(photo)

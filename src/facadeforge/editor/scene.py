@@ -209,8 +209,9 @@ def _cityjson_layer(path: Path, kind: str) -> Layer:
 
 
 def _tiles_layer(path: Path) -> Layer:
-    """The glTF contents of a 3D Tiles tileset (every level, ``refine: ADD`` as ours are),
-    each with the product of the transforms above it."""
+    """The glTF contents of a 3D Tiles tileset, each with the product of the transforms above
+    it: the most detailed view (every level of ``refine: ADD`` tiles; a ``refine: REPLACE``
+    tile's content only where it has no children, which replace it when fully refined)."""
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         root = doc["root"]
@@ -228,6 +229,8 @@ def _tiles_layer(path: Path) -> Layer:
             m = parent @ np.asarray(t, float).reshape(4, 4).T
         items = [tile["content"]] if isinstance(tile.get("content"), dict) else []
         items += [c for c in tile.get("contents", []) if isinstance(c, dict)]
+        if tile.get("refine") == "REPLACE" and tile.get("children"):
+            items = []    # a coarse level of detail (our blocks): its children replace it
         for c in items:
             uri = c.get("uri") or c.get("url")
             if isinstance(uri, str) and uri.lower().endswith((".glb", ".gltf")):
