@@ -2,11 +2,13 @@
 model (:func:`facadeforge.datasets.mass_models.box_mass_model`: a 14 × 10 × 16 m box whose four
 walls carry synthetic Haussmann facade photos, seeds the shipped classifiers never saw), once
 with textures of 40 px/m and once with one wall at 8 px/m (Müller Fig. 16: aerial textures a
-few pixels a window).  Windows found (leaves labelled ``window`` in each facade's tree) against
+few pixels a window), and a gable house whose street wall is a pentagon (the facade below
+the eaves, plain render in the gable:
+:func:`~facadeforge.datasets.mass_models.gable_mass_model`).  Windows found (leaves labelled ``window`` in each facade's tree) against
 the windows in the textures (``.objects.json``; slivers under 6 px left out), wall time of the
 process.  JSON (machine, date, commit) to ``benchmarks/results/enhance.json``.
 
-With ``../shared/data/cmp`` there, a third case puts real photos on the walls: a street of six
+With ``../shared/data/cmp`` there, another case puts real photos on the walls: a street of six
 box buildings (:func:`~facadeforge.datasets.mass_models.photo_street`) whose street walls carry
 the first six CMP validation photos (not trained on; the split's rule chose them, not we), 50
 px/m; the truth is CMP's window rectangles (sides of 6 px and more).  These are development
@@ -26,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from facadeforge.datasets.mass_models import box_mass_model
+from facadeforge.datasets.mass_models import box_mass_model, gable_mass_model
 from facadeforge.evaluation.bench import provenance, save_result
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -90,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
         cases["four_walls_40px_per_m"] = _run(model, tmp / "full_out", truth)
         model, truth = box_mass_model(tmp / "low", textured=(0,), ppm=8, seed=args.seed)
         cases["one_wall_8px_per_m"] = _run(model, tmp / "low_out", truth)
+        model, truth = gable_mass_model(tmp / "gable", seed=args.seed)
+        cases["gable_wall_40px_per_m"] = _run(model, tmp / "gable_out", [truth])
         street = _cmp_street(Path(args.data), tmp, args.photos)
         if street is not None:
             cases["cmp_val_photos_street"] = street
