@@ -212,6 +212,60 @@ def editor_table() -> str:
             "|---|---|---|---|---|\n" + "\n".join(rows))
 
 
+def city_table() -> str:
+    """``batch`` on a synthetic city against the plain ``derive`` (benchmarks/city.py)."""
+    path = ROOT / "benchmarks" / "results" / "city.json"
+    if not path.exists():
+        return "_no result yet: run `benchmarks/city.py`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    bps, sec, mem = r["buildings_per_s"], r["seconds"], r["peak_memory_mib"]
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}): `{r['rules']}` on {r['footprints']:,} footprints, "
+            f"{r['workers']} workers, {r['chunk']} buildings a chunk, whole CLI processes "
+            f"(load average at start {r['load_average_at_start'][0]}).\n\n")
+    rows = [f"| `batch` (Dask, local cluster) | {bps['batch']:.2f} | {sec['batch']:.0f} s | "
+            f"{mem['batch_driver']:.0f} MiB | {mem['batch_largest_worker']:.0f} MiB |",
+            f"| `derive` (process pool) | {bps['derive']:.2f} | {sec['derive']:.0f} s | "
+            f"{mem['derive_main']:.0f} MiB | {mem['derive_largest_worker']:.0f} MiB |"]
+    if bps.get("batch_killed_worker") is not None:
+        rows.append(f"| `batch`, a worker killed midway | {bps['batch_killed_worker']:.2f} | "
+                    f"{sec['batch_killed_worker']:.0f} s | | |")
+    once = all(v for v in r["every_building_once"].values() if v is not None)
+    tail = (f"\n\nEvery building exactly once in the chunks: {'yes' if once else 'NO'}; "
+            f"a rerun with every chunk kept: {sec['batch_resume_all_kept']:.1f} s.")
+    return (head + "| | buildings / s | wall time | peak memory, driver | peak memory, "
+            "largest worker |\n|---|---|---|---|---|\n" + "\n".join(rows) + tail)
+
+
+def enhance_table() -> str:
+    """``enhance`` on textured mass models: windows found against the textures' (benchmarks/
+    enhance.py)."""
+    path = ROOT / "benchmarks" / "results" / "enhance.json"
+    if not path.exists():
+        return "_no result yet: run `benchmarks/enhance.py`_"
+    r = json.loads(path.read_text())
+    m = r["machine"]
+    names = {"four_walls_40px_per_m": "box, four synthetic facade photos, 40 px/m",
+             "one_wall_8px_per_m": "box, one wall at 8 px/m (aerial-like)",
+             "gable_wall_40px_per_m": "gable house (the street wall a pentagon)",
+             "cmp_val_photos_street": "street of six CMP val photos, 50 px/m (dev photos)"}
+    head = (f"Measured {r['date'][:10]} at commit `{r['commit']}` on {m['cores']} cores "
+            f"({m['cpu']}), whole CLI processes.\n\n")
+    rows = []
+    for key, c in r["cases"].items():
+        rows.append(f"| {names.get(key, key)} | {c['total_found']} / {c['total_truth']} | "
+                    f"{100 * c['relative_error']:+.0f} % | {c['wall_seconds']:.1f} s |")
+        b = c.get("through_batch")
+        if b:
+            same = "same windows" if b.get("same_windows_as_one_process") else "OTHER windows"
+            rows.append(f"| the same through `enhance --batch` ({same}) | {b['total_found']} / "
+                        f"{b['total_truth']} | {100 * b['relative_error']:+.0f} % | "
+                        f"{b['wall_seconds']:.1f} s |")
+    return (head + "| mass model | windows found / in the textures | error | wall time |\n"
+            "|---|---|---|---|\n" + "\n".join(rows))
+
+
 def replace(path: Path, marker: str, text: str) -> None:
     src = path.read_text()
     block = f"<!-- bench:{marker} -->\n{text}\n<!-- /bench:{marker} -->"
@@ -232,6 +286,8 @@ def main() -> None:
     repair = repair_table()
     prt = vs_prt_table()
     editor = editor_table()
+    city = city_table()
+    enhance = enhance_table()
     for p in (ROOT / "README.md", ROOT / "docs" / "benchmarks.md",
               ROOT / "benchmarks" / "README.md"):
         replace(p, "engine", table)
@@ -242,6 +298,8 @@ def main() -> None:
         replace(p, "repair", repair)
         replace(p, "vs_prt", prt)
         replace(p, "editor", editor)
+        replace(p, "city", city)
+        replace(p, "enhance", enhance)
     print(table)
     print(methods)
 
