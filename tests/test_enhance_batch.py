@@ -113,8 +113,14 @@ def test_walls_are_replaced_in_the_chunks(done):
 def test_textures_of_different_chunks_never_overwrite_each_other(done):
     """Every facade's texture is ``texture.jpg`` where it is made: the chunks' CityJSON files
     share one ``textures/`` folder, so they are named by their bytes too."""
+    import hashlib
+
     names = [p.name for p in (done / "chunks" / "textures").iterdir()]
     assert len([n for n in names if n.startswith("texture_")]) >= 2
+    for path in (done / "chunks" / "textures").iterdir():
+        # each file holds the bytes its name says: none was overwritten by another chunk's
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+        assert path.stem.rsplit("_", 1)[1] == digest, path.name
     for path in (done / "chunks").glob("*.city.jsonl"):
         for line in path.read_text().splitlines()[1:]:
             for tex in json.loads(line).get("appearance", {}).get("textures", []):
@@ -132,12 +138,22 @@ def test_rerun_keeps_finished_chunks_and_redoes_a_lost_one(models, done, schedul
     assert "(0 enhanced, 4 kept from an earlier run)" in capsys.readouterr().out
     # a chunk whose worker died before its manifest entry: its files may be there, half new
     (out / "manifest" / "00001.json").unlink()
+    stale = out / "facades" / "00001" / "facade_99"
+    stale.mkdir()
     before = json.loads((done / "report.json").read_text())["summary"]["windows"]
     assert run(models, out, scheduler) == 0
     assert "(1 enhanced, 3 kept from an earlier run)" in capsys.readouterr().out
     seen = buildings_in_chunks(out)
     assert len(seen) == 7 and set(seen.values()) == {1}
     assert json.loads((out / "report.json").read_text())["summary"]["windows"] == before
+    assert not stale.exists()        # the chunk's folder was replaced, not added to
+    # a chunk whose facade folders were deleted is not done
+    import shutil as _sh
+
+    _sh.rmtree(out / "facades" / "00002")
+    assert run(models, out, scheduler) == 0
+    assert "(1 enhanced, 3 kept from an earlier run)" in capsys.readouterr().out
+    assert (out / "facades" / "00002").is_dir()
 
 
 def test_other_options_or_command_on_the_outdir_are_refused(models, done, scheduler, capsys,
@@ -204,3 +220,19 @@ def test_sigkill_midway_then_rerun_gives_every_building_once(tmp_path):
     assert sorted(f["building"] for f in report["facades"]) == sorted(seen)
     assert tileset_problems(out / "tiles" / "tileset.json") == []
     assert np.all([(out / f["folder"] / "rules.cga").is_file() for f in report["facades"]])
+
+
+def test_a_worker_whose_model_file_differs_fails_the_whole_chunk(models, tmp_path):
+    """The chunk raises (no manifest entry: a rerun retries it) rather than recording each
+    building as failed from a file that is not the one planned with."""
+    from facadeforge.city.batch import Chunk
+    from facadeforge.city.enhance_batch import BuildingRef, enhance_chunk
+    from facadeforge.errors import InputError
+
+    spec = {"models": [str(models[1])], "model_hashes": ["0" * 64], "up": "y",
+            "px_per_m": 12.0, "seed": 0, "rules_hash": None, "options_hash": "x",
+            "version": "0", "outdir": str(tmp_path)}
+    chunk = Chunk(0, [BuildingRef(0, 0, "b0", (0.0, 0.0))], "h")
+    with pytest.raises(InputError, match="not the file the run was planned with"):
+        enhance_chunk(spec, chunk)
+    assert not (tmp_path / "manifest").exists()

@@ -523,11 +523,16 @@ def cmd_batch(args) -> int:
     print(f"{r.buildings} building(s) in {r.chunks} chunk(s) ({r.derived} derived, {r.skipped} "
           f"kept from an earlier run), {len(r.failed)} failed → {args.output}/ "
           f"({r.seconds:.1f} s)")
+    _chunk_problems(r)
+    return 0
+
+
+def _chunk_problems(r) -> None:
+    """The first failed buildings and notes of a batch run, on stderr."""
     for chunk, name, message in r.failed[:10]:
         print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
     for chunk, message in r.notes[:10]:
         print(f"note: chunk {chunk}: {message}", file=sys.stderr)
-    return 0
 
 
 def _announce(url: str) -> None:
@@ -873,8 +878,7 @@ def _enhance_batch(args) -> int:
           f"reconstructed ({s['windows']} {_plural('window', s['windows'])}), {s['skipped']} "
           f"{_plural('wall', s['skipped'])} skipped, {len(r.failed)} failed → {args.output}/ "
           f"({r.seconds:.1f} s)")
-    for chunk, name, message in r.failed[:10]:
-        print(f"failed: chunk {chunk}: {name}: {message}", file=sys.stderr)
+    _chunk_problems(r)
     return 0
 
 

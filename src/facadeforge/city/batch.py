@@ -73,6 +73,9 @@ __all__ = ["BATCH_FILE", "STATS_COLUMNS", "BatchResult", "Chunk", "batch", "deri
 
 #: The run description in OUTDIR.
 BATCH_FILE = "batch.json"
+#: Version of the OUTDIR's layout, in ``batch.json``: an OUTDIR of another layout is not
+#: resumed (2: textures named by their bytes, chunk halos, ``enhance --batch``).
+LAYOUT = 2
 _LOCK = ".batch.lock"
 _WORK = ".work"
 _SCRATCH = "chunk-"
@@ -157,8 +160,8 @@ def _footprint_box(fp) -> np.ndarray:
 #: Footprints of other chunks within this many metres (between footprint bounds) of a chunk's
 #: are its halo when the rules query their neighbours (``inter`` occlusion): their occluders
 #: are derived with the chunk's, so that a building at a chunk's edge sees its neighbour across
-#: it as ``derive`` would.  A building whose model reaches further from its footprint is
-#: reported (a note in its chunk's manifest entry and on stderr).
+#: it as ``derive`` would.  A building whose model reaches more than half of it past its
+#: footprint is reported (a note in its chunk's manifest entry and on stderr).
 HALO_M = 10.0
 
 
@@ -386,11 +389,13 @@ def derive_chunk(spec: dict, chunk: Chunk) -> dict:
         models.append(m)
         rows.append(_row(name, fp.name, m))
         reach = _reach(fp, m) if neighbours else 0.0
-        if reach > HALO_M:
+        if reach > HALO_M / 2:
+            # two buildings whose models each reach r past their footprints meet across a gap
+            # of 2 r: past half the halo, a pair may be missed (one of them is named)
             notes.append(f"building {fp.name}: its model reaches {reach:.1f} m beyond its "
-                         f"footprint, more than the {HALO_M:g} m halo of the chunks: the "
-                         "inter occlusion queries of buildings of other chunks that far away "
-                         "may not see it")
+                         f"footprint, more than half the {HALO_M:g} m halo of the chunks: "
+                         "the inter occlusion queries of buildings of other chunks may not "
+                         "see it, nor it theirs")
     seconds = time.perf_counter() - t0
 
     bbox = chunk_bounds(models)
@@ -567,7 +572,7 @@ def _prepare_outdir(out: Path, config: dict, inputs: list[tuple[str, Path]]):
             raise InputError(f"output folder {out} holds files and no {BATCH_FILE} of a "
                              f"facadeforge batch ({', '.join(foreign[:3])}…); give a new or "
                              "empty folder")
-    for sub in ("manifest", "chunks", "tiles", _WORK):
+    for sub in ("manifest", "chunks", "tiles", "facades", _WORK):
         p = out / sub
         if p.is_symlink() or (p.exists() and not p.is_dir()):
             raise InputError(f"{p} is not a folder facadeforge made (a link or a file); "
@@ -605,6 +610,9 @@ def _changed(old: dict, new: dict) -> str | None:
     """What differs between an OUTDIR's ``batch.json`` and this run, in the user's words."""
     if old.get("written_by") != new["written_by"]:
         return f"another command ({old.get('written_by')}; this is {new['written_by']})"
+    if old.get("layout", 1) != new["layout"]:
+        return (f"an older facadeforge whose folders have layout {old.get('layout', 1)} (this "
+                f"one writes layout {new['layout']})")
     if old.get("rules_hash") != new["rules_hash"]:
         return (f"other rules (was {old.get('rules')}, sha256 {str(old.get('rules_hash'))[:12]}"
                 f"…; now {new['rules']}, {new['rules_hash'][:12]}…)")
@@ -639,6 +647,9 @@ def _done(out: Path, chunk: Chunk, spec: dict) -> dict | None:
     files = entry.get("files") or {}
     for rel in files.values():
         if rel is not None and not (out / rel).is_file():
+            return None
+    for rel in entry.get("folders") or []:
+        if not (out / rel).is_dir():
             return None
     return entry
 
@@ -726,10 +737,7 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
     rules_path = Path(rules)
     if not footprints:
         raise InputError("give footprints: --footprint FILE (one or more files)")
-    if scheduler and workers is not None:
-        raise InputError(f"--workers sizes the local cluster; with --scheduler {scheduler} the "
-                         "cluster's own workers derive (start more with `dask worker "
-                         f"{scheduler}`): leave --workers out")
+    check_cluster(scheduler, workers, chunk, "derive")
     # loaded here once too: bad rules or attributes fail at once, with the CLI's message
     loaded = load_rules(rules_path, rule=rule, assets=assets, start=start, style=style)
     known = set(loaded.ruleset.main.attrs)
@@ -750,7 +758,7 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
     options_hash = hashlib.sha256(json.dumps(options, sort_keys=True, default=str).encode()
                                   ).hexdigest()
     input_hash = hashlib.sha256("".join(c.input_hash for c in chunks).encode()).hexdigest()
-    config = {"written_by": "facadeforge batch", "version": __version__,
+    config = {"written_by": "facadeforge batch", "layout": LAYOUT, "version": __version__,
               "rules": str(rules_path), "rules_hash": read_hash,
               "footprints": [str(p) for p in paths], "input_hash": input_hash,
               "options": options, "chunks": len(chunks),
@@ -758,16 +766,41 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
     inputs = [("rules", rules_path), *(("--footprint", p) for p in paths)]
     if assets:
         inputs.append(("--assets", Path(assets)))
+    spec = {"rules": str(rules_path.resolve()), "rules_hash": config["rules_hash"],
+            "rule": rule, "assets": str(Path(assets).resolve()) if assets else None,
+            "start": start, "style": style, "attrs": dict(attrs or {}), "seed": int(seed),
+            "strict": bool(strict), "limits": limits, "options_hash": options_hash,
+            "version": __version__, "outdir": str(out.resolve())}
+    result, _ = run_chunks(out, config, inputs, spec, chunks, scheduler, workers, progress)
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def check_cluster(scheduler: str | None, workers: int | None, chunk: int, what: str) -> None:
+    """Refuse cluster options that cannot work, before any input is read."""
+    if scheduler and workers is not None:
+        raise InputError(f"--workers sizes the local cluster; with --scheduler {scheduler} the "
+                         f"cluster's own workers {what} (start more with `dask worker "
+                         f"{scheduler}`): leave --workers out")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers}: give at least 1")
+    if chunk < 1:
+        raise InputError(f"--chunk {chunk}: give a positive number of buildings a chunk")
+
+
+def run_chunks(out: Path, config: dict, inputs, spec: dict, chunks: list[Chunk], scheduler,
+               workers, progress, task=None, label: str = "batch"
+               ) -> tuple[BatchResult, list[dict]]:
+    """The driver both ``batch`` and ``enhance --batch`` run: lock and check the OUTDIR
+    (``config`` against its ``batch.json``), keep the chunks whose manifest entries match,
+    run ``task`` (:func:`derive_chunk` by default) for the others on the cluster, then merge
+    ``buildings.csv`` and the tileset.  Returns the result and the chunks' manifest entries in
+    chunk order."""
     lock = _prepare_outdir(out, config, inputs)
     try:
         from ..scratch import remove_stale
 
         remove_stale(out / _WORK, _SCRATCH)      # chunks of a killed run's dead workers
-        spec = {"rules": str(rules_path.resolve()), "rules_hash": config["rules_hash"],
-                "rule": rule, "assets": str(Path(assets).resolve()) if assets else None,
-                "start": start, "style": style, "attrs": dict(attrs or {}), "seed": int(seed),
-                "strict": bool(strict), "limits": limits, "options_hash": options_hash,
-                "version": __version__, "outdir": str(out.resolve())}
         entries: dict[int, dict] = {}
         todo = []
         for c in chunks:
@@ -779,7 +812,8 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
         skipped = len(entries)
         errors = []
         if todo:
-            errors = _run(spec, todo, entries, scheduler, workers, progress, len(chunks))
+            errors = _run(spec, todo, entries, scheduler, workers, progress, len(chunks),
+                          task or derive_chunk, label)
         result = BatchResult(out, len(chunks), skipped, len(todo) - len(errors),
                              sum(e["buildings"] for e in entries.values()))
         result.failed = [(e["name"], f["building"], f["error"])
@@ -791,9 +825,9 @@ def batch(rules, footprints: Sequence[str | os.PathLike], outdir: str | os.PathL
                                              else "")
             raise InputError(f"{len(errors)} of {len(chunks)} chunks failed ({shown}); the "
                              "others are kept: run the same command again to retry them")
-        result.files = _merge(out, [entries[c.id] for c in chunks])
-        result.seconds = time.perf_counter() - t0
-        return result
+        ordered = [entries[c.id] for c in chunks]
+        result.files = _merge(out, ordered)
+        return result, ordered
     finally:
         lock.close()
 

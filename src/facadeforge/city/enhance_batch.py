@@ -32,8 +32,9 @@ batch goes on.
 
 The driver reads each model file once to plan the chunks (the buildings' names and centres)
 and lets the geometry go before the workers start; it holds only the chunks' small summaries
-afterwards.  The model files are hashed by their bytes, an OBJ's textures by name, size and
-modification time.
+afterwards.  The model files are hashed by their bytes (an OBJ with its material libraries'
+bytes and its textures' names, sizes and modification times); a worker whose copy of a file
+hashes otherwise fails its chunk, which a rerun retries.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ import json
 import os
 import shutil
 import tempfile
+import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -53,19 +55,16 @@ import numpy as np
 
 from ..errors import InputError
 from .batch import (
-    _SCRATCH,
-    _WORK,
+    LAYOUT,
     BatchResult,
     Chunk,
-    _done,
     _file_hash,
-    _merge,
     _message,
-    _prepare_outdir,
     _row,
-    _run,
+    check_cluster,
     chunk_bounds,
     plan_chunks,
+    run_chunks,
     write_chunk,
 )
 from .enhance import (
@@ -101,10 +100,18 @@ def _ref_hash(h, ref: BuildingRef) -> None:
 
 
 def _model_hash(path: Path, models) -> str:
-    """sha256 of the model file's bytes and of its textures' names, sizes and times (an OBJ's
-    textures are files beside it; a GLB's are in its bytes)."""
+    """sha256 of the model file's bytes; for an OBJ also its material libraries' bytes
+    (``mtllib``) and its textures' names, sizes and times (a GLB's are in its bytes)."""
+    import re
+
     h = hashlib.sha256(_file_hash(path).encode())
     if path.suffix.lower() == ".obj":
+        with open(path, "rb") as fh:
+            libs = re.findall(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", fh.read(), re.M)
+        for lib in libs:
+            f = path.parent / os.fsdecode(lib)
+            digest = _file_hash(f) if f.is_file() else "missing"
+            h.update(f"mtllib {os.fsdecode(lib)}\0{digest}\0".encode("utf-8", "replace"))
         for tex in sorted({str(p.material.texture) for m in models for p in m.parts
                            if p.material.texture}):
             try:
@@ -145,17 +152,23 @@ def _plan(paths: list[Path], up: str, size: int) -> tuple[list[Chunk], list[str]
 # -- the task (runs on a worker) --------------------------------------------------------------
 
 _MODELS: dict = {}
-#: A worker's scratch folder (a GLB's textures) in the system's temporary folder; a worker that
-#: is stopped leaves it until the driver's end or the next run (:mod:`facadeforge.scratch`).
+_MODELS_LOCK = threading.Lock()
+#: A worker's scratch folders (a GLB's textures) in the system's temporary folder, removed when
+#: the worker process exits; a worker that is killed leaves them until the driver's end or the
+#: next run (:mod:`facadeforge.scratch`).
 _WORKER_SCRATCH = "facadeforge-enhance-worker-"
 
 
 def _worker_models(spec: dict, file: int):
     """The buildings of model file ``file``, read once per worker process (the last file read
-    is kept; a GLB's textures live in a scratch folder of this process, removed with it, or by
-    the next run after a SIGKILL)."""
+    is kept in memory; its GLB textures stay on disk until the process ends, so a thread still
+    enhancing an older file's buildings keeps its textures).  Raises :class:`InputError` when
+    the file this worker reads is not the one the driver planned with (another copy, changed
+    since): the chunk fails as a whole and a rerun plans again."""
     key = (spec["models"][file], spec["model_hashes"][file], spec["up"])
-    if key not in _MODELS:
+    with _MODELS_LOCK:
+        if key in _MODELS:
+            return _MODELS[key]
         import cv2
         import threadpoolctl
 
@@ -164,18 +177,17 @@ def _worker_models(spec: dict, file: int):
         # one thread for BLAS and OpenCV: the workers already use the cores
         threadpoolctl.threadpool_limits(1)
         cv2.setNumThreads(1)
-        for _, old in _MODELS.values():
-            shutil.rmtree(old, ignore_errors=True)
-        _MODELS.clear()
+        path = Path(key[0])
         work = scratch_dir(_WORKER_SCRATCH)
         atexit.register(shutil.rmtree, work, True)
-        try:
-            models = load_mass_model(Path(key[0]), spec["up"], work / "textures")
-        except BaseException:
-            shutil.rmtree(work, ignore_errors=True)
-            raise
-        _MODELS[key] = (models, work)
-    return _MODELS[key][0]
+        models = load_mass_model(path, spec["up"], work / "textures")
+        if _model_hash(path, models) != key[1]:
+            raise InputError(f"MODEL {path} on worker {os.uname().nodename} is not the file "
+                             "the run was planned with (another copy, or changed since): give "
+                             "every worker the same file, then run the same command again")
+        _MODELS.clear()
+        _MODELS[key] = models
+        return models
 
 
 def _stats_row(chunk: str, name: str, model, seconds: float) -> dict:
@@ -192,10 +204,13 @@ def enhance_chunk(spec: dict, chunk: Chunk) -> dict:
     name = chunk.name
     textures: dict = {}
     models, rows, failed, facades, skipped = [], [], [], [], []
+    # read outside the buildings' try: a file the worker cannot read fails the whole chunk
+    # (no manifest entry: a rerun retries it), not each building
+    files = {ref.file: _worker_models(spec, ref.file) for ref in chunk.footprints}
     for ref in chunk.footprints:
         t = time.perf_counter()
         try:
-            building = _worker_models(spec, ref.file)[ref.index]
+            building = files[ref.file][ref.index]
             b = enhance_building(building, ref.name, spec["px_per_m"], spec["seed"], textures,
                                  first=len(facades))
         except Exception as exc:  # noqa: BLE001 - one building's failure is recorded, not fatal
@@ -224,17 +239,19 @@ def enhance_chunk(spec: dict, chunk: Chunk) -> dict:
              "bbox": chunk_bounds(models), "origin_offset": None, "crs": None,
              "unit": None, "seconds": round(seconds, 3), "write_seconds": None,
              "worker": f"{os.uname().nodename}:{os.getpid()}",
-             "files": {"report": f"chunks/{name}.report.json"}}
+             "files": {"report": f"chunks/{name}.report.json"},
+             "folders": [f"facades/{name}"]}
 
     def extra(work: Path) -> list[tuple[Path, str]]:
         (work / "report.json").write_text(json.dumps(report, indent=1) + "\n",
                                           encoding="utf-8")
-        finals = [(work / "report.json", f"chunks/{name}.report.json")]
-        if facades:
-            for f in facades:
-                write_facade(work / "facades" / f.folder, f)
-            finals.append((work / "facades", f"facades/{name}"))
-        return finals
+        # the chunk's facades folder, even empty: it replaces whatever a worker that died
+        # before its manifest entry left there
+        (work / "facades").mkdir()
+        for f in facades:
+            write_facade(work / "facades" / f.folder, f)
+        return [(work / "report.json", f"chunks/{name}.report.json"),
+                (work / "facades", f"facades/{name}")]
 
     return write_chunk(out, entry, models, rows, extra)
 
@@ -283,9 +300,7 @@ def enhance_batch(models: Sequence[str | os.PathLike], outdir: str | os.PathLike
     paths = [Path(m) for m in models]
     for p in paths:
         _check_path(p)
-    if scheduler and workers is not None:
-        raise InputError(f"--workers sizes the local cluster; with --scheduler {scheduler} the "
-                         "cluster's own workers enhance: leave --workers out")
+    check_cluster(scheduler, workers, chunk, "enhance")
     chunks, hashes, textured = _plan(paths, up, chunk)
     if not textured:
         raise InputError(f"MODEL {', '.join(map(str, paths))}: no textured faces (no material "
@@ -295,48 +310,21 @@ def enhance_batch(models: Sequence[str | os.PathLike], outdir: str | os.PathLike
     options_hash = hashlib.sha256(json.dumps(options, sort_keys=True).encode()).hexdigest()
     input_hash = hashlib.sha256("".join(hashes + [c.input_hash for c in chunks]).encode()
                                 ).hexdigest()
-    config = {"written_by": "facadeforge enhance", "version": __version__,
+    config = {"written_by": "facadeforge enhance", "layout": LAYOUT, "version": __version__,
               "rules": None, "rules_hash": None, "models": [str(p) for p in paths],
               "input_hash": input_hash, "options": options, "chunks": len(chunks),
               "buildings": sum(len(c.footprints) for c in chunks)}
-    lock = _prepare_outdir(out, config, [("MODEL", p) for p in paths])
+    spec = {"models": [str(p.resolve()) for p in paths], "model_hashes": hashes,
+            "up": up, "px_per_m": ppm, "seed": int(seed), "rules_hash": None,
+            "options_hash": options_hash, "version": __version__,
+            "outdir": str(out.resolve())}
     try:
-        from ..scratch import remove_stale
-
-        remove_stale(out / _WORK, _SCRATCH)
-        spec = {"models": [str(p.resolve()) for p in paths], "model_hashes": hashes,
-                "up": up, "px_per_m": ppm, "seed": int(seed), "rules_hash": None,
-                "options_hash": options_hash, "version": __version__,
-                "outdir": str(out.resolve())}
-        entries: dict[int, dict] = {}
-        todo = []
-        for c in chunks:
-            e = _done(out, c, spec)
-            if e is not None:
-                entries[c.id] = e
-            else:
-                todo.append(c)
-        skipped = len(entries)
-        errors = []
-        if todo:
-            errors = _run(spec, todo, entries, scheduler, workers, progress,
-                                 len(chunks), task=enhance_chunk, label="enhance")
-        result = BatchResult(out, len(chunks), skipped, len(todo) - len(errors),
-                             sum(e["buildings"] for e in entries.values()))
-        result.failed = [(e["name"], f["building"], f["error"])
-                         for _, e in sorted(entries.items()) for f in e["failed"]]
-        if errors:
-            shown = "; ".join(errors[:2]) + (f" and {len(errors) - 2} more" if len(errors) > 2
-                                             else "")
-            raise InputError(f"{len(errors)} of {len(chunks)} chunks failed ({shown}); the "
-                             "others are kept: run the same command again to retry them")
-        ordered = [entries[c.id] for c in chunks]
-        result.files = _merge(out, ordered)
-        result.files.append(_merge_report(out, ordered, config, t0))
+        result, entries = run_chunks(out, config, [("MODEL", p) for p in paths], spec, chunks,
+                                     scheduler, workers, progress, enhance_chunk, "enhance")
+        result.files.append(_merge_report(out, entries, config, t0))
         result.seconds = time.perf_counter() - t0
         return result
     finally:
-        lock.close()
         from ..scratch import remove_stale
 
         remove_stale(tempfile.gettempdir(), _WORKER_SCRATCH)   # the local cluster's, now gone

@@ -165,7 +165,8 @@ def export_cityjsonseq(models: Model | Sequence[Model], path: str | os.PathLike,
                        semantic_map: dict[str, str | None] | None = None,
                        reference_system: str | int | None = None, lod: str = "3",
                        scale: float = 0.001, origin: Sequence[float] | None = None,
-                       metadata: dict | None = None, textures: bool = True) -> list[Path]:
+                       metadata: dict | None = None, textures: bool | str = True
+                       ) -> list[Path]:
     """Write models as CityJSON Text Sequences (``.city.jsonl``, CityJSONSeq 2.0): one line with
     the transform and metadata, then one ``CityJSONFeature`` a line, each building with its own
     vertices and appearance, the form cities are streamed and tiled in.  Options as
@@ -536,7 +537,7 @@ class _CityJsonWriter:
                 n = 1
                 while relative in self.texture_files and self.texture_files[relative] != data:
                     n += 1
-                    relative = f"textures/{safe_name(Path(source).stem, 'texture')}_{n}{ext}"
+                    relative = f"textures/{stem}_{n}{ext}"
                 self.texture_files[relative] = data
             self.texture_paths[source] = relative
         if source not in self.textures:
