@@ -308,6 +308,27 @@ def test_chunks_are_compact_and_names_unique_across_files(tmp_path):
     assert plan_chunks([a, b], 4)[2].input_hash == chunks[2].input_hash   # deterministic
 
 
+def cli_env() -> dict:
+    return {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
+
+
+def kill_when_done(cmd: list[str], out: Path, chunks: int, env: dict, wait_s: float) -> int:
+    """Run ``cmd`` in its own process group, SIGKILL the whole group once ``chunks`` manifest
+    entries exist in ``out`` (or after ``wait_s``); returns the entries there then."""
+    p = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, env=env)
+    try:
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline and p.poll() is None:
+            if len(list((out / "manifest").glob("*.json"))) >= chunks:
+                break
+            time.sleep(0.02)
+        os.killpg(p.pid, signal.SIGKILL)
+    finally:
+        p.wait(timeout=30)
+    return len(list((out / "manifest").glob("*.json")))
+
+
 def test_sigkill_midway_then_rerun_gives_every_building_once(inputs, tmp_path):
     """The whole run (driver, scheduler, workers: its process group) killed with SIGKILL once
     the first chunks are done; the same command again finishes the city."""
@@ -316,19 +337,8 @@ def test_sigkill_midway_then_rerun_gives_every_building_once(inputs, tmp_path):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "facadeforge.cli", "batch", str(rules), "--footprint",
            str(fps), "-o", str(out), "--chunk", "5", "--workers", "2"]
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
-    p = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.DEVNULL, env=env)
-    try:
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and p.poll() is None:
-            if len(list((out / "manifest").glob("*.json"))) >= 2:
-                break
-            time.sleep(0.02)
-        os.killpg(p.pid, signal.SIGKILL)
-    finally:
-        p.wait(timeout=30)
-    kept = len(list((out / "manifest").glob("*.json")))
+    env = cli_env()
+    kept = kill_when_done(cmd, out, 2, env, 60)
     assert 2 <= kept < 40, "the run was not killed midway"
     assert not (out / "tiles" / "tileset.json").exists()
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)

@@ -6,16 +6,13 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.test_batch import buildings_in_chunks, cityjson_validator
+from tests.test_batch import buildings_in_chunks, cityjson_validator, cli_env, kill_when_done
 
 from facadeforge.city import tileset_problems
 from facadeforge.cli import main
@@ -196,19 +193,8 @@ def test_sigkill_midway_then_rerun_gives_every_building_once(tmp_path):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "facadeforge.cli", "enhance", "--batch", str(path), "-o",
            str(out), "--px-per-m", PPM, "--chunk", "1", "--workers", "2"]
-    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1] / "src")}
-    p = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.DEVNULL, env=env)
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and p.poll() is None:
-            if len(list((out / "manifest").glob("*.json"))) >= 1:
-                break
-            time.sleep(0.02)
-        os.killpg(p.pid, signal.SIGKILL)
-    finally:
-        p.wait(timeout=30)
-    kept = len(list((out / "manifest").glob("*.json")))
+    env = cli_env()
+    kept = kill_when_done(cmd, out, 1, env, 120)
     assert 1 <= kept < 6, "the run was not killed midway"
     assert not (out / "report.json").exists()
     r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
