@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from tests.cjval import cjval_problems, needs_cjval
 
 from facadeforge.city.enhance import enhance
 from facadeforge.cli import main
@@ -65,6 +66,12 @@ def test_outdir_files(full):
     models = load(out / "model.glb", texture_dir=out.parent / "reread")
     labels = {p.label for m in models for p in m.parts}
     assert {"window", "roof"} <= labels
+
+
+@needs_cjval
+def test_model_cityjson_passes_cjval(full):
+    _, out, _ = full
+    assert cjval_problems(out / "model.city.json") == []
 
 
 def test_roof_kept_and_walls_replaced(full):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tests.cjval import cjval_problems, cjval_reports, needs_cjval
 
 from facadeforge import engine
 from facadeforge.exchange import ExportError, export, load
@@ -105,6 +106,17 @@ def test_cityjson_feature_content_is_valid_cityjson(tmp_path: Path, house_factor
             doc["appearance"] = f["appearance"]
         errors = [e.message for e in validator.iter_errors(doc)]
         assert not errors, errors
+
+
+@needs_cjval
+@pytest.mark.parametrize("name", ["out.city.json", "out.city.jsonl"])
+def test_cityjson_and_cityjsonseq_pass_cjval(tmp_path: Path, house_factory, texture_png, name):
+    """Textured and untextured buildings, with semantics and materials, as the official
+    validator reads them: no error and no warning (duplicate or unused vertices)."""
+    export(_models(house_factory, texture_png), tmp_path / name)
+    reports = cjval_reports(tmp_path / name)
+    assert len(reports) == (4 if name.endswith("jsonl") else 1)
+    assert cjval_problems(tmp_path / name) == []
 
 
 def test_shape_ids_do_not_depend_on_which_worker_derived_a_building():

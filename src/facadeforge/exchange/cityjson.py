@@ -331,13 +331,15 @@ class _CityJsonWriter:
 
     def write(self, fh, models, metadata: dict, spill_dir=None) -> None:
         """The document, building by building, so that a city never sits in memory whole:
-        the CityObjects first, each with its own vertices (coincident ones once), which wait
-        in a temporary file; then the vertices, the transform, the metadata and the
+        the CityObjects first, each with the vertices no earlier building has (a vertex is
+        written once, even on a party wall: cjval warns of duplicates), which wait in a
+        temporary file; then the vertices, the transform, the metadata and the
         appearance.  The translation is the first building's lowest corner."""
         translate = None
         lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
         taken: set[str] = set()
         count = 0
+        shared = _VertexIndex()
         with tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as vertices, \
                 tempfile.TemporaryFile("w+", encoding="utf-8", dir=spill_dir) as uvs:
             fh.write('{"type":"CityJSON","version":"2.0","CityObjects":{')
@@ -349,10 +351,13 @@ class _CityJsonWriter:
                         translate = f.lo
                     lo, hi = np.minimum(lo, f.lo), np.maximum(hi, f.hi)
                     uniq, vids = self._quantized(f, translate)
-                    vids = vids + count
-                    text = _json_rows(uniq).text[1:-1]
-                    vertices.write(("," if count else "") + text)
-                    count += len(uniq)
+                    ids = shared.ids(uniq, count)   # a vertex of an earlier building: its id
+                    fresh = ids >= count
+                    vids = ids[vids]
+                    if fresh.any():
+                        text = _json_rows(uniq[fresh]).text[1:-1]
+                        vertices.write(("," if count else "") + text)
+                        count += int(fresh.sum())
                 name = _unique_id(model.name, taken)
                 taken.add(name)
                 fh.write(("," if len(taken) > 1 else "") + json.dumps(name) + ":"
@@ -635,6 +640,45 @@ def _dumps(obj) -> str:
     if len(pieces) != len(raws) + 1:  # pragma: no cover - the mark is random
         raise ExportError("internal: raw JSON marker found in the data")
     return "".join(p + r for p, r in zip(pieces, [*raws, ""]))
+
+
+class _VertexIndex:
+    """The integer vertices written so far and their ids, so that buildings sharing a corner
+    share the vertex.  Sorted runs of 24-byte keys (the three int64, compared bytewise) merged
+    as a binary counter does (a log-structured merge): a lookup is a binary search per run,
+    and the index costs 32 bytes a vertex, not a Python dict's hundred or more."""
+
+    def __init__(self) -> None:
+        self.runs: list[tuple[np.ndarray, np.ndarray]] = []
+
+    @staticmethod
+    def _keys(ints: np.ndarray) -> np.ndarray:
+        return np.ascontiguousarray(ints, dtype=">i8").view("S24").reshape(-1)
+
+    def ids(self, uniq: np.ndarray, next_id: int) -> np.ndarray:
+        """Each of the distinct rows ``uniq``'s id: an earlier one's, else a new one counted
+        from ``next_id`` in row order (and remembered)."""
+        keys = self._keys(uniq)
+        ids = np.full(len(keys), -1, np.int64)
+        for run_keys, run_ids in self.runs:
+            at = np.searchsorted(run_keys, keys).clip(max=len(run_keys) - 1)
+            hit = (run_keys[at] == keys) & (ids < 0)
+            ids[hit] = run_ids[at[hit]]
+        fresh = ids < 0
+        ids[fresh] = next_id + np.arange(int(fresh.sum()))
+        if fresh.any():
+            self._add(keys[fresh], ids[fresh])
+        return ids
+
+    def _add(self, keys: np.ndarray, ids: np.ndarray) -> None:
+        order = np.argsort(keys, kind="stable")
+        run = (keys[order], ids[order])
+        while self.runs and len(self.runs[-1][0]) <= len(run[0]):
+            k, i = self.runs.pop()
+            k, i = np.concatenate([k, run[0]]), np.concatenate([i, run[1]])
+            order = np.argsort(k, kind="stable")
+            run = (k[order], i[order])
+        self.runs.append(run)
 
 
 def unique_rows(ints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
