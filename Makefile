@@ -96,7 +96,7 @@ bench: env
 
 # cjval, the official CityJSON validator (crates.io, pinned, its Cargo.lock kept: --locked) for
 # the tests that validate our CityJSON and CityJSONSeq files (tests/cjval.py), into .tools/cjval.
-# A debug build: it compiles in about 1.5 minutes on two cores instead of 10, and checks our small
+# A debug build: it compiles in about a minute on two cores instead of 10, and checks our small
 # test files as well.  Without cargo (https://rustup.rs) `make test` goes on and those tests skip.
 CJVAL_VERSION := 0.10.0
 CARGO ?= $(shell command -v cargo || echo $(HOME)/.cargo/bin/cargo)

@@ -21,7 +21,7 @@ def cjval_exe() -> str | None:
 needs_cjval = pytest.mark.skipif(
     cjval_exe() is None,
     reason="cjval (the official CityJSON validator) is not installed: `make cjval` builds it "
-           "into .tools/cjval with cargo (https://rustup.rs), about 2 minutes")
+           "into .tools/cjval with cargo (https://rustup.rs), about a minute")
 
 
 def cjval_reports(path: Path) -> list[dict]:

@@ -52,6 +52,29 @@ def test_cityjson_written_building_by_building(tmp_path: Path, house_factory, te
     assert sum(p.mesh.area() for m in back for p in m.parts) == pytest.approx(area, rel=1e-4)
 
 
+def test_a_vertex_two_buildings_share_is_written_once(tmp_path: Path):
+    """Party-wall corners (and coincident copies) are one vertex of a ``.city.json``, however
+    many buildings use them, and every building keeps its own geometry."""
+    fps = [Footprint(f"b{k}", np.array([[0, 0, 0], [6, 0, 0], [6, 0, -4], [0, 0, -4]], float)
+                     + [6.0 * k, 0, 0]) for k in range(5)]            # a row of terraced houses
+    models = engine.derive("Lot --> extrude(6) comp(f){ side : split(y){ 3 : F }* | all : X. }"
+                           "\nF --> Y.", fps, workers=1)
+    models = models + models[:2]                                      # and two coincident copies
+    export(models, tmp_path / "row.city.json")
+    doc = json.loads((tmp_path / "row.city.json").read_text())
+    verts = np.asarray(doc["vertices"])
+    assert len(np.unique(verts, axis=0)) == len(verts)
+    used = {v for o in doc["CityObjects"].values() for g in o["geometry"]
+            for v in json.dumps(g["boundaries"]).replace("[", " ").replace("]", " ")
+            .replace(",", " ").split()}
+    assert used == {str(i) for i in range(len(verts))}               # none unused
+    back = load(tmp_path / "row.city.json")
+    area = sum(p.mesh.area() for m in models for p in m.parts)
+    assert sum(p.mesh.area() for m in back for p in m.parts) == pytest.approx(area, rel=1e-4)
+    assert len(verts) < sum(len(np.unique(np.rint(np.concatenate(
+        [p.mesh.vertices for p in m.parts]) * 1000), axis=0)) for m in models)
+
+
 @pytest.mark.parametrize("suffix", ["glb", "obj", "city.json"])
 def test_an_empty_generator_writes_nothing(tmp_path: Path, suffix):
     with pytest.raises(ExportError, match="nothing to export"):
